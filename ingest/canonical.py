@@ -1,0 +1,195 @@
+"""Turn files as read into the canonical Trial: Z up, X along progression, metres, degrees,
+hip/knee flexion, ankle dorsiflexion and pelvis anterior tilt positive.
+
+What a file's header says (units, inDegrees) is applied; what it cannot say (up axis, knee sign)
+comes from the subject file. Both are then checked against the body: a pelvis that is not
+0.4-1.6 m above the feet along the up axis, or a knee that flexes backwards, is reported as a
+wrong declaration instead of passing silently.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ingest.errors import IngestError
+from ingest.manifest import Manifest, sha256_of
+from ingest.readers import MotTable, read_c3d, read_csv, read_markers, read_mot
+from ingest.readers.trc import MarkerTable
+from ingest.subject import FileFormat, Subject, TrialSpec
+from ingest.trial import ForcePlates, Provenance, Trial
+
+# OpenSim coordinate -> (canonical name, sign). OpenSim's pelvis_tilt is a right-handed rotation
+# about the lateral axis, positive for posterior tilt: anterior tilt + needs the sign flipped.
+# knee_angle's sign differs between models and is taken from the subject file (knee_flexion_sign).
+OPENSIM_COORDINATES = {
+    "hip_flexion_l": ("hip_flexion_left", 1.0),
+    "hip_flexion_r": ("hip_flexion_right", 1.0),
+    "knee_angle_l": ("knee_flexion_left", None),
+    "knee_angle_r": ("knee_flexion_right", None),
+    "ankle_angle_l": ("ankle_dorsiflexion_left", 1.0),
+    "ankle_angle_r": ("ankle_dorsiflexion_right", 1.0),
+    "pelvis_tilt": ("pelvis_tilt", -1.0),
+    "hip_adduction_l": ("hip_adduction_left", 1.0),
+    "hip_adduction_r": ("hip_adduction_right", 1.0),
+    "hip_rotation_l": ("hip_rotation_left", 1.0),
+    "hip_rotation_r": ("hip_rotation_right", 1.0),
+    "pelvis_list": ("pelvis_list", 1.0),
+    "pelvis_rotation": ("pelvis_rotation", 1.0),
+}
+PELVIS_ABOVE_FEET_M = (0.4, 1.6)
+
+
+def up_to_z(xyz: np.ndarray, up_axis: str) -> np.ndarray:
+    """Rotate lab axes so the declared up axis becomes Z (right-handed: Y-up (x, y, z) -> (x, -z, y))."""
+    if up_axis == "z":
+        return xyz
+    out = np.empty_like(xyz)
+    out[..., 0], out[..., 1], out[..., 2] = xyz[..., 0], -xyz[..., 2], xyz[..., 1]
+    return out
+
+
+def _check_body_scale(markers: dict[str, np.ndarray], roles: dict[str, str], origin: str,
+                      fmt: FileFormat, unit: str) -> None:
+    """Pelvis must sit 0.4-1.6 m above the feet along +Z: catches lying units and up axes."""
+    pelvis = [markers[roles[r]] for r in ("asis_left", "asis_right", "psis_left", "psis_right")
+              if roles.get(r) in markers]
+    feet = [markers[roles[r]] for r in ("heel_left", "heel_right", "toe_left", "toe_right")
+            if roles.get(r) in markers]
+    if not pelvis or not feet:
+        return
+    with np.errstate(all="ignore"):
+        height = np.nanmedian(np.nanmean(pelvis, axis=0)[:, 2] - np.nanmean(feet, axis=0)[:, 2])
+    lo, hi = PELVIS_ABOVE_FEET_M
+    if not np.isfinite(height):
+        raise IngestError(origin, "pelvis or foot markers hold no samples")
+    if not lo <= height <= hi:
+        raise IngestError(
+            origin,
+            f"pelvis is {height:.4g} m above the feet along the up axis ({fmt.up_axis.upper()} "
+            f"declared, Units {unit!r}); expected {lo}-{hi} m: the file's units or the subject's "
+            "format.up_axis are wrong",
+        )
+
+
+def heading_rotation(trial_markers: dict[str, np.ndarray], roles: dict[str, str]) -> float:
+    """Heading (rad) of the first fast-moving stretch of the pelvis, to rotate it onto +X."""
+    pelvis = np.nanmean(
+        [trial_markers[roles[r]] for r in ("asis_left", "asis_right", "psis_left", "psis_right")
+         if roles.get(r) in trial_markers], axis=0)
+    xy = pelvis[:, :2]
+    ok = np.isfinite(xy).all(axis=1)
+    if ok.sum() < 2:
+        return 0.0
+    xy = xy[ok]
+    step = np.diff(xy, axis=0)
+    speed = np.linalg.norm(step, axis=1)
+    moving = speed > 0.5 * np.nanmax(speed)
+    first = np.flatnonzero(moving)
+    if len(first) == 0:
+        return 0.0
+    # the first half-second of fast motion fixes the direction of the first bout
+    idx = first[: max(2, len(first) // 4)]
+    d = step[idx].sum(axis=0)
+    return float(np.arctan2(d[1], d[0]))
+
+
+def rotate_z(xyz: np.ndarray, angle_rad: float) -> np.ndarray:
+    """Rotate points about Z by -angle so a heading of `angle_rad` maps onto +X."""
+    c, s = np.cos(-angle_rad), np.sin(-angle_rad)
+    out = xyz.copy()
+    out[..., 0] = c * xyz[..., 0] - s * xyz[..., 1]
+    out[..., 1] = s * xyz[..., 0] + c * xyz[..., 1]
+    return out
+
+
+def canonical_angles(mot: MotTable, fmt: FileFormat, time_s: np.ndarray | None) -> dict[str, np.ndarray]:
+    """Canonical joint angles (deg) from an OpenSim coordinates table, resampled to `time_s`."""
+    in_degrees = mot.in_degrees
+    if in_degrees is None:
+        if fmt.angle_unit is None:
+            raise IngestError(mot.path, "header has no inDegrees line and the subject file declares "
+                              "no format.angle_unit: cannot tell radians from degrees")
+        in_degrees = fmt.angle_unit == "deg"
+    t = mot.time_s
+    angles = {}
+    for column, (name, sign) in OPENSIM_COORDINATES.items():
+        if column not in mot.table.columns:
+            continue
+        values = mot.table[column].to_numpy(float)
+        if not in_degrees:
+            values = np.degrees(values)
+        values = values * (fmt.knee_flexion_sign if sign is None else sign)
+        if time_s is not None and (len(t) != len(time_s) or not np.allclose(t, time_s, atol=1e-6)):
+            values = np.interp(time_s, t, values, left=np.nan, right=np.nan)
+        angles[name] = values
+    for side in ("left", "right"):
+        knee = angles.get(f"knee_flexion_{side}")
+        if knee is not None and np.nanpercentile(knee, 5) < -25:
+            raise IngestError(
+                mot.path, f"knee_flexion_{side} reaches {np.nanmin(knee):.0f} deg: knees do not "
+                "hyperextend that far, so the file's knee sign is flexion-negative; set "
+                "format.knee_flexion_sign: -1 in the subject file (or fix inDegrees)")
+        hip = angles.get(f"hip_flexion_{side}")
+        if hip is not None and np.nanmax(np.abs(hip)) > 180:
+            raise IngestError(mot.path, f"hip_flexion_{side} exceeds 180 deg: the header's "
+                              "inDegrees is wrong (values look like degrees read as radians)")
+    return angles
+
+
+def plates_from_grf(mot: MotTable, fmt: FileFormat, heading_rad: float) -> ForcePlates:
+    """Per-plate vertical force and centre of pressure from an OpenSim GRF table."""
+    cols = set(mot.table.columns)
+    prefixes = sorted({c[:-3] for c in cols if c.endswith("_vx")}, key=lambda p: (len(p), p))
+    prefixes = [p for p in prefixes if {f"{p}_vy", f"{p}_vz", f"{p}_px", f"{p}_pz"} <= cols]
+    if not prefixes:
+        raise IngestError(mot.path, "no force plate columns (<name>_vx/_vy/_vz/_px/_py/_pz)")
+    force = np.stack([mot.table[[f"{p}_v{a}" for a in "xyz"]].to_numpy(float) for p in prefixes], 1)
+    cop = np.stack([mot.table[[f"{p}_p{a}" for a in "xyz"]].to_numpy(float) for p in prefixes], 1)
+    force, cop = up_to_z(force, fmt.up_axis), rotate_z(up_to_z(cop, fmt.up_axis), heading_rad)
+    if np.nanmax(force[..., 2]) < 100 and np.nanmax(-force[..., 2]) > 100:
+        force = -force  # plates that report the action on the plate instead of the reaction
+    return ForcePlates(mot.rate_hz, float(mot.time_s[0]), force[..., 2], cop)
+
+
+def _provenance(path, reader: str) -> Provenance:
+    return Provenance(str(path), sha256_of(path), reader)
+
+
+def load_trial(subject: Subject, spec: TrialSpec, manifest: Manifest, source: str = "real") -> Trial:
+    """Read a subject's trial files through the manifest into one canonical Trial."""
+    provenance = []
+    markers: dict[str, np.ndarray] = {}
+    angles: dict[str, np.ndarray] = {}
+    time = rate = None
+    heading = 0.0
+    if spec.markers:
+        path = manifest.resolve(spec.markers)
+        table: MarkerTable = read_markers(path)
+        if path.suffix.lower() == ".csv":
+            angles.update(read_csv(path).angles_deg)
+        xyz = up_to_z(table.xyz_m, subject.format.up_axis)
+        markers = {n: xyz[:, j] for j, n in enumerate(table.names)}
+        _check_body_scale(markers, subject.markerset, str(path), subject.format, table.declared_unit)
+        heading = heading_rotation(markers, subject.markerset)
+        markers = {n: rotate_z(v, heading) for n, v in markers.items()}
+        time, rate = table.time_s, table.rate_hz
+        provenance.append(_provenance(path, f"markers:{path.suffix.lower().lstrip('.')}"))
+    if spec.angles:
+        path = manifest.resolve(spec.angles)
+        mot = read_mot(path)
+        angles.update(canonical_angles(mot, subject.format, time))
+        if time is None:
+            time, rate = mot.time_s, mot.rate_hz
+        provenance.append(_provenance(path, "angles:mot"))
+    if time is None:
+        raise IngestError(f"{subject.path}", f"trial {spec.id!r} lists neither markers nor angles")
+    plates = None
+    if spec.grf:
+        path = manifest.resolve(spec.grf)
+        plates = plates_from_grf(read_mot(path), subject.format, heading)
+        provenance.append(_provenance(path, "grf:mot"))
+    return Trial(subject.id, spec.condition, source, spec.id, float(rate), np.asarray(time, float),
+                 markers, angles, plates, tuple(provenance))
+
+
+__all__ = ["load_trial", "canonical_angles", "up_to_z", "rotate_z", "read_c3d"]

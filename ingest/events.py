@@ -1,0 +1,180 @@
+"""Gait events (heel strike, toe off) per side, from force plates or from kinematics.
+
+- Force plates: a contact starts when the vertical ground reaction rises above
+  `force_threshold_n` (20 N, as in Zeni et al. 2008) and ends when it falls below it; contacts
+  shorter than `min_contact_s` are ignored, and contacts running into the start or end of the
+  recording give no event there. Each contact is assigned to the foot whose heel-toe midpoint is
+  nearest the centre of pressure. A foot that steps from one plate onto another keeps one contact.
+- Kinematics (Zeni, Richards & Higginson 2008, Gait Posture 27:710): heel strike at the peak
+  anterior position of the heel relative to the pelvis centre along the direction of progression,
+  toe off at the peak posterior position of the toe.
+- `auto`: kinematic events everywhere, replaced by the force-plate event of the same side and
+  kind when one lies within `force_window_s` (plates usually cover a few steps only).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+from scipy.signal import find_peaks
+
+from ingest.errors import IngestError
+from ingest.filtering import finite_runs
+from ingest.trial import SIDES, ForcePlates
+
+EVENT_COLUMNS = ["side", "event", "time_s", "method"]
+
+
+@dataclass(frozen=True)
+class EventParams:
+    method: str = "auto"
+    force_threshold_n: float = 20.0
+    min_contact_s: float = 0.2
+    force_window_s: float = 0.1
+    min_event_interval_s: float = 0.5
+    min_prominence_m: float = 0.1
+
+
+def _frame(rows: list[tuple[str, str, float, str]]) -> pd.DataFrame:
+    df = pd.DataFrame(rows, columns=EVENT_COLUMNS)
+    return df.sort_values(["time_s", "side"], kind="stable").reset_index(drop=True)
+
+
+def force_plate_events(plates: ForcePlates, feet_xy: dict[str, np.ndarray], time_s: np.ndarray,
+                       p: EventParams) -> pd.DataFrame:
+    """Heel strikes and toe offs from plate contacts; `feet_xy[side]` is the (n, 2) heel-toe
+    midpoint of each foot sampled on `time_s` (used to tell which foot loaded the plate)."""
+    t_plate = plates.time_s
+    n = len(t_plate)
+    contact = {side: np.zeros(n, bool) for side in SIDES}
+    min_len = int(round(p.min_contact_s * plates.rate_hz))
+    for k in range(plates.fz_n.shape[1]):
+        loaded = plates.fz_n[:, k] > p.force_threshold_n
+        for start, stop in finite_runs(loaded):
+            if stop - start < min_len:
+                continue
+            window = slice(start, min(stop, start + max(2, min_len // 2)))
+            cop = np.nanmean(plates.cop_m[window, k, :2], axis=0)
+            t_mid = t_plate[window].mean()
+            dist = {side: np.linalg.norm(_at(time_s, feet_xy[side], t_mid) - cop) for side in SIDES}
+            side = min(dist, key=dist.get)
+            if np.isfinite(dist[side]):
+                contact[side][start:stop] = True
+    rows = []
+    for side in SIDES:
+        for start, stop in finite_runs(contact[side]):
+            if start > 0:
+                rows.append((side, "heel_strike", float(t_plate[start]), "force"))
+            if stop < n:
+                rows.append((side, "toe_off", float(t_plate[stop]), "force"))
+    return _frame(rows)
+
+
+def _at(time_s: np.ndarray, xy: np.ndarray, t: float) -> np.ndarray:
+    i = int(np.clip(np.searchsorted(time_s, t), 0, len(time_s) - 1))
+    return xy[i]
+
+
+def _refined_peak(x: np.ndarray, i: int) -> float:
+    """Sub-sample peak position by a parabola through the peak and its neighbours."""
+    if 0 < i < len(x) - 1:
+        denom = x[i - 1] - 2 * x[i] + x[i + 1]
+        if denom != 0 and np.isfinite(denom):
+            return i + 0.5 * (x[i - 1] - x[i + 1]) / denom
+    return float(i)
+
+
+def kinematic_events(heel: dict[str, np.ndarray], toe: dict[str, np.ndarray], pelvis: np.ndarray,
+                     heading_rad: np.ndarray, time_s: np.ndarray, rate_hz: float,
+                     p: EventParams) -> pd.DataFrame:
+    """Zeni et al. (2008) events from heel, toe and pelvis-centre positions (canonical frame)."""
+    direction = np.column_stack([np.cos(heading_rad), np.sin(heading_rad)])
+    distance = max(1, int(p.min_event_interval_s * rate_hz))
+    rows = []
+    for side in SIDES:
+        for marker, sign, event in ((heel[side], 1.0, "heel_strike"), (toe[side], -1.0, "toe_off")):
+            rel = np.einsum("ij,ij->i", marker[:, :2] - pelvis[:, :2], direction) * sign
+            filled = np.where(np.isfinite(rel), rel, np.nanmin(rel) if np.isfinite(rel).any() else 0)
+            peaks, _ = find_peaks(filled, distance=distance, prominence=p.min_prominence_m / 2)
+            for i in peaks:
+                if np.isfinite(rel[max(0, i - 1) : i + 2]).all():
+                    rows.append((side, event, float(np.interp(_refined_peak(rel, i),
+                                                               np.arange(len(time_s)), time_s)),
+                                 "kinematic"))
+    return _frame(rows)
+
+
+def merge_events(kinematic: pd.DataFrame, force: pd.DataFrame, window_s: float) -> pd.DataFrame:
+    """Kinematic events with those matched by a force-plate event (same side and kind, within
+    `window_s`) replaced by it; unmatched plate events are added."""
+    out = kinematic.copy()
+    extra = []
+    for row in force.itertuples(index=False):
+        same = (out["side"] == row.side) & (out["event"] == row.event)
+        dt = (out["time_s"] - row.time_s).abs().where(same)
+        if same.any() and dt.min() <= window_s:
+            j = dt.idxmin()
+            out.loc[j, ["time_s", "method"]] = [row.time_s, "force"]
+        else:
+            extra.append(row)
+    if extra:
+        out = pd.concat([out, pd.DataFrame(extra, columns=EVENT_COLUMNS)], ignore_index=True)
+    return _frame(list(out.itertuples(index=False, name=None)))
+
+
+def detect_events(method: str, *, plates: ForcePlates | None, kin: pd.DataFrame | None,
+                  force: pd.DataFrame | None, window_s: float, origin: str) -> pd.DataFrame:
+    """Pick or combine the event sources by `method` (auto | force | kinematic)."""
+    if method == "force":
+        if plates is None or force is None:
+            raise IngestError(origin, "events method 'force' but the trial has no force plates")
+        return force
+    if method == "kinematic":
+        if kin is None:
+            raise IngestError(origin, "events method 'kinematic' needs heel, toe and pelvis markers")
+        return kin
+    if method != "auto":
+        raise IngestError(origin, f"unknown events method {method!r} (auto | force | kinematic)")
+    if kin is None and force is None:
+        raise IngestError(origin, "no markers and no force plates: cannot detect gait events")
+    if kin is None:
+        return force
+    return kin if force is None else merge_events(kin, force, window_s)
+
+
+@dataclass(frozen=True)
+class EventScore:
+    """Agreement of detected events with reference (force-plate) events of one kind."""
+
+    n_truth: int
+    n_matched: int
+    median_abs_error_s: float
+    mean_error_s: float
+
+    @property
+    def matched_fraction(self) -> float:
+        return self.n_matched / self.n_truth if self.n_truth else float("nan")
+
+
+def score_events(detected: pd.DataFrame, truth: pd.DataFrame, event: str = "heel_strike",
+                 window_s: float = 0.1) -> EventScore:
+    """Match each reference event to the nearest detected one of the same side and kind."""
+    errors = []
+    n_truth = 0
+    for side in SIDES:
+        ref = truth.query("side == @side and event == @event")["time_s"].to_numpy()
+        det = detected.query("side == @side and event == @event")["time_s"].to_numpy()
+        n_truth += len(ref)
+        for t in ref:
+            if len(det):
+                dt = det[np.argmin(np.abs(det - t))] - t
+                if abs(dt) <= window_s:
+                    errors.append(dt)
+    errors_arr = np.array(errors)
+    return EventScore(
+        n_truth, len(errors),
+        float(np.median(np.abs(errors_arr))) if len(errors) else float("nan"),
+        float(errors_arr.mean()) if len(errors) else float("nan"),
+    )

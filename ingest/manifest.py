@@ -1,0 +1,104 @@
+"""Data manifest: raw files named by public origin URL and sha256, resolved locally.
+
+A file is looked up in the mirror folder first (``GAITLOOP_MIRROR``, default ``../shared/data``
+beside the checkout), then in the download cache (``data/raw``), then downloaded from its origin
+into the cache. Its sha256 is verified every time; nothing unverified is ever returned.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import urllib.request
+from dataclasses import dataclass
+from pathlib import Path
+
+import yaml
+
+from ingest.errors import ManifestError
+
+REPO_ROOT = Path(__file__).resolve().parent.parent
+DEFAULT_MANIFEST = REPO_ROOT / "data" / "sources.yaml"
+DEFAULT_CACHE = REPO_ROOT / "data" / "raw"
+
+
+def default_mirror() -> Path:
+    return Path(os.environ.get("GAITLOOP_MIRROR", REPO_ROOT.parent / "shared" / "data"))
+
+
+@dataclass(frozen=True)
+class Source:
+    key: str
+    url: str
+    sha256: str
+
+
+def sha256_of(path: Path) -> str:
+    digest = hashlib.sha256()
+    with path.open("rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+@dataclass(frozen=True)
+class Manifest:
+    """The set of known files and where to look for them."""
+
+    sources: dict[str, Source]
+    mirror: Path
+    cache: Path
+
+    @classmethod
+    def load(
+        cls, path: Path = DEFAULT_MANIFEST, mirror: Path | None = None, cache: Path = DEFAULT_CACHE
+    ) -> Manifest:
+        try:
+            doc = yaml.safe_load(Path(path).read_text())
+        except (OSError, yaml.YAMLError) as exc:
+            raise ManifestError(path, f"cannot read manifest ({exc})") from None
+        files = (doc or {}).get("files") or {}
+        sources = {}
+        for key, entry in files.items():
+            if not isinstance(entry, dict) or "sha256" not in entry or "url" not in entry:
+                raise ManifestError(path, f"entry {key!r} needs 'url' and 'sha256'")
+            sources[key] = Source(key, entry["url"], str(entry["sha256"]).lower())
+        return cls(sources, mirror or default_mirror(), cache)
+
+    def resolve(self, key: str) -> Path:
+        """Local path of a verified copy of `key`; raises `ManifestError` naming the file."""
+        try:
+            source = self.sources[key]
+        except KeyError:
+            raise ManifestError(key, "not listed in the data manifest (data/sources.yaml)") from None
+        mirrored = self.mirror / key
+        if mirrored.is_file():
+            self._verify(mirrored, source)
+            return mirrored
+        cached = self.cache / key
+        if cached.is_file():
+            self._verify(cached, source)
+            return cached
+        cached.parent.mkdir(parents=True, exist_ok=True)
+        partial = cached.with_name(cached.name + ".part")
+        try:
+            with urllib.request.urlopen(source.url, timeout=30) as response:
+                partial.write_bytes(response.read())
+        except OSError as exc:
+            partial.unlink(missing_ok=True)
+            raise ManifestError(
+                key, f"not in mirror {self.mirror} and download from {source.url} failed ({exc})"
+            ) from None
+        self._verify(partial, source)
+        partial.replace(cached)
+        return cached
+
+    @staticmethod
+    def _verify(path: Path, source: Source) -> None:
+        actual = sha256_of(path)
+        if actual != source.sha256:
+            if path.name.endswith(".part"):
+                path.unlink(missing_ok=True)
+            raise ManifestError(
+                path, f"sha256 mismatch for {source.key}: manifest says {source.sha256}, file is {actual}"
+            )

@@ -1,0 +1,132 @@
+"""Process one canonical Trial: gap filling, filtering, events, strides, cycles (DESIGN.md steps 1-6).
+
+`process_trial` is pure: a Trial and parameters in, three tidy tables out (events, strides,
+cycles), each with the trial's identity columns first. Real and simulated trials go through
+exactly this function: that is what makes the datasets matched.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from ingest.bouts import pelvis_path, straight_bouts
+from ingest.cycles import normalise_cycles
+from ingest.errors import IngestError
+from ingest.events import EventParams, detect_events, force_plate_events, kinematic_events
+from ingest.filtering import lowpass
+from ingest.gaps import fill_rigid, fill_short
+from ingest.kinematics import marker_angles
+from ingest.strides import StrideParams, segment_strides
+from ingest.trial import SIDES, Trial
+
+ID_COLUMNS = ["subject", "source", "condition", "trial"]
+PELVIS_ROLES = ("asis_left", "asis_right", "psis_left", "psis_right")
+
+
+@dataclass(frozen=True)
+class IngestParams:
+    """The `ingest` section of params.yaml."""
+
+    cutoff_hz: float = 12.0
+    filter_order: int = 4
+    max_gap_s: float = 0.1
+    smooth_hz: float = 0.8
+    min_walk_speed_mps: float = 0.3
+    max_yaw_rate_deg_s: float = 30.0
+    n_points: int = 101
+    events: EventParams = field(default_factory=EventParams)
+    strides: StrideParams = field(default_factory=StrideParams)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> IngestParams:
+        return cls(
+            cutoff_hz=float(d["filter"]["cutoff_hz"]),
+            filter_order=int(d["filter"]["order"]),
+            max_gap_s=float(d["gaps"]["max_gap_s"]),
+            smooth_hz=float(d["bouts"]["smooth_hz"]),
+            min_walk_speed_mps=float(d["bouts"]["min_walk_speed_mps"]),
+            max_yaw_rate_deg_s=float(d["bouts"]["max_yaw_rate_deg_s"]),
+            n_points=int(d["cycles"]["n_points"]),
+            events=EventParams(**d["events"]),
+            strides=StrideParams(**d["strides"]),
+        )
+
+
+@dataclass(frozen=True)
+class ProcessedTrial:
+    trial: Trial  # gap-filled and filtered
+    events: pd.DataFrame
+    strides: pd.DataFrame
+    cycles: pd.DataFrame
+
+
+def clean_markers(trial: Trial, markerset: dict[str, str], p: IngestParams) -> Trial:
+    """Gap-fill (rigid pelvis cluster, then short splines) and low-pass every marker and angle."""
+    markers = dict(trial.markers)
+    pelvis_names = [markerset[r] for r in PELVIS_ROLES if markerset.get(r) in markers]
+    if len(pelvis_names) == 4:
+        cluster = fill_rigid(np.stack([markers[n] for n in pelvis_names], axis=1))
+        markers.update({n: cluster[:, j] for j, n in enumerate(pelvis_names)})
+    rate, fc, order = trial.rate_hz, p.cutoff_hz, p.filter_order
+    if trial.n_frames <= 9:
+        raise IngestError(trial.origin, f"only {trial.n_frames} frames: too short to filter")
+    if fc >= rate / 2:
+        raise IngestError(trial.origin, f"cutoff {fc} Hz is above Nyquist of a {rate} Hz recording")
+    markers = {n: lowpass(fill_short(x, rate, p.max_gap_s), rate, fc, order) for n, x in markers.items()}
+    angles = {n: lowpass(fill_short(x, rate, p.max_gap_s), rate, fc, order)
+              for n, x in trial.angles.items()}
+    return trial.with_(markers=markers, angles=angles)
+
+
+def landmarks(trial: Trial, markerset: dict[str, str]) -> dict[str, np.ndarray] | None:
+    """Landmark trajectories by role, or None when a role's marker is absent from the trial."""
+    try:
+        return {role: trial.markers[name] for role, name in markerset.items()}
+    except KeyError:
+        return None
+
+
+def process_trial(trial: Trial, markerset: dict[str, str], p: IngestParams) -> ProcessedTrial:
+    """Events, strides and cycles of one trial (see module docstring)."""
+    clean = clean_markers(trial, markerset, p)
+    lm = landmarks(clean, markerset)
+    kin = force = None
+    angles = dict(clean.angles)
+    time = clean.time_s
+    if lm is not None:
+        pelvis = np.mean([lm[r] for r in PELVIS_ROLES], axis=0)
+        path = pelvis_path(pelvis, clean.rate_hz, p.smooth_hz, p.min_walk_speed_mps,
+                           p.max_yaw_rate_deg_s)
+        bouts = straight_bouts(path, int(0.5 * clean.rate_hz))
+        heel = {s: lm[f"heel_{s}"] for s in SIDES}
+        toe = {s: lm[f"toe_{s}"] for s in SIDES}
+        kin = kinematic_events(heel, toe, pelvis, path.heading_rad, time, clean.rate_hz, p.events)
+        if clean.plates is not None:
+            feet = {s: (heel[s][:, :2] + toe[s][:, :2]) / 2 for s in SIDES}
+            force = force_plate_events(clean.plates, feet, time, p.events)
+        if not all(k in angles for k in ("hip_flexion_left", "knee_flexion_left")):
+            angles = {**marker_angles(lm, path.heading_rad), **angles}
+    elif p.events.method != "force":
+        missing = sorted(set(markerset.values()) - set(clean.markers))
+        raise IngestError(trial.origin, f"kinematic gait events need the marker set's landmarks; "
+                          f"missing: {', '.join(missing[:6])}")
+    events = detect_events(p.events.method, plates=clean.plates, kin=kin, force=force,
+                           window_s=p.events.force_window_s, origin=trial.origin)
+    if lm is None:
+        raise IngestError(trial.origin, "strides need heel, toe and pelvis markers")
+    strides = segment_strides(events, time, heel, toe, pelvis, path, bouts, p.strides)
+    cycles = normalise_cycles(strides, time, angles, p.n_points)
+    ident = {"subject": trial.subject, "source": trial.source, "condition": trial.condition,
+             "trial": trial.trial}
+    return ProcessedTrial(clean, _with_id(events, ident), _with_id(strides, ident),
+                          _with_id(cycles, ident))
+
+
+def _with_id(df: pd.DataFrame, ident: dict[str, str]) -> pd.DataFrame:
+    out = df.copy()
+    for k, (name, value) in enumerate(ident.items()):
+        out.insert(k, name, value)
+    return out

@@ -1,0 +1,83 @@
+"""OpenSim `.mot`/`.sto` storage files: joint coordinates (IK) or ground reactions (GRF).
+
+Layout: `key=value` header lines up to `endheader`, then a tab-separated table whose first row
+names the columns. `inDegrees=yes|no` says whether rotational columns are degrees or radians.
+"""
+
+from __future__ import annotations
+
+import io
+from dataclasses import dataclass
+from pathlib import Path
+
+import pandas as pd
+
+from ingest.errors import IngestError
+
+
+@dataclass(frozen=True)
+class MotTable:
+    """A storage table as read: `header` holds the `key=value` lines (keys lower-cased)."""
+
+    path: Path
+    header: dict[str, str]
+    table: pd.DataFrame
+
+    @property
+    def in_degrees(self) -> bool | None:
+        """True/False as declared by `inDegrees`, None when the header does not say."""
+        value = self.header.get("indegrees")
+        if value is None:
+            return None
+        return value.strip().lower() in ("yes", "true", "1")
+
+    @property
+    def time_s(self):
+        return self.table["time"].to_numpy(dtype=float)
+
+    @property
+    def rate_hz(self) -> float:
+        t = self.time_s
+        return float((len(t) - 1) / (t[-1] - t[0]))
+
+
+def read_mot(path: str | Path) -> MotTable:
+    """Read a `.mot`/`.sto` file; raises `IngestError` naming the file on structural problems."""
+    path = Path(path)
+    try:
+        text = path.read_text(errors="replace")
+    except OSError as exc:
+        raise IngestError(path, f"cannot read file ({exc.strerror})") from None
+    lines = text.splitlines()
+    try:
+        end = next(i for i, ln in enumerate(lines) if ln.strip().lower() == "endheader")
+    except StopIteration:
+        raise IngestError(path, "not an OpenSim storage file: no 'endheader' line") from None
+    header = {}
+    for ln in lines[:end]:
+        if "=" in ln:
+            key, _, value = ln.partition("=")
+            header[key.strip().lower()] = value.strip()
+    body = "\n".join(ln for ln in lines[end + 1 :] if ln.strip())
+    if not body:
+        raise IngestError(path, "no column names or data after 'endheader'")
+    try:
+        table = pd.read_csv(io.StringIO(body), sep="\t", engine="c")
+    except (ValueError, pd.errors.ParserError) as exc:
+        raise IngestError(path, f"malformed table: {exc}") from None
+    table.columns = [str(c).strip() for c in table.columns]
+    if "time" not in table.columns:
+        raise IngestError(path, f"no 'time' column (columns: {', '.join(table.columns[:6])}, ...)")
+    non_numeric = [c for c in table.columns if not pd.api.types.is_numeric_dtype(table[c])]
+    if non_numeric:
+        raise IngestError(path, f"non-numeric values in columns {non_numeric[:5]}")
+    if table.empty:
+        raise IngestError(path, "no data rows")
+    if table.iloc[-1].isna().any() or len(lines[-1].split("\t")) < len(table.columns):
+        raise IngestError(path, "truncated: the last row is incomplete")
+    n_rows = header.get("nrows") or header.get("datarows")
+    if n_rows is not None and int(n_rows) != len(table):
+        raise IngestError(path, f"truncated: header declares {n_rows} rows, file holds {len(table)}")
+    if len(table) > 1 and not (table["time"].diff().iloc[1:] > 0).all():
+        raise IngestError(path, "time column is not strictly increasing")
+    return MotTable(path, header, table)

@@ -1,0 +1,104 @@
+"""OpenSim/Motion Analysis `.trc` marker files.
+
+Layout: line 1 file type; lines 2-3 header keys and values (DataRate, NumFrames, NumMarkers,
+Units, ...); line 4 `Frame#`, `Time` and one name per marker (spanning X/Y/Z); line 5 the
+X1 Y1 Z1 ... labels; then tab-separated rows. Empty cells are missing samples (NaN).
+"""
+
+from __future__ import annotations
+
+import io
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ingest.errors import IngestError
+
+UNIT_TO_M = {"m": 1.0, "mm": 1e-3, "cm": 1e-2}
+
+
+@dataclass(frozen=True)
+class MarkerTable:
+    """Markers as read: lab axes of the file, converted to metres from the declared unit."""
+
+    path: Path
+    rate_hz: float
+    time_s: np.ndarray
+    names: tuple[str, ...]
+    xyz_m: np.ndarray  # (n_frames, n_markers, 3)
+    declared_unit: str
+
+
+def _header_fields(path: Path, keys: str, values: str) -> dict[str, str]:
+    k = keys.rstrip("\r\n").split("\t")
+    v = values.rstrip("\r\n").split("\t")
+    if "DataRate" not in k or "Units" not in k:
+        raise IngestError(path, "not a TRC file: header line 2 lacks DataRate/Units")
+    return dict(zip(k, v, strict=False))
+
+
+def read_trc(path: str | Path) -> MarkerTable:
+    """Read a `.trc` file; raises `IngestError` naming the file on any structural problem."""
+    path = Path(path)
+    try:
+        lines = path.read_text(errors="replace").splitlines()
+    except OSError as exc:
+        raise IngestError(path, f"cannot read file ({exc.strerror})") from None
+    if len(lines) < 6:
+        raise IngestError(path, f"truncated: only {len(lines)} lines, a TRC header needs 5")
+    header = _header_fields(path, lines[1], lines[2])
+    unit = header["Units"].strip()
+    if unit not in UNIT_TO_M:
+        raise IngestError(path, f"unknown Units {unit!r} (expected one of {sorted(UNIT_TO_M)})")
+    try:
+        rate = float(header["DataRate"])
+        n_frames = int(header["NumFrames"])
+        n_markers = int(header["NumMarkers"])
+    except (KeyError, ValueError) as exc:
+        raise IngestError(path, f"bad header value: {exc}") from None
+    cells = lines[3].rstrip("\r\n").split("\t")
+    names = tuple(c.strip() for c in cells[2:] if c.strip())
+    if len(names) != n_markers:
+        raise IngestError(path, f"header declares {n_markers} markers, line 4 names {len(names)}")
+    n_cols = 2 + 3 * n_markers
+    body = "\n".join(ln for ln in lines[5:] if ln.strip())
+    if not body:
+        raise IngestError(path, "no data rows")
+    try:
+        table = pd.read_csv(
+            io.StringIO(body), sep="\t", header=None, names=range(n_cols + 1),
+            dtype=float, engine="c",
+        )
+    except ValueError as exc:
+        raise IngestError(path, f"malformed data rows: {exc}") from None
+    if table.shape[1] > n_cols and table.iloc[:, n_cols:].notna().any().any():
+        raise IngestError(path, f"rows hold more than the {n_cols} cells the header declares")
+    data = table.to_numpy()[:, :n_cols]
+    last = lines[-1] if lines[-1].strip() else lines[-2]
+    if len(last.rstrip("\r\n").split("\t")) < n_cols:
+        raise IngestError(path, f"truncated: the last row has fewer than {n_cols} cells")
+    rows = data
+    if len(rows) < n_frames:
+        raise IngestError(path, f"truncated: header declares {n_frames} frames, file holds {len(rows)}")
+    time = data[:, 1]
+    if np.isnan(time).any():
+        raise IngestError(path, "Time column has empty cells")
+    xyz = data[:, 2:].reshape(len(rows), n_markers, 3) * UNIT_TO_M[unit]
+    return MarkerTable(path, rate, time, names, xyz, unit)
+
+
+def read_markers(path: str | Path) -> MarkerTable:
+    """Dispatch on the suffix to the TRC, C3D or CSV marker reader."""
+    from ingest.readers.c3d import read_c3d
+    from ingest.readers.csv import read_csv
+
+    suffix = Path(path).suffix.lower()
+    if suffix == ".trc":
+        return read_trc(path)
+    if suffix == ".c3d":
+        return read_c3d(path).markers
+    if suffix == ".csv":
+        return read_csv(path).markers
+    raise IngestError(path, f"unknown marker file type {suffix!r} (expected .trc, .c3d or .csv)")

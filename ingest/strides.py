@@ -1,0 +1,112 @@
+"""Strides: heel strike to the next ipsilateral heel strike, kept only when steady and straight.
+
+Each stride gets one reason when rejected, checked in this order: ``events missing`` (too long,
+or no toe off inside), ``marker gap`` (a heel, toe or pelvis sample missing after gap filling),
+``standing`` (pelvis slower than `min_speed_mps`), ``stepping in place`` (shorter than
+`min_stride_length_m`), ``turn`` (heading change above `max_heading_change_deg`, or any turning
+frame), ``start`` / ``stop`` (speed changing inside the stride by more than `max_speed_change`,
+or its speed outside `speed_tolerance` of the bout median; before or after the bout's middle),
+``outside straight bout`` (overlaps frames where the subject stands still or turns).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from ingest.bouts import Bout, PelvisPath
+from ingest.spatiotemporal import stride_measures
+from ingest.trial import SIDES
+
+
+@dataclass(frozen=True)
+class StrideParams:
+    max_stride_time_s: float = 2.0
+    min_speed_mps: float = 0.3
+    min_stride_length_m: float = 0.3
+    max_heading_change_deg: float = 15.0
+    max_speed_change: float = 0.2
+    speed_tolerance: float = 0.15
+
+
+STRIDE_COLUMNS = ["side", "stride", "t_start_s", "t_end_s", "kept", "reason", "stride_length_m",
+                  "stride_time_s", "cadence_spm", "gait_speed_mps", "step_width_m"]
+
+
+def _index(time_s: np.ndarray, t: float) -> int:
+    return int(np.clip(np.round(np.interp(t, time_s, np.arange(len(time_s)))), 0, len(time_s) - 1))
+
+
+def _interp(time_s: np.ndarray, x: np.ndarray, t: float) -> np.ndarray:
+    return np.array([np.interp(t, time_s, x[:, k]) for k in range(x.shape[1])])
+
+
+def segment_strides(events: pd.DataFrame, time_s: np.ndarray, heel: dict[str, np.ndarray],
+                    toe: dict[str, np.ndarray], pelvis: np.ndarray, path: PelvisPath,
+                    bouts: list[Bout], p: StrideParams) -> pd.DataFrame:
+    """One row per stride of each side with its measures, `kept` flag and rejection reason."""
+    rows = []
+    for side in SIDES:
+        other = SIDES[1 - SIDES.index(side)]
+        hs = events.query("side == @side and event == 'heel_strike'")["time_s"].to_numpy()
+        to = events.query("side == @side and event == 'toe_off'")["time_s"].to_numpy()
+        contra = events.query("side == @other and event == 'heel_strike'")["time_s"].to_numpy()
+        for k, (t0, t1) in enumerate(zip(hs[:-1], hs[1:], strict=True)):
+            i0, i1 = _index(time_s, t0), _index(time_s, t1)
+            c = contra[(contra > t0) & (contra < t1)]
+            contra_heel = _interp(time_s, heel[other], c[0]) if len(c) else None
+            m = stride_measures(_interp(time_s, heel[side], t0), _interp(time_s, heel[side], t1),
+                                t0, t1, contra_heel)
+            reason = _reject_reason(t0, t1, i0, i1, to, heel, toe, pelvis, path, m.stride_length_m,
+                                    p)
+            rows.append([side, k, t0, t1, reason is None, reason or "", m.stride_length_m,
+                         m.stride_time_s, m.cadence_spm, m.gait_speed_mps, m.step_width_m,
+                         _bout_of(bouts, i0, i1)])
+    df = pd.DataFrame(rows, columns=[*STRIDE_COLUMNS, "bout"])
+    return _reject_off_pace(df, path, time_s, p).drop(columns="bout")
+
+
+def _bout_of(bouts: list[Bout], i0: int, i1: int) -> int:
+    for b, bout in enumerate(bouts):
+        if bout.start <= i0 and i1 <= bout.stop:
+            return b
+    return -1
+
+
+def _reject_reason(t0, t1, i0, i1, to, heel, toe, pelvis, path, length, p) -> str | None:
+    if t1 - t0 > p.max_stride_time_s or not ((to > t0) & (to < t1)).any():
+        return "events missing"
+    window = slice(i0, i1 + 1)
+    markers = [pelvis, *heel.values(), *toe.values()]
+    if any(not np.isfinite(m[window]).all() for m in markers):
+        return "marker gap"
+    speed = path.speed_mps[window]
+    if speed.mean() < p.min_speed_mps:
+        return "standing"
+    if length < p.min_stride_length_m:
+        return "stepping in place"
+    heading = path.heading_rad[window]
+    if np.degrees(abs(heading[-1] - heading[0])) > p.max_heading_change_deg or path.turning[window].any():
+        return "turn"
+    if abs(speed[-1] - speed[0]) / speed.mean() > p.max_speed_change:
+        return "start" if speed[-1] > speed[0] else "stop"
+    return None
+
+
+def _reject_off_pace(df: pd.DataFrame, path: PelvisPath, time_s: np.ndarray,
+                     p: StrideParams) -> pd.DataFrame:
+    """Within each straight bout, strides whose speed departs from the median of its steady
+    strides are accelerating or decelerating: reject them as start or stop."""
+    df = df.copy()
+    for _, group in df[df["kept"] & (df["bout"] >= 0)].groupby("bout"):
+        median = group["gait_speed_mps"].median()
+        middle = group[["t_start_s", "t_end_s"]].to_numpy().mean()
+        off = (group["gait_speed_mps"] - median).abs() > p.speed_tolerance * median
+        for j in group.index[off]:
+            df.loc[j, ["kept", "reason"]] = [False, "start" if df.loc[j, "t_end_s"] < middle else "stop"]
+    not_in_bout = df["kept"] & (df["bout"] < 0)
+    df.loc[not_in_bout, "reason"] = "outside straight bout"
+    df.loc[not_in_bout, "kept"] = False
+    return df

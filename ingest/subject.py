@@ -1,0 +1,131 @@
+"""Subject registry: `data/subjects/<id>.yaml` describes one person and their recordings.
+
+Fields: id, height_m, mass_kg, dataset, markerset (name of `data/markersets/<name>.yaml`, landmark
+role -> marker name), format (how the files are written: up_axis, knee_flexion_sign, and for
+files without a unit header, angle_unit), static (scaling trial), trials (id, condition, and
+manifest keys of the markers / angles / grf files).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import yaml
+
+from ingest.errors import SubjectError
+
+REPO_ROOT = Path(__file__).resolve().parent.parent
+SUBJECTS_DIR = REPO_ROOT / "data" / "subjects"
+MARKERSETS_DIR = REPO_ROOT / "data" / "markersets"
+ROLES = ("heel", "toe", "ankle", "knee", "asis", "psis")
+
+
+@dataclass(frozen=True)
+class FileFormat:
+    """How a subject's files are written, declared once so nothing is guessed downstream."""
+
+    up_axis: str = "z"
+    knee_flexion_sign: int = 1
+    angle_unit: str | None = None  # 'deg' | 'rad' for files whose header does not say
+
+
+@dataclass(frozen=True)
+class TrialSpec:
+    id: str
+    condition: str
+    markers: str | None = None
+    angles: str | None = None
+    grf: str | None = None
+
+
+@dataclass(frozen=True)
+class StaticSpec:
+    markers: str
+    window_s: tuple[float, float] | None = None
+
+
+@dataclass(frozen=True)
+class Subject:
+    id: str
+    height_m: float
+    mass_kg: float
+    dataset: str
+    markerset: dict[str, str]
+    format: FileFormat
+    static: StaticSpec | None
+    trials: tuple[TrialSpec, ...] = field(default_factory=tuple)
+    path: Path | None = None
+
+    @property
+    def conditions(self) -> tuple[str, ...]:
+        return tuple(dict.fromkeys(t.condition for t in self.trials))
+
+
+def _require(doc: dict, key: str, path: Path):
+    if key not in doc or doc[key] is None:
+        raise SubjectError(path, f"missing required field {key!r}")
+    return doc[key]
+
+
+def load_markerset(name: str, directory: Path = MARKERSETS_DIR) -> dict[str, str]:
+    path = directory / f"{name}.yaml"
+    if not path.is_file():
+        raise SubjectError(path, f"unknown marker set {name!r}")
+    mapping = yaml.safe_load(path.read_text()) or {}
+    return {str(k): str(v) for k, v in mapping.items()}
+
+
+def load_subject(subject_id: str, directory: Path = SUBJECTS_DIR) -> Subject:
+    """Load and validate `<directory>/<subject_id>.yaml`."""
+    path = directory / f"{subject_id}.yaml"
+    if not path.is_file():
+        known = sorted(p.stem for p in directory.glob("*.yaml"))
+        raise SubjectError(path, f"unknown subject {subject_id!r} (known: {', '.join(known)})")
+    try:
+        doc = yaml.safe_load(path.read_text()) or {}
+    except yaml.YAMLError as exc:
+        raise SubjectError(path, f"not valid YAML ({exc})") from None
+    if _require(doc, "id", path) != subject_id:
+        raise SubjectError(path, f"id {doc['id']!r} does not match the file name {subject_id!r}")
+    height, mass = float(_require(doc, "height_m", path)), float(_require(doc, "mass_kg", path))
+    if not 0.5 <= height <= 2.5:
+        raise SubjectError(path, f"height_m {height} is not a human height in metres")
+    if not 10 <= mass <= 300:
+        raise SubjectError(path, f"mass_kg {mass} is not a human mass in kilograms")
+    fmt_doc = doc.get("format") or {}
+    fmt = FileFormat(
+        up_axis=str(fmt_doc.get("up_axis", "z")).lower(),
+        knee_flexion_sign=int(fmt_doc.get("knee_flexion_sign", 1)),
+        angle_unit=fmt_doc.get("angle_unit"),
+    )
+    if fmt.up_axis not in ("y", "z") or fmt.knee_flexion_sign not in (1, -1):
+        raise SubjectError(path, "format.up_axis must be y or z and knee_flexion_sign 1 or -1")
+    trials = tuple(
+        TrialSpec(
+            id=str(_require(t, "id", path)),
+            condition=str(_require(t, "condition", path)),
+            markers=t.get("markers"),
+            angles=t.get("angles"),
+            grf=t.get("grf"),
+        )
+        for t in _require(doc, "trials", path)
+    )
+    if not trials:
+        raise SubjectError(path, "no trials listed")
+    static_doc = doc.get("static")
+    static = None
+    if static_doc:
+        window = static_doc.get("window_s")
+        static = StaticSpec(str(static_doc["markers"]), tuple(window) if window else None)
+    return Subject(
+        id=subject_id,
+        height_m=height,
+        mass_kg=mass,
+        dataset=str(_require(doc, "dataset", path)),
+        markerset=load_markerset(str(_require(doc, "markerset", path))),
+        format=fmt,
+        static=static,
+        trials=trials,
+        path=path,
+    )
