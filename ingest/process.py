@@ -130,3 +130,31 @@ def _with_id(df: pd.DataFrame, ident: dict[str, str]) -> pd.DataFrame:
     for k, (name, value) in enumerate(ident.items()):
         out.insert(k, name, value)
     return out
+
+
+@dataclass(frozen=True)
+class SubjectTables:
+    """A subject's processed tables, all trials stacked."""
+
+    events: pd.DataFrame
+    strides: pd.DataFrame
+    cycles: pd.DataFrame
+
+
+def process_subject(subject, manifest, p: IngestParams, progress: bool = False) -> SubjectTables:
+    """Load and process every trial of a `Subject`; raises `IngestError` when no trial yields a
+    kept stride (naming the subject file), since nothing downstream could use the subject."""
+    from tqdm import tqdm
+
+    from ingest.canonical import load_trial
+
+    results = []
+    for spec in tqdm(subject.trials, desc=f"ingest {subject.id}", unit="trial", disable=not progress):
+        results.append(process_trial(load_trial(subject, spec, manifest), subject.markerset, p))
+    tables = SubjectTables(*(pd.concat([getattr(r, name) for r in results], ignore_index=True)
+                             for name in ("events", "strides", "cycles")))
+    if not tables.strides["kept"].any():
+        reasons = tables.strides["reason"].value_counts().to_dict() if len(tables.strides) else {}
+        raise IngestError(subject.path, f"no steady complete stride in {len(subject.trials)} "
+                          f"trial(s) (rejected: {reasons or 'no heel-strike pair at all'})")
+    return tables
