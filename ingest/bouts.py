@@ -1,8 +1,10 @@
 """Walking bouts: where the subject walks in a straight line, and in which direction.
 
 The pelvis path (mean of the pelvis markers) is low-passed at about one stride (`smooth_hz`) so
-the within-stride sway does not show; its speed separates standing from walking and its heading
-rate separates turns from straight walking. The progression direction of each straight bout is
+the within-stride sway does not show; its speed separates standing from walking, the angle between
+the direction of travel and the way the pelvis faces (ASIS midpoint ahead of the PSIS midpoint)
+separates walking from side-stepping and shuffling into place, and its heading rate separates
+turns from straight walking. The progression direction of each straight bout is
 the mean heading over it: stride lengths and event detection are measured along it.
 """
 
@@ -34,19 +36,29 @@ class Bout:
     heading_rad: float
 
 
-def pelvis_path(pelvis: np.ndarray, rate_hz: float, smooth_hz: float, min_walk_speed_mps: float,
-                max_yaw_rate_deg_s: float) -> PelvisPath:
-    xy = pelvis[:, :2].copy()
+def _bridged(xy: np.ndarray) -> np.ndarray:
     ok = np.isfinite(xy).all(axis=1)
-    if not ok.all() and ok.any():
-        idx = np.arange(len(xy))
-        xy = np.column_stack([np.interp(idx, idx[ok], xy[ok, k]) for k in range(2)])
-    xy = lowpass(xy, rate_hz, smooth_hz) if len(xy) > 9 else xy
+    if ok.all() or not ok.any():
+        return xy
+    idx = np.arange(len(xy))
+    return np.column_stack([np.interp(idx, idx[ok], xy[ok, k]) for k in range(xy.shape[1])])
+
+
+def pelvis_path(pelvis: np.ndarray, facing: np.ndarray, rate_hz: float, smooth_hz: float,
+                min_walk_speed_mps: float, max_yaw_rate_deg_s: float,
+                max_facing_angle_deg: float) -> PelvisPath:
+    """Pelvis path from the pelvis centre and its facing vector ((n, 3) each, canonical frame)."""
+    xy = _bridged(pelvis[:, :2].copy())
+    face = _bridged(facing[:, :2].copy())
+    if len(xy) > 9:
+        xy, face = lowpass(xy, rate_hz, smooth_hz), lowpass(face, rate_hz, smooth_hz)
     vel = np.gradient(xy, 1.0 / rate_hz, axis=0)
     speed = np.linalg.norm(vel, axis=1)
     heading = np.unwrap(np.arctan2(vel[:, 1], vel[:, 0]))
     yaw = np.degrees(np.gradient(heading, 1.0 / rate_hz))
-    walking = speed >= min_walk_speed_mps
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cos_facing = np.einsum("ij,ij->i", vel, face) / (speed * np.linalg.norm(face, axis=1))
+    walking = (speed >= min_walk_speed_mps) & (cos_facing >= np.cos(np.radians(max_facing_angle_deg)))
     yaw[~walking] = 0.0
     return PelvisPath(xy, speed, heading, yaw, walking, np.abs(yaw) > max_yaw_rate_deg_s)
 

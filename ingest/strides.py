@@ -4,7 +4,8 @@ Each stride gets one reason when rejected, checked in this order: ``events missi
 or no toe off inside), ``marker gap`` (a heel, toe or pelvis sample missing after gap filling),
 ``standing`` (pelvis slower than `min_speed_mps`), ``stepping in place`` (shorter than
 `min_stride_length_m`), ``turn`` (heading change above `max_heading_change_deg`, or any turning
-frame), ``start`` / ``stop`` (speed changing inside the stride by more than `max_speed_change`,
+frame), ``start`` / ``stop`` (pelvis speed of the second step differing from the first by more than
+`max_speed_change` of their mean,
 or its speed outside `speed_tolerance` of the bout median; before or after the bout's middle),
 ``outside straight bout`` (overlaps frames where the subject stands still or turns).
 """
@@ -90,9 +91,19 @@ def _reject_reason(t0, t1, i0, i1, to, heel, toe, pelvis, path, length, p) -> st
     heading = path.heading_rad[window]
     if np.degrees(abs(heading[-1] - heading[0])) > p.max_heading_change_deg or path.turning[window].any():
         return "turn"
-    if abs(speed[-1] - speed[0]) / speed.mean() > p.max_speed_change:
-        return "start" if speed[-1] > speed[0] else "stop"
+    v1, v2 = _half_stride_speeds(pelvis, i0, i1)
+    if abs(v2 - v1) / ((v1 + v2) / 2) > p.max_speed_change:
+        return "start" if v2 > v1 else "stop"
     return None
+
+
+def _half_stride_speeds(pelvis: np.ndarray, i0: int, i1: int) -> tuple[float, float]:
+    """Mean horizontal pelvis speed over each half of a stride (one step each), in m per frame:
+    a ratio of the two shows acceleration without the edge effects of a smoothed velocity."""
+    mid = (i0 + i1) // 2
+    first = np.linalg.norm(pelvis[mid, :2] - pelvis[i0, :2]) / max(1, mid - i0)
+    second = np.linalg.norm(pelvis[i1, :2] - pelvis[mid, :2]) / max(1, i1 - mid)
+    return float(first), float(second)
 
 
 def _reject_off_pace(df: pd.DataFrame, path: PelvisPath, time_s: np.ndarray,
