@@ -21,17 +21,21 @@ def normalise_cycles(strides: pd.DataFrame, time_s: np.ndarray, angles: dict[str
                      n_points: int = 101) -> pd.DataFrame:
     """Long table (side, stride, pct, joint, angle_deg) of the kept strides."""
     pct = np.linspace(0.0, 100.0, n_points)
-    frames = []
-    for row in strides[strides["kept"]].itertuples(index=False):
-        t = np.linspace(row.t_start_s, row.t_end_s, n_points)
+    kept = strides.loc[strides["kept"].to_numpy(bool)]
+    cols: dict[str, list] = {c: [] for c in CYCLE_COLUMNS}
+    for side, stride, t0, t1 in kept[["side", "stride", "t_start_s", "t_end_s"]].itertuples(
+            index=False, name=None):
+        t = np.linspace(t0, t1, n_points)
         for joint in CYCLE_JOINTS:
-            values = angles.get(angle_name(joint, row.side))
+            values = angles.get(angle_name(joint, side))
             if values is None:
                 continue
-            frames.append(pd.DataFrame({
-                "side": row.side, "stride": row.stride, "pct": pct, "joint": joint,
-                "angle_deg": np.interp(t, time_s, values),
-            }))
-    if not frames:
-        return pd.DataFrame(columns=CYCLE_COLUMNS)
-    return pd.concat(frames, ignore_index=True)
+            cols["side"].append(np.full(n_points, side, dtype=object))
+            cols["stride"].append(np.full(n_points, stride))
+            cols["pct"].append(pct)
+            cols["joint"].append(np.full(n_points, joint, dtype=object))
+            cols["angle_deg"].append(np.interp(t, time_s, values))
+    if not cols["pct"]:
+        return pd.DataFrame({c: pd.Series(dtype=float if c in ("pct", "angle_deg") else object)
+                             for c in CYCLE_COLUMNS})
+    return pd.DataFrame({c: np.concatenate(v) for c, v in cols.items()})

@@ -78,6 +78,12 @@ def force_plate_events(plates: ForcePlates, feet_xy: dict[str, np.ndarray], time
     return _frame(rows)
 
 
+def side_times(events: pd.DataFrame, side: str, event: str) -> np.ndarray:
+    """Sorted times of one side's events of one kind."""
+    mask = (events["side"].to_numpy() == side) & (events["event"].to_numpy() == event)
+    return np.sort(events["time_s"].to_numpy(float)[mask])
+
+
 def _at(time_s: np.ndarray, xy: np.ndarray, t: float) -> np.ndarray:
     i = int(np.clip(np.searchsorted(time_s, t), 0, len(time_s) - 1))
     return xy[i]
@@ -135,19 +141,20 @@ def kinematic_events(heel: dict[str, np.ndarray], toe: dict[str, np.ndarray], pe
 def merge_events(kinematic: pd.DataFrame, force: pd.DataFrame, window_s: float) -> pd.DataFrame:
     """Kinematic events with those matched by a force-plate event (same side and kind, within
     `window_s`) replaced by it; unmatched plate events are added."""
-    out = kinematic.copy()
+    times = kinematic["time_s"].to_numpy(float).copy()
+    methods = kinematic["method"].to_numpy(object).copy()
+    keys = (kinematic["side"] + "/" + kinematic["event"]).to_numpy()
     extra = []
-    for row in force.itertuples(index=False):
-        same = (out["side"] == row.side) & (out["event"] == row.event)
-        dt = (out["time_s"] - row.time_s).abs().where(same)
-        if same.any() and dt.min() <= window_s:
-            j = dt.idxmin()
-            out.loc[j, ["time_s", "method"]] = [row.time_s, "force"]
-        else:
-            extra.append(row)
-    if extra:
-        out = pd.concat([out, pd.DataFrame(extra, columns=EVENT_COLUMNS)], ignore_index=True)
-    return _frame(list(out.itertuples(index=False, name=None)))
+    for side, event, t, method in force.itertuples(index=False, name=None):
+        candidates = np.flatnonzero(keys == f"{side}/{event}")
+        if len(candidates):
+            j = candidates[np.argmin(np.abs(times[candidates] - t))]
+            if abs(times[j] - t) <= window_s:
+                times[j], methods[j] = t, method
+                continue
+        extra.append((side, event, t, method))
+    rows = list(zip(kinematic["side"], kinematic["event"], times, methods, strict=True))
+    return _frame(rows + extra)
 
 
 def detect_events(method: str, *, plates: ForcePlates | None, kin: pd.DataFrame | None,
@@ -190,8 +197,7 @@ def score_events(detected: pd.DataFrame, truth: pd.DataFrame, event: str = "heel
     errors = []
     n_truth = 0
     for side in SIDES:
-        ref = truth.query("side == @side and event == @event")["time_s"].to_numpy()
-        det = detected.query("side == @side and event == @event")["time_s"].to_numpy()
+        ref, det = (side_times(df, side, event) for df in (truth, detected))
         n_truth += len(ref)
         for t in ref:
             if len(det):

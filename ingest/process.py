@@ -74,15 +74,31 @@ def clean_markers(trial: Trial, markerset: dict[str, str], p: IngestParams) -> T
     if len(pelvis_names) == 4:
         cluster = fill_rigid(np.stack([markers[n] for n in pelvis_names], axis=1))
         markers.update({n: cluster[:, j] for j, n in enumerate(pelvis_names)})
-    rate, fc, order = trial.rate_hz, p.cutoff_hz, p.filter_order
+    rate, fc = trial.rate_hz, p.cutoff_hz
     if trial.n_frames <= 9:
         raise IngestError(trial.origin, f"only {trial.n_frames} frames: too short to filter")
     if fc >= rate / 2:
         raise IngestError(trial.origin, f"cutoff {fc} Hz is above Nyquist of a {rate} Hz recording")
-    markers = {n: lowpass(fill_short(x, rate, p.max_gap_s), rate, fc, order) for n, x in markers.items()}
-    angles = {n: lowpass(fill_short(x, rate, p.max_gap_s), rate, fc, order)
-              for n, x in trial.angles.items()}
+    markers = _filtered({n: fill_short(x, rate, p.max_gap_s) for n, x in markers.items()}, rate, p)
+    angles = _filtered({n: fill_short(x, rate, p.max_gap_s) for n, x in trial.angles.items()},
+                       rate, p)
     return trial.with_(markers=markers, angles=angles)
+
+
+def _filtered(signals: dict[str, np.ndarray], rate_hz: float, p: IngestParams) -> dict[str, np.ndarray]:
+    """Low-pass many signals at once: the gap-free ones in one call, the others one by one."""
+    complete = [n for n, x in signals.items() if np.isfinite(x).all()]
+    out = {n: lowpass(x, rate_hz, p.cutoff_hz, p.filter_order) for n, x in signals.items()
+           if n not in complete}
+    if complete:
+        stacked = np.column_stack([signals[n].reshape(len(signals[n]), -1) for n in complete])
+        filtered = lowpass(stacked, rate_hz, p.cutoff_hz, p.filter_order)
+        col = 0
+        for n in complete:
+            width = signals[n].reshape(len(signals[n]), -1).shape[1]
+            out[n] = filtered[:, col:col + width].reshape(signals[n].shape)
+            col += width
+    return {n: out[n] for n in signals}
 
 
 def landmarks(trial: Trial, markerset: dict[str, str]) -> dict[str, np.ndarray] | None:

@@ -18,6 +18,7 @@ import numpy as np
 import pandas as pd
 
 from ingest.bouts import Bout, PelvisPath
+from ingest.events import side_times
 from ingest.spatiotemporal import stride_measures
 from ingest.trial import SIDES
 
@@ -51,9 +52,8 @@ def segment_strides(events: pd.DataFrame, time_s: np.ndarray, heel: dict[str, np
     rows = []
     for side in SIDES:
         other = SIDES[1 - SIDES.index(side)]
-        hs = events.query("side == @side and event == 'heel_strike'")["time_s"].to_numpy()
-        to = events.query("side == @side and event == 'toe_off'")["time_s"].to_numpy()
-        contra = events.query("side == @other and event == 'heel_strike'")["time_s"].to_numpy()
+        hs, to, contra = (side_times(events, s, e) for s, e in
+                          ((side, "heel_strike"), (side, "toe_off"), (other, "heel_strike")))
         for k, (t0, t1) in enumerate(zip(hs[:-1], hs[1:], strict=True)):
             i0, i1 = _index(time_s, t0), _index(time_s, t1)
             c = contra[(contra > t0) & (contra < t1)]
@@ -65,7 +65,9 @@ def segment_strides(events: pd.DataFrame, time_s: np.ndarray, heel: dict[str, np
             rows.append([side, k, t0, t1, reason is None, reason or "", m.stride_length_m,
                          m.stride_time_s, m.cadence_spm, m.gait_speed_mps, m.step_width_m,
                          _bout_of(bouts, i0, i1)])
-    df = pd.DataFrame(rows, columns=[*STRIDE_COLUMNS, "bout"])
+    df = pd.DataFrame(rows, columns=[*STRIDE_COLUMNS, "bout"]).astype(
+        {"side": object, "stride": int, "kept": bool, "reason": object, "bout": int}
+    )
     return _reject_off_pace(df, path, time_s, p).drop(columns="bout")
 
 

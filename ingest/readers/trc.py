@@ -7,7 +7,6 @@ X1 Y1 Z1 ... labels; then tab-separated rows. Empty cells are missing samples (N
 
 from __future__ import annotations
 
-import io
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -63,13 +62,12 @@ def read_trc(path: str | Path) -> MarkerTable:
     if len(names) != n_markers:
         raise IngestError(path, f"header declares {n_markers} markers, line 4 names {len(names)}")
     n_cols = 2 + 3 * n_markers
-    body = "\n".join(ln for ln in lines[5:] if ln.strip())
-    if not body:
+    if not any(ln.strip() for ln in lines[5:]):
         raise IngestError(path, "no data rows")
     try:
         table = pd.read_csv(
-            io.StringIO(body), sep="\t", header=None, names=range(n_cols + 1),
-            dtype=float, engine="c",
+            path, sep="\t", header=None, names=range(n_cols + 1), skiprows=5,
+            skip_blank_lines=True, dtype=float, engine="c",
         )
     except ValueError as exc:
         raise IngestError(path, f"malformed data rows: {exc}") from None
