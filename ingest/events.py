@@ -115,6 +115,16 @@ def _heel_settled(z: np.ndarray, i: int, rate_hz: float, p: EventParams) -> floa
     return i + j - 0.5 + frac
 
 
+def _peak_at_start(x: np.ndarray, distance: int, prominence: float) -> bool:
+    """A maximum cut by the start of the recording: the signal falls from its first sample by
+    at least `prominence` before rising again (the heel was already at its most anterior point)."""
+    head = x[: distance + 1]
+    if len(head) < 3 or not x[0] >= x[1]:
+        return False
+    trough = int(np.argmin(head))
+    return bool(x[0] - head[trough] >= prominence and (x[1 : trough + 1] <= x[0]).all())
+
+
 def kinematic_events(heel: dict[str, np.ndarray], toe: dict[str, np.ndarray], pelvis: np.ndarray,
                      heading_rad: np.ndarray, time_s: np.ndarray, rate_hz: float,
                      p: EventParams) -> pd.DataFrame:
@@ -127,12 +137,17 @@ def kinematic_events(heel: dict[str, np.ndarray], toe: dict[str, np.ndarray], pe
             rel = np.einsum("ij,ij->i", marker[:, :2] - pelvis[:, :2], direction) * sign
             filled = np.where(np.isfinite(rel), rel, np.nanmin(rel) if np.isfinite(rel).any() else 0)
             peaks, _ = find_peaks(filled, distance=distance, prominence=p.min_prominence_m / 2)
+            if event == "heel_strike" and _peak_at_start(filled, distance, p.min_prominence_m / 2):
+                peaks = np.concatenate(([0], peaks))
             for i in peaks:
                 if not np.isfinite(rel[max(0, i - 1) : i + 2]).all():
                     continue
                 at = _refined_peak(rel, i)
                 if event == "heel_strike":
-                    at = _heel_settled(marker[:, 2], i, rate_hz, p) or at
+                    settled = _heel_settled(marker[:, 2], i, rate_hz, p)
+                    if settled is None and i == 0:
+                        continue  # a cut peak whose landing is not in the recording either
+                    at = settled or at
                 rows.append((side, event, float(np.interp(at, np.arange(len(time_s)), time_s)),
                              "kinematic"))
     return _frame(rows)

@@ -1,0 +1,113 @@
+"""Stride selection, spatiotemporal parameters and cycles on the real example subjects."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from ingest.manifest import Manifest
+from ingest.process import IngestParams, process_subject
+from ingest.subject import load_subject
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def params() -> IngestParams:
+    return IngestParams.from_dict(yaml.safe_load((ROOT / "params.yaml").read_text())["ingest"])
+
+
+@pytest.fixture(scope="module")
+def camargo(params):
+    return process_subject(load_subject("camargo"), Manifest.load(), params)
+
+
+@pytest.fixture(scope="module")
+def opencap4(params):
+    return process_subject(load_subject("opencap4"), Manifest.load(), params)
+
+
+def _pelvis_speed(subject_id: str):
+    """Pelvis horizontal speed straight from the raw file (Y-up), independent of ingest.bouts."""
+    from ingest.readers import read_trc
+
+    subject = load_subject(subject_id)
+    trc = read_trc(Manifest.load().resolve(subject.trials[0].markers))
+    names = list(trc.names)
+    idx = [names.index(subject.markerset[r]) for r in ("asis_left", "asis_right", "psis_left",
+                                                       "psis_right")]
+    xz = np.nanmean(trc.xyz_m[:, idx][..., [0, 2]], axis=1)
+    lag = int(0.25 * trc.rate_hz)
+    speed = np.full(len(xz), np.nan)
+    speed[lag:-lag] = np.linalg.norm(xz[2 * lag:] - xz[:-2 * lag], axis=1) / 0.5
+    heading = np.full(len(xz), np.nan)
+    d = xz[2 * lag:] - xz[:-2 * lag]
+    heading[lag:-lag] = np.unwrap(np.arctan2(d[:, 1], d[:, 0]))
+    return trc.time_s, speed, heading
+
+
+def test_camargo_keeps_at_least_four_steady_strides_per_side(camargo):
+    kept = camargo.strides[camargo.strides["kept"]]
+    assert kept.groupby("side").size().min() >= 4
+
+
+def test_camargo_kept_strides_avoid_start_turn_and_stop(camargo):
+    time, speed, heading = _pelvis_speed("camargo")
+    walking = time[np.nan_to_num(speed) > 1.0]
+    start, stop = walking[0], walking[-1]  # quiet standing before, stopping after
+    kept = camargo.strides[camargo.strides["kept"]]
+    # the 180-degree turn: where the travel direction is more than 45 degrees off both straights
+    outbound = np.nanmedian(heading[(time > start) & (time < start + 2.0)])
+    off_axis = np.mod(heading - outbound, np.pi)
+    turn = (np.minimum(off_axis, np.pi - off_axis) > np.radians(45)) & (time > start) & (time < stop)
+    assert 1.0 < (turn.sum() / 200.0) < 3.0  # the turn itself lasts about 2 s
+    for row in kept.itertuples():
+        inside = (time >= row.t_start_s) & (time <= row.t_end_s)
+        assert row.t_start_s > start and row.t_end_s < stop
+        assert not (turn & inside).any(), f"stride {row.side} {row.stride} overlaps the turn"
+        assert speed[inside].min() > 1.0
+    assert set(camargo.strides.loc[~camargo.strides["kept"], "reason"]) >= {"standing", "turn"}
+
+
+def test_camargo_spatiotemporal_is_fast_walking(camargo):
+    kept = camargo.strides[camargo.strides["kept"]]
+    assert kept["stride_length_m"].between(1.3, 2.0).all()
+    assert kept["gait_speed_mps"].between(1.5, 2.3).all()  # fast walking, 1.80 m tall
+    assert kept["stride_time_s"].between(0.75, 1.1).all()
+    assert np.allclose(kept["cadence_spm"], 120.0 / kept["stride_time_s"])
+    assert np.allclose(kept["gait_speed_mps"], kept["stride_length_m"] / kept["stride_time_s"])
+    assert kept["step_width_m"].between(0.0, 0.35).all()
+
+
+def test_knee_flexion_sign_and_units_on_camargo(camargo):
+    """Source file: radians, knee flexion negative. Canonical: degrees, flexion positive."""
+    knee = camargo.cycles.query("joint == 'knee_flexion'")
+    peaks = knee.groupby(["side", "stride"])["angle_deg"].max()
+    assert peaks.between(50, 75).all(), peaks
+    swing = knee[knee["pct"].between(60, 80)].groupby(["side", "stride"])["angle_deg"].max()
+    assert (swing == peaks).all()  # the peak is in swing, not in stance
+
+
+def test_cycles_have_101_points_and_four_joints(camargo):
+    counts = camargo.cycles.groupby(["side", "stride", "joint"]).size()
+    assert (counts == 101).all()
+    assert set(camargo.cycles["joint"]) == {"hip_flexion", "knee_flexion", "ankle_dorsiflexion",
+                                            "pelvis_tilt"}
+    n_kept = int(camargo.strides["kept"].sum())
+    assert len(counts) == 4 * n_kept
+
+
+def test_opencap4_pools_complete_cycles_across_short_walks(opencap4):
+    """Each walk is 1.3-1.45 s: a complete heel-strike-to-heel-strike cycle exists only where the
+    window happens to hold two heel strikes of one side."""
+    strides = opencap4.strides
+    assert set(strides["condition"]) <= {"free", "trunk_sway", "toe_in", "toe_out"}
+    complete = strides.groupby("trial").size()
+    assert 5 <= len(complete) <= 12
+    kept = strides[strides["kept"]]
+    assert len(kept) >= 5
+    knee = opencap4.cycles.query("joint == 'knee_flexion'").groupby(["trial", "side", "stride"])
+    assert knee["angle_deg"].max().between(50, 75).all()
+    assert kept["gait_speed_mps"].between(0.9, 1.6).all()
+    assert opencap4.events["trial"].nunique() == 12
