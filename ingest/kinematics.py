@@ -5,7 +5,7 @@ thigh = hip joint centre -> knee, shank = knee -> ankle, foot = heel -> toe, pel
 PSIS midpoint -> ASIS midpoint. The hip joint centre is placed by the Harrington et al. (2007,
 J Biomech 40:595) regression from pelvis width and depth. Angles (degrees, canonical signs):
 pelvis anterior tilt = downward pitch of the pelvis axis; hip flexion = thigh angle from vertical
-+ pelvis tilt; knee flexion = thigh angle - shank angle; ankle dorsiflexion = shank angle + foot
++ pelvis tilt; knee flexion = thigh angle - shank angle; ankle dorsiflexion = foot pitch - shank angle
 pitch. Without a static calibration they carry the constant offsets of the marker placement.
 """
 
@@ -60,5 +60,5 @@ def marker_angles(lm: dict[str, np.ndarray], heading_rad: np.ndarray) -> dict[st
         foot = _pitch(lm[f"toe_{side}"] - lm[f"heel_{side}"], direction)
         angles[f"hip_flexion_{side}"] = thigh + tilt
         angles[f"knee_flexion_{side}"] = thigh - shank
-        angles[f"ankle_dorsiflexion_{side}"] = shank + foot
+        angles[f"ankle_dorsiflexion_{side}"] = foot - shank
     return angles
