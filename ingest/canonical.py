@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ingest.errors import IngestError
-from ingest.manifest import Manifest, sha256_of
+from ingest.manifest import Manifest
 from ingest.readers import MotTable, read_c3d, read_csv, read_markers, read_mot
 from ingest.readers.trc import MarkerTable
 from ingest.subject import FileFormat, Subject, TrialSpec
@@ -150,8 +150,8 @@ def plates_from_grf(mot: MotTable, fmt: FileFormat, heading_rad: float) -> Force
     return ForcePlates(mot.rate_hz, float(mot.time_s[0]), force[..., 2], cop)
 
 
-def _provenance(path, reader: str) -> Provenance:
-    return Provenance(str(path), sha256_of(path), reader)
+def _provenance(manifest: Manifest, key: str, path, reader: str) -> Provenance:
+    return Provenance(str(path), manifest.sources[key].sha256, reader)
 
 
 def load_trial(subject: Subject, spec: TrialSpec, manifest: Manifest, source: str = "real") -> Trial:
@@ -172,21 +172,23 @@ def load_trial(subject: Subject, spec: TrialSpec, manifest: Manifest, source: st
         heading = heading_rotation(markers, subject.markerset, table.rate_hz)
         markers = {n: rotate_z(v, heading) for n, v in markers.items()}
         time, rate = table.time_s, table.rate_hz
-        provenance.append(_provenance(path, f"markers:{path.suffix.lower().lstrip('.')}"))
+        provenance.append(
+            _provenance(manifest, spec.markers, path, f"markers:{path.suffix.lower().lstrip('.')}")
+        )
     if spec.angles:
         path = manifest.resolve(spec.angles)
         mot = read_mot(path)
         angles.update(canonical_angles(mot, subject.format, time))
         if time is None:
             time, rate = mot.time_s, mot.rate_hz
-        provenance.append(_provenance(path, "angles:mot"))
+        provenance.append(_provenance(manifest, spec.angles, path, "angles:mot"))
     if time is None:
         raise IngestError(f"{subject.path}", f"trial {spec.id!r} lists neither markers nor angles")
     plates = None
     if spec.grf:
         path = manifest.resolve(spec.grf)
         plates = plates_from_grf(read_mot(path), subject.format, heading)
-        provenance.append(_provenance(path, "grf:mot"))
+        provenance.append(_provenance(manifest, spec.grf, path, "grf:mot"))
     return Trial(subject.id, spec.condition, source, spec.id, float(rate), np.asarray(time, float),
                  markers, angles, plates, tuple(provenance))
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 import hashlib
 import os
 import urllib.request
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import yaml
@@ -43,11 +43,16 @@ def sha256_of(path: Path) -> str:
 
 @dataclass(frozen=True)
 class Manifest:
-    """The set of known files and where to look for them."""
+    """The set of known files and where to look for them.
+
+    A file verified once is not hashed again by the same Manifest while its size and
+    modification time stay the same.
+    """
 
     sources: dict[str, Source]
     mirror: Path
     cache: Path
+    _verified: dict[Path, tuple[int, int]] = field(default_factory=dict, compare=False, repr=False)
 
     @classmethod
     def load(
@@ -93,8 +98,10 @@ class Manifest:
         partial.replace(cached)
         return cached
 
-    @staticmethod
-    def _verify(path: Path, source: Source) -> None:
+    def _verify(self, path: Path, source: Source) -> None:
+        stat = path.stat()
+        if self._verified.get(path) == (stat.st_size, stat.st_mtime_ns):
+            return
         actual = sha256_of(path)
         if actual != source.sha256:
             if path.name.endswith(".part"):
@@ -102,3 +109,4 @@ class Manifest:
             raise ManifestError(
                 path, f"sha256 mismatch for {source.key}: manifest says {source.sha256}, file is {actual}"
             )
+        self._verified[path] = (stat.st_size, stat.st_mtime_ns)
