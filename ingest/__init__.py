@@ -1,0 +1,25 @@
+"""gaitloop ingest: mocap files in, canonical trials, gait events, steady strides and cycles out."""
+
+from ingest.canonical import load_trial
+from ingest.errors import GaitloopError, IngestError, ManifestError, SubjectError
+from ingest.manifest import Manifest
+from ingest.process import IngestParams, ProcessedTrial, SubjectTables, process_subject, process_trial
+from ingest.subject import Subject, load_subject
+from ingest.trial import Trial
+
+__all__ = [
+    "GaitloopError",
+    "IngestError",
+    "IngestParams",
+    "Manifest",
+    "ManifestError",
+    "ProcessedTrial",
+    "Subject",
+    "SubjectError",
+    "SubjectTables",
+    "Trial",
+    "load_subject",
+    "load_trial",
+    "process_subject",
+    "process_trial",
+]

@@ -1,0 +1,1 @@
+"""gaitloop metrics: the paper's tables, SPM and interaction forces (built in a later issue)."""
