@@ -70,7 +70,7 @@ def _score(subject_id: str):
         events = process_trial(load_trial(subject, spec, manifest), subject.markerset,
                                _params("kinematic")).events
         assert set(events["method"]) == {"kinematic"}
-        for side, t in truth:
+        for side, t in truth:  # noqa: B007 (used by query via @side)
             n_truth += 1
             det = events.query("side == @side and event == 'heel_strike'")["time_s"].to_numpy()
             if len(det) and np.min(np.abs(det - t)) <= 0.1:

@@ -1,0 +1,1 @@
+"""gaitloop pipeline: command line, stage entry points and params loading."""

@@ -1,0 +1,83 @@
+"""Command line: `python -m pipeline <command>`; each command parses params, calls the library
+and writes or prints its outputs. Any `GaitloopError` ends the run with one line on stderr
+(`error: <message>`) and exit status 2."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import sys
+from pathlib import Path
+
+from ingest.errors import GaitloopError
+from ingest.process import process_trial
+from pipeline.bench import run_bench
+from pipeline.ingest_stage import DEFAULT_OUT_ROOT, run_ingest
+from pipeline.outputs import json_text, write_json
+from pipeline.params import PARAMS_FILE, REPO_ROOT, ingest_params, load_params
+from pipeline.quicklook import file_trial, format_events, quicklook_subject
+
+EXIT_ERROR = 2
+
+
+def cmd_ingest(args: argparse.Namespace) -> int:
+    folder = run_ingest(args.subject, load_params(args.params), args.out_root)
+    print(f"wrote {folder}", file=sys.stderr)
+    return 0
+
+
+def cmd_events(args: argparse.Namespace) -> int:
+    p = ingest_params(load_params(args.params), args.params)
+    if args.method:
+        p = dataclasses.replace(p, events=dataclasses.replace(p.events, method=args.method))
+    subject = quicklook_subject(args.file, args.subject, args.up_axis, args.markerset)
+    trial = file_trial(args.file, args.grf, subject)
+    print(format_events(process_trial(trial, subject.markerset, p).events, args.format))
+    return 0
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    result = run_bench(ingest_params(load_params(args.params), args.params), args.repeat)
+    write_json(args.out, result)
+    print(json_text(result), end="")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="python -m pipeline", description=__doc__.split(";")[0])
+    parser.add_argument("--params", type=Path, default=PARAMS_FILE, help="params file (default: %(default)s)")
+    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    ingest = commands.add_parser("ingest", help="process a subject's trials into events/strides/cycles")
+    ingest.add_argument("subject", help="subject id (data/subjects/<id>.yaml)")
+    ingest.add_argument("--out-root", type=Path, default=DEFAULT_OUT_ROOT,
+                        help="outputs go to <out-root>/<subject>/real/ (default: %(default)s)")
+    ingest.set_defaults(func=cmd_ingest)
+
+    events = commands.add_parser("events", help="print the gait events of one marker file")
+    events.add_argument("file", type=Path, help="marker file (.trc, .c3d or .csv)")
+    events.add_argument("--grf", type=Path, help="OpenSim ground reaction file (.mot) for force events")
+    events.add_argument("--method", choices=("kinematic", "force", "auto"),
+                        help="event source (default: params ingest.events.method)")
+    events.add_argument("--format", choices=("csv", "table", "json"), default="csv")
+    events.add_argument("--subject", help="take the file format and marker set from this subject")
+    events.add_argument("--up-axis", choices=("y", "z"),
+                        help="the file's up axis (default: the subject's, else z)")
+    events.add_argument("--markerset", help="marker set name in data/markersets/ (default: the one "
+                        "whose markers are all in the file)")
+    events.set_defaults(func=cmd_events)
+
+    bench = commands.add_parser("bench", help="time ingest on the bundled real recordings")
+    bench.add_argument("--out", type=Path, default=REPO_ROOT / "reports" / "bench.json")
+    bench.add_argument("--repeat", type=int, default=5, help="timed runs, best kept (default: 5)")
+    bench.set_defaults(func=cmd_bench)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return args.func(args)
+    except GaitloopError as exc:
+        print(f"error: {' '.join(str(exc).split())}", file=sys.stderr)
+        return EXIT_ERROR

@@ -1,0 +1,52 @@
+"""Stage outputs written all-or-nothing: every file goes to a temp file beside its target and
+replaces it (`os.replace`) only once all of them are written, so a failure leaves no half-written
+output and keeps whatever was stored before."""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
+from pathlib import Path
+
+import pandas as pd
+
+
+@contextmanager
+def replacing(*targets: Path) -> Iterator[list[Path]]:
+    """Temp paths beside `targets` to write to; on a clean exit each replaces its target, on an
+    error they are deleted and the targets stay as they were."""
+    temps = []
+    try:
+        for target in targets:
+            target.parent.mkdir(parents=True, exist_ok=True)
+            temps.append(target.with_name(f".{target.name}.{os.getpid()}.tmp"))
+        yield temps
+        for temp, target in zip(temps, targets, strict=True):
+            os.replace(temp, target)
+    finally:
+        for temp in temps:
+            temp.unlink(missing_ok=True)
+
+
+def json_text(doc: dict) -> str:
+    return json.dumps(doc, indent=2) + "\n"
+
+
+def write_outputs(folder: Path, tables: Mapping[str, pd.DataFrame], metrics: Mapping[str, dict]) -> None:
+    """`<folder>/<name>.parquet` for each table and `<folder>/<name>.json` for each metrics dict."""
+    files = {folder / f"{n}.parquet": t for n, t in tables.items()}
+    files |= {folder / f"{n}.json": d for n, d in metrics.items()}
+    with replacing(*files) as temps:
+        for temp, content in zip(temps, files.values(), strict=True):
+            if isinstance(content, pd.DataFrame):
+                content.to_parquet(temp, index=False)
+            else:
+                temp.write_text(json_text(content))
+
+
+def write_json(path: Path, doc: dict) -> None:
+    """One JSON document, written all-or-nothing."""
+    with replacing(path) as (temp,):
+        temp.write_text(json_text(doc))

@@ -1,0 +1,103 @@
+"""`python -m pipeline` on the real example data: events quick look, errors, ingest, bench, dvc.yaml."""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from pipeline.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+DATA = Path(os.environ.get("GAITLOOP_MIRROR", ROOT.parent / "shared" / "data"))
+CAMARGO_TRC = DATA / "camargo2021_levelground" / "MarkerData" / "levelground_ccw_fast_01_01.trc"
+ID_COLUMNS = ["subject", "source", "condition", "trial"]
+COLUMNS = {
+    "events": [*ID_COLUMNS, "side", "event", "time_s", "method"],
+    "strides": [*ID_COLUMNS, "side", "stride", "t_start_s", "t_end_s", "kept", "reason",
+                "stride_length_m", "stride_time_s", "cadence_spm", "gait_speed_mps", "step_width_m"],
+    "cycles": [*ID_COLUMNS, "side", "stride", "pct", "joint", "angle_deg"],
+}
+
+
+def _cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "pipeline", *args], cwd=ROOT, capture_output=True,
+                          text=True, timeout=120)
+
+
+def test_events_quick_look_prints_csv():
+    run = _cli("events", str(CAMARGO_TRC), "--method", "kinematic", "--up-axis", "y", "--format", "csv")
+    assert run.returncode == 0, run.stderr
+    lines = run.stdout.strip().splitlines()
+    assert lines[0] == "side,event,time_s"
+    rows = [line.split(",") for line in lines[1:]]
+    assert all(len(r) == 3 and r[0] in ("left", "right") for r in rows)
+    assert sum(r[1] == "heel_strike" for r in rows) >= 10
+
+
+def test_unknown_subject_is_one_line_error():
+    run = _cli("ingest", "nosuchsubject")
+    assert run.returncode == 2
+    assert "Traceback" not in run.stderr
+    lines = run.stderr.strip().splitlines()
+    assert len(lines) == 1
+    assert lines[0].startswith("error: ") and "nosuchsubject" in lines[0]
+
+
+def test_events_wrong_up_axis_names_the_file(capsys):
+    assert main(["events", str(CAMARGO_TRC), "--markerset", "camargo"]) == 2  # Y-up file read as Z-up
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"error: {CAMARGO_TRC}") and "up_axis" in err and "\n" not in err
+
+
+def test_missing_params_file_is_one_line_error(tmp_path, capsys):
+    assert main(["--params", str(tmp_path / "none.yaml"), "ingest", "camargo"]) == 2
+    assert "none.yaml" in capsys.readouterr().err
+
+
+def test_ingest_writes_documented_tables_reproducibly(tmp_path):
+    def ingest() -> dict[str, pd.DataFrame]:
+        assert main(["ingest", "opencap4", "--out-root", str(tmp_path)]) == 0
+        return {name: pd.read_parquet(folder / f"{name}.parquet") for name in COLUMNS}
+
+    folder = tmp_path / "opencap4" / "real"
+    first = ingest()
+    for name, table in first.items():
+        assert list(table.columns) == COLUMNS[name]
+        assert len(table) > 0
+    assert first["strides"]["kept"].any()
+    summary = json.loads((folder / "summary.json").read_text())
+    assert summary["n_trials"] == 12
+    assert summary["n_strides"] == len(first["strides"])
+    assert sum(summary["n_kept"].values()) == first["strides"]["kept"].sum()
+    second = ingest()
+    for name in COLUMNS:
+        pd.testing.assert_frame_equal(first[name], second[name])
+    assert sorted(p.name for p in folder.iterdir()) == sorted(
+        [f"{n}.parquet" for n in COLUMNS] + ["summary.json"])  # no temp files left behind
+
+
+def test_bench_writes_report(tmp_path):
+    out = tmp_path / "reports" / "bench.json"
+    assert main(["bench", "--out", str(out), "--repeat", "1"]) == 0
+    report = json.loads(out.read_text())
+    for key in ("camargo_trial_s", "camargo_frames_per_s", "opencap4_frames_per_s", "targets",
+                "meets_targets"):
+        assert key in report
+    assert report["targets"] == {"camargo_trial_s": 0.2}
+    assert report["meets_targets"] == (report["camargo_trial_s"] <= 0.2)
+    assert report["camargo_frames_per_s"] > 0 and report["opencap4_frames_per_s"] > 0
+
+
+def test_dvc_expands_one_ingest_stage_per_subject():
+    dvc = Path(sys.executable).with_name("dvc")
+    if not dvc.exists():
+        pytest.skip("dvc is not installed beside this interpreter")
+    run = subprocess.run([str(dvc), "stage", "list", "--all"], cwd=ROOT, capture_output=True, text=True,
+                         timeout=120, env={**os.environ, "DVC_NO_ANALYTICS": "1"})
+    assert run.returncode == 0, run.stderr
+    stages = {line.split()[0] for line in run.stdout.splitlines() if line.strip()}
+    assert {"ingest@camargo", "ingest@opencap4", "bench"} <= stages
