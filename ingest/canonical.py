@@ -121,6 +121,10 @@ def canonical_angles(mot: MotTable, fmt: FileFormat, time_s: np.ndarray | None) 
         if time_s is not None and (len(t) != len(time_s) or not np.allclose(t, time_s, atol=1e-6)):
             values = np.interp(time_s, t, values, left=np.nan, right=np.nan)
         angles[name] = values
+    sagittal = [v for k, v in angles.items() if k.startswith(("hip_flexion", "knee_flexion"))]
+    if in_degrees and sagittal and np.nanmax(np.abs(sagittal)) <= np.pi:
+        raise IngestError(mot.path, f"hip and knee angles never exceed {np.pi:.2f}: the values are "
+                          "radians although the header says inDegrees=yes")
     for side in ("left", "right"):
         knee = angles.get(f"knee_flexion_{side}")
         if knee is not None and np.nanpercentile(knee, 5) < -25:

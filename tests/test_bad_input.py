@@ -1,0 +1,356 @@
+"""A corpus of bad inputs built from the real recordings: each one gets a clear error naming the file
+and the problem, or is handled correctly. Never a traceback from deep inside pandas, never a silently
+wrong number.
+
+Every case writes a modified copy of a real file into a temporary mirror with its own manifest, so
+the real data and the repository's manifest are never touched.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from ingest.canonical import load_trial
+from ingest.errors import GaitloopError, IngestError, ManifestError, SubjectError
+from ingest.manifest import Manifest, Source, sha256_of
+from ingest.process import IngestParams, process_subject, process_trial
+from ingest.subject import FileFormat, Subject, TrialSpec, load_subject
+
+ROOT = Path(__file__).resolve().parents[1]
+CAMARGO_TRC = "camargo2021_levelground/MarkerData/levelground_ccw_fast_01_01.trc"
+CAMARGO_MOT = "camargo2021_levelground/IK/levelground_ccw_fast_01_01_ik.mot"
+UNREACHABLE_URL = "http://127.0.0.1:9/gaitloop-missing"  # refused at once: no network wait
+
+
+@pytest.fixture(scope="module")
+def params() -> IngestParams:
+    return IngestParams.from_dict(yaml.safe_load((ROOT / "params.yaml").read_text())["ingest"])
+
+
+@pytest.fixture(scope="module")
+def real() -> Manifest:
+    return Manifest.load()
+
+
+@pytest.fixture(scope="module")
+def camargo() -> Subject:
+    return load_subject("camargo")
+
+
+class Corpus:
+    """A temporary mirror + manifest holding modified copies of real files."""
+
+    def __init__(self, root: Path, real: Manifest) -> None:
+        self.root, self.real = root, real
+        self.sources: dict[str, Source] = {}
+
+    def text(self, key: str) -> str:
+        return self.real.resolve(key).read_text()
+
+    def add(self, key: str, content: str | bytes) -> str:
+        path = self.root / "mirror" / key
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_bytes(content.encode() if isinstance(content, str) else content)
+        self.sources[key] = Source(key, UNREACHABLE_URL, sha256_of(path))
+        return key
+
+    def manifest(self) -> Manifest:
+        return Manifest(dict(self.sources), self.root / "mirror", self.root / "cache")
+
+    def path(self, key: str) -> str:
+        return str(self.root / "mirror" / key)
+
+
+@pytest.fixture
+def corpus(tmp_path, real) -> Corpus:
+    return Corpus(tmp_path, real)
+
+
+def _trc_edit(text: str, edit) -> str:
+    """Apply `edit(row_values) -> row_values` to every data row of a TRC text (rows after line 5)."""
+    lines = text.splitlines()
+    out = lines[:5]
+    for line in lines[5:]:
+        if not line.strip():
+            continue
+        cells = line.split("\t")
+        out.append("\t".join(edit(cells)))
+    return "\n".join(out) + "\n"
+
+
+def _marker_columns(text: str, marker: str) -> list[int]:
+    names = text.splitlines()[3].split("\t")
+    j = names.index(marker)
+    return [j, j + 1, j + 2]
+
+
+def _one_trial(subject: Subject, key: str, angles: str | None = None, **fmt) -> tuple[Subject, TrialSpec]:
+    spec = TrialSpec(id="bad", condition="free", markers=key, angles=angles)
+    subject = dataclasses.replace(subject, trials=(spec,),
+                                  format=dataclasses.replace(subject.format, **fmt))
+    return subject, spec
+
+
+def _reference(camargo: Subject, real: Manifest, params: IngestParams):
+    """The unmodified marker file through the same one-trial spec (no GRF, no .mot) as the cases."""
+    subject, spec = _one_trial(camargo, CAMARGO_TRC)
+    return process_trial(load_trial(subject, spec, real), subject.markerset, params)
+
+
+def _raises(exc_type, *fragments: str):
+    """pytest.raises whose message must contain every fragment."""
+
+    class _Check:
+        def __enter__(self):
+            self.ctx = pytest.raises(exc_type)
+            self.info = self.ctx.__enter__()
+            return self.info
+
+        def __exit__(self, *exc):
+            suppressed = self.ctx.__exit__(*exc)
+            message = str(self.info.value)
+            for fragment in fragments:
+                assert fragment in message, f"{fragment!r} not in {message!r}"
+            assert "\n" not in message.strip()
+            return suppressed
+
+    return _Check()
+
+
+# --- files that cannot be trusted ------------------------------------------------------------
+
+def test_truncated_trc_names_file_and_truncation(corpus, camargo):
+    text = corpus.text(CAMARGO_TRC)
+    key = corpus.add(CAMARGO_TRC, text[: len(text) // 2])  # cut in the middle of a row
+    subject, spec = _one_trial(camargo, key)
+    with _raises(IngestError, corpus.path(key), "truncated"):
+        load_trial(subject, spec, corpus.manifest())
+
+
+def test_trc_missing_rows_at_the_end_is_truncated(corpus, camargo):
+    lines = corpus.text(CAMARGO_TRC).splitlines()
+    key = corpus.add(CAMARGO_TRC, "\n".join(lines[:-100]) + "\n")  # whole rows missing
+    subject, spec = _one_trial(camargo, key)
+    with _raises(IngestError, corpus.path(key), "header declares 3067 frames"):
+        load_trial(subject, spec, corpus.manifest())
+
+
+def test_empty_file(corpus, camargo):
+    key = corpus.add(CAMARGO_TRC, "")
+    subject, spec = _one_trial(camargo, key)
+    with _raises(IngestError, corpus.path(key), "truncated"):
+        load_trial(subject, spec, corpus.manifest())
+
+
+def test_header_lies_about_units(corpus, camargo):
+    """Metres in the data, `mm` in the header: the pelvis would be 1 mm above the feet."""
+    lines = corpus.text(CAMARGO_TRC).splitlines()
+    values = lines[2].split("\t")
+    values[4] = "mm"
+    lines[2] = "\t".join(values)
+    key = corpus.add(CAMARGO_TRC, "\n".join(lines) + "\n")
+    subject, spec = _one_trial(camargo, key)
+    with _raises(IngestError, corpus.path(key), "units", "'mm'"):
+        load_trial(subject, spec, corpus.manifest())
+
+
+def test_millimetre_file_declared_as_such_gives_the_same_strides(corpus, camargo, real, params):
+    """The same recording honestly in millimetres: converted, not rejected, same numbers."""
+    text = corpus.text(CAMARGO_TRC)
+    lines = text.splitlines()
+    values = lines[2].split("\t")
+    values[4] = "mm"
+    lines[2] = "\t".join(values)
+
+    def to_mm(cells):
+        return cells[:2] + [f"{float(c) * 1000:.6f}" if c.strip() else c for c in cells[2:]]
+
+    key = corpus.add(CAMARGO_TRC, _trc_edit("\n".join(lines) + "\n", to_mm))
+    subject, spec = _one_trial(camargo, key)
+    mm = process_trial(load_trial(subject, spec, corpus.manifest()), subject.markerset, params).strides
+    ref = _reference(camargo, real, params).strides
+    assert mm["kept"].tolist() == ref["kept"].tolist()
+    np.testing.assert_allclose(mm["stride_length_m"], ref["stride_length_m"], atol=1e-6)
+
+
+def test_y_up_file_declared_z_up(corpus, camargo):
+    key = corpus.add(CAMARGO_TRC, corpus.text(CAMARGO_TRC))
+    subject, spec = _one_trial(camargo, key, up_axis="z")
+    with _raises(IngestError, corpus.path(key), "up_axis", "Z declared"):
+        load_trial(subject, spec, corpus.manifest())
+
+
+def test_z_up_copy_declared_z_up_gives_the_same_strides(corpus, camargo, real, params):
+    """The Y-up recording rotated to Z-up and declared so: the same strides come out."""
+
+    def y_to_z(cells):
+        out = cells[:2]
+        for j in range(2, len(cells) - 2, 3):
+            x, y, z = cells[j:j + 3]
+            out += [x, f"{-float(z):.6f}" if z.strip() else z, y]
+        return out
+
+    key = corpus.add(CAMARGO_TRC, _trc_edit(corpus.text(CAMARGO_TRC), y_to_z))
+    subject, spec = _one_trial(camargo, key, up_axis="z")
+    zup = process_trial(load_trial(subject, spec, corpus.manifest()), subject.markerset, params).strides
+    ref = _reference(camargo, real, params).strides
+    assert zup["kept"].tolist() == ref["kept"].tolist()
+    np.testing.assert_allclose(zup["stride_length_m"], ref["stride_length_m"], atol=1e-6)
+
+
+def _mot_with_header(corpus: Corpus, replace: tuple[str, str] | None) -> str:
+    text = corpus.text(CAMARGO_MOT)
+    if replace is not None:
+        assert replace[0] in text
+        text = text.replace(replace[0], replace[1], 1)
+    return corpus.add(CAMARGO_MOT, text)
+
+
+def test_mot_radians_declared_as_degrees(corpus, camargo):
+    key = _mot_with_header(corpus, ("inDegrees=no", "inDegrees=yes"))
+    subject = dataclasses.replace(camargo, trials=(TrialSpec("bad", "free", angles=key),))
+    with _raises(IngestError, corpus.path(key), "radians", "inDegrees=yes"):
+        load_trial(subject, subject.trials[0], corpus.manifest())
+
+
+def test_mot_degrees_declared_as_radians(corpus, camargo):
+    text = corpus.text(CAMARGO_MOT)
+    head, body = text.split("endheader\n", 1)
+    rows = body.splitlines()
+    names = rows[0].split("\t")
+    angular = [j for j, n in enumerate(names) if n != "time" and not n.endswith(("_tx", "_ty", "_tz"))]
+    converted = [rows[0]]
+    for row in rows[1:]:
+        cells = row.split("\t")
+        for j in angular:
+            cells[j] = f"{np.degrees(float(cells[j])):.6f}"
+        converted.append("\t".join(cells))
+    key = corpus.add(CAMARGO_MOT, head + "endheader\n" + "\n".join(converted) + "\n")
+    subject = dataclasses.replace(camargo, trials=(TrialSpec("bad", "free", angles=key),))
+    with _raises(IngestError, corpus.path(key), "exceeds 180 deg", "inDegrees"):
+        load_trial(subject, subject.trials[0], corpus.manifest())
+
+
+def test_mot_without_in_degrees_needs_a_declared_unit(corpus, camargo):
+    key = _mot_with_header(corpus, ("inDegrees=no\n", ""))
+    subject = dataclasses.replace(camargo, trials=(TrialSpec("bad", "free", angles=key),))
+    with _raises(IngestError, corpus.path(key), "inDegrees", "angle_unit"):
+        load_trial(subject, subject.trials[0], corpus.manifest())
+    declared = dataclasses.replace(subject, format=dataclasses.replace(subject.format, angle_unit="rad"))
+    knee = load_trial(declared, subject.trials[0], corpus.manifest()).angles["knee_flexion_left"]
+    assert 50 < np.nanmax(knee) < 80  # declared unit honoured: radians converted to degrees
+
+
+def test_knee_sign_not_declared(corpus, camargo):
+    """Camargo's knee flexion is negative in the file; a subject file that forgets to say so."""
+    key = _mot_with_header(corpus, None)
+    subject = dataclasses.replace(camargo, trials=(TrialSpec("bad", "free", angles=key),),
+                                  format=FileFormat(up_axis="y", knee_flexion_sign=1))
+    with _raises(IngestError, corpus.path(key), "knee_flexion_sign: -1"):
+        load_trial(subject, subject.trials[0], corpus.manifest())
+
+
+# --- gaps and missing markers ------------------------------------------------------------------
+
+def _gap(text: str, marker: str, t0: float, t1: float) -> str:
+    cols = _marker_columns(text, marker)
+
+    def blank(cells):
+        t = float(cells[1])
+        if t0 <= t < t1:
+            for j in cols:
+                cells[j] = ""
+        return cells
+
+    return _trc_edit(text, blank)
+
+
+def _kept_strides(corpus, camargo, params, text):
+    key = corpus.add(CAMARGO_TRC, text)
+    subject, spec = _one_trial(camargo, key)
+    return process_trial(load_trial(subject, spec, corpus.manifest()), subject.markerset, params)
+
+
+def test_short_marker_gap_is_filled(corpus, camargo, params, real):
+    """A 50 ms heel dropout inside a kept stride: filled, events and strides unchanged within 10 ms."""
+    text = corpus.text(CAMARGO_TRC)
+    ref = _reference(camargo, real, params)
+    out = _kept_strides(corpus, camargo, params, _gap(text, "L_Heel", 10.60, 10.65))
+    assert out.strides["kept"].sum() == ref.strides["kept"].sum()
+    hs = lambda ev: ev.query("event == 'heel_strike'")["time_s"].to_numpy()  # noqa: E731
+    assert len(hs(out.events)) == len(hs(ref.events))
+    assert np.max(np.abs(hs(out.events) - hs(ref.events))) < 0.01
+
+
+def test_long_marker_gap_rejects_the_strides_it_touches(corpus, camargo, params):
+    """A 0.5 s heel dropout: not invented; strides of that side over it are rejected as 'marker gap'."""
+    text = corpus.text(CAMARGO_TRC)
+    out = _kept_strides(corpus, camargo, params, _gap(text, "L_Heel", 10.4, 10.9))
+    left = out.strides.query("side == 'left'")
+    over = left[(left["t_start_s"] < 10.9) & (left["t_end_s"] > 10.4)]
+    assert len(over) >= 1
+    assert not over["kept"].any()
+    assert set(over["reason"]) <= {"marker gap", "events missing"}
+    assert "marker gap" in set(over["reason"]) | set(left["reason"])
+    assert out.strides["kept"].sum() >= 4  # the rest of the trial still counts
+
+
+def test_missing_heel_marker(corpus, camargo, params):
+    text = corpus.text(CAMARGO_TRC)
+    lines = text.splitlines()
+    lines[3] = lines[3].replace("L_Heel", "L_Hee1")  # renamed: the marker set's heel is absent
+    key = corpus.add(CAMARGO_TRC, "\n".join(lines) + "\n")
+    subject, spec = _one_trial(camargo, key)
+    with _raises(IngestError, corpus.path(key), "L_Heel"):
+        process_trial(load_trial(subject, spec, corpus.manifest()), subject.markerset, params)
+
+
+def test_trial_with_no_complete_stride(corpus, camargo, params):
+    """Only the quiet standing at the start: the subject has nothing to offer downstream."""
+    lines = corpus.text(CAMARGO_TRC).splitlines()
+    header = lines[:5]
+    values = header[2].split("\t")
+    values[2] = "400"
+    header[2] = "\t".join(values)
+    rows = [line for line in lines[5:] if line.strip()][:400]  # the first 2 s: standing
+    key = corpus.add(CAMARGO_TRC, "\n".join(header + rows) + "\n")
+    subject, _ = _one_trial(camargo, key)
+    with _raises(IngestError, str(camargo.path), "no steady complete stride"):
+        process_subject(subject, corpus.manifest(), params)
+
+
+# --- registry and manifest ---------------------------------------------------------------------
+
+def test_unknown_subject_lists_known_ones():
+    with _raises(SubjectError, "nosuchsubject", "camargo", "opencap4"):
+        load_subject("nosuchsubject")
+
+
+def test_hash_mismatch(corpus, camargo):
+    key = corpus.add(CAMARGO_TRC, corpus.text(CAMARGO_TRC))
+    (corpus.root / "mirror" / key).write_text(corpus.text(CAMARGO_TRC).replace("0.", "1.", 1))
+    with _raises(ManifestError, corpus.path(key), "sha256 mismatch"):
+        corpus.manifest().resolve(key)
+
+
+def test_missing_file_and_no_download(corpus):
+    key = corpus.add("nowhere/gone.trc", "x")
+    (corpus.root / "mirror" / key).unlink()
+    with _raises(ManifestError, key, "download", UNREACHABLE_URL):
+        corpus.manifest().resolve(key)
+    assert not any((corpus.root / "cache").rglob("*.part"))  # nothing half-downloaded left
+
+
+def test_file_not_in_manifest(corpus):
+    with _raises(ManifestError, "some/file.trc", "not listed"):
+        corpus.manifest().resolve("some/file.trc")
+
+
+def test_every_corpus_error_is_a_gaitloop_error():
+    assert issubclass(IngestError, GaitloopError)
+    assert issubclass(ManifestError, GaitloopError) and issubclass(SubjectError, GaitloopError)
