@@ -16,6 +16,7 @@ from pipeline.ingest_stage import DEFAULT_OUT_ROOT, run_ingest
 from pipeline.outputs import json_text, write_json
 from pipeline.params import PARAMS_FILE, REPO_ROOT, ingest_params, load_params
 from pipeline.quicklook import file_trial, format_events, quicklook_subject
+from pipeline.results_cli import add_results_commands
 
 EXIT_ERROR = 2
 
@@ -71,6 +72,8 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--out", type=Path, default=REPO_ROOT / "reports" / "bench.json")
     bench.add_argument("--repeat", type=int, default=5, help="timed runs, best kept (default: 5)")
     bench.set_defaults(func=cmd_bench)
+
+    add_results_commands(commands)
     return parser
 
 

@@ -1,0 +1,313 @@
+"""The versioned results store: one DuckDB file (`data/results.duckdb`) kept across runs.
+
+Every result row belongs to a version: one (subject, condition, source, human_mode) group's
+results at one point in time, with the sha256 of its content, the hash of the params that made it,
+the code revision (`git rev-parse HEAD`, 'unknown' outside git) and the creation time.
+
+- A group whose content equals its latest version's content gets no new version: rerunning an
+  unchanged pipeline adds nothing. Changed content gets a new version; an earlier version is never
+  updated or deleted (content that returns to an older state is a new version, so "latest" is
+  always what the last run computed).
+- One store run is one transaction: killed midway, the file keeps its previous state.
+- DuckDB lets one process write a file at a time. A second writer retries for `busy_timeout_s`,
+  then fails with `StoreError` "store is busy". Connections are always closed.
+
+SPM tests belong to the group of their second sample (`*_b`: the simulated or the controller
+condition); their curves and clusters to the test's version. Base tables are `result_<name>`;
+views `latest_<name>` hold the latest version of each group; `paper_table1..3`, `spm_clusters`,
+`subject_summary` are described in README.md.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import subprocess
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+
+import duckdb
+import numpy as np
+import pandas as pd
+
+from ingest.errors import GaitloopError
+from pipeline.params import REPO_ROOT
+
+GROUP = ["subject", "condition", "source", "human_mode"]
+_GROUP_DDL = "subject VARCHAR, source VARCHAR, human_mode VARCHAR, condition VARCHAR"
+# Column types of each result table (names as the metrics tables write them).
+SCHEMAS: dict[str, str] = {
+    "gait": f"{_GROUP_DDL}, n_strides BIGINT, stride_length_m_mean DOUBLE, stride_length_m_sd DOUBLE, "
+            "gait_speed_mps_mean DOUBLE, gait_speed_mps_sd DOUBLE, stride_time_s_mean DOUBLE, "
+            "cadence_spm_mean DOUBLE",
+    "stability": f"{_GROUP_DDL}, side VARCHAR, joint VARCHAR, n_cycles BIGINT, intercycle_sd_deg DOUBLE, "
+                 "note VARCHAR",
+    "rom": f"{_GROUP_DDL}, side VARCHAR, joint VARCHAR, n_cycles BIGINT, rom_deg_mean DOUBLE, "
+           "rom_deg_sd DOUBLE, min_deg_mean DOUBLE, max_deg_mean DOUBLE",
+    "kinematics": f"{_GROUP_DDL}, side VARCHAR, joint VARCHAR, pct DOUBLE, n_cycles BIGINT, mean_deg DOUBLE, "
+                  "sd_deg DOUBLE",
+    "compliance": f"{_GROUP_DDL}, n_trials BIGINT, n_samples BIGINT, mean_abs_ex_cm DOUBLE, "
+                  "sd_abs_ex_cm DOUBLE, mean_abs_ey_cm DOUBLE, sd_abs_ey_cm DOUBLE, max_abs_ex_cm DOUBLE, "
+                  "max_abs_ey_cm DOUBLE, "
+                  "fall_rate DOUBLE",
+    "harness": f"{_GROUP_DDL}, quantity VARCHAR, unit VARCHAR, n_samples BIGINT, rms DOUBLE, peak DOUBLE, "
+               "mean DOUBLE",
+    "spm_tests": "test_id VARCHAR, subject VARCHAR, comparison VARCHAR, side VARCHAR, joint VARCHAR, "
+                 "source_a VARCHAR, human_mode_a VARCHAR, condition_a VARCHAR, source_b VARCHAR, "
+                 "human_mode_b VARCHAR, condition_b VARCHAR, test VARCHAR, statistic VARCHAR, n_a BIGINT, "
+                 "n_b BIGINT, alpha DOUBLE, zstar DOUBLE, df1 DOUBLE, df2 DOUBLE, h0_rejected BOOLEAN, "
+                 "n_clusters BIGINT, min_p DOUBLE, status VARCHAR, reason VARCHAR",
+    "spm_curves": "test_id VARCHAR, pct DOUBLE, value DOUBLE",
+    "spm_clusters": "test_id VARCHAR, cluster BIGINT, start_pct DOUBLE, end_pct DOUBLE, extent_pct DOUBLE, "
+                    "p DOUBLE",
+}
+TABLES = tuple(SCHEMAS)
+LINKED = ("spm_curves", "spm_clusters")  # rows that belong to an SPM test's group via test_id
+
+
+class StoreError(GaitloopError):
+    """The results store cannot be opened, is busy, or is missing its inputs."""
+
+    def __init__(self, where: str | Path, problem: str) -> None:
+        self.where = str(where)
+        super().__init__(f"{self.where}: {problem}")
+
+
+@dataclass(frozen=True)
+class StoreParams:
+    """The `store` section of params.yaml."""
+
+    path: Path = REPO_ROOT / "data" / "results.duckdb"
+    busy_timeout_s: float = 10.0
+    retry_interval_s: float = 0.2
+
+    @classmethod
+    def from_dict(cls, d: dict, root: Path = REPO_ROOT) -> StoreParams:
+        path = Path(d["path"])
+        return cls(path if path.is_absolute() else root / path, float(d["busy_timeout_s"]),
+                   float(d["retry_interval_s"]))
+
+
+@dataclass(frozen=True)
+class SubjectResults:
+    """One subject's metric tables (names in `TABLES`) and the params hash that made them."""
+
+    subject: str
+    tables: dict[str, pd.DataFrame]
+    params_hash: str
+
+
+@dataclass(frozen=True)
+class StoreReport:
+    run_id: int
+    n_groups: int
+    new_versions: tuple[int, ...]
+    seconds: float
+
+
+def code_rev(root: Path = REPO_ROOT) -> str:
+    """`git rev-parse HEAD` of `root`, 'unknown' when not a git checkout."""
+    try:
+        out = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True,
+                             timeout=10)
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+    return out.stdout.strip() if out.returncode == 0 and out.stdout.strip() else "unknown"
+
+
+def connect(path: Path, read_only: bool = False, busy_timeout_s: float = 10.0,
+            retry_interval_s: float = 0.2) -> duckdb.DuckDBPyConnection:
+    """Open the store, waiting up to `busy_timeout_s` while another process holds its lock."""
+    path = Path(path)
+    if read_only and not path.is_file():
+        raise StoreError(path, "no results store here yet: run `python -m pipeline store` first")
+    deadline = time.monotonic() + busy_timeout_s
+    while True:
+        try:
+            return duckdb.connect(str(path), read_only=read_only)
+        except duckdb.IOException as exc:
+            if "lock" not in str(exc).lower():
+                raise StoreError(path, f"cannot open the store ({exc})") from None
+            if time.monotonic() >= deadline:
+                raise StoreError(path, f"store is busy: another process holds its lock; waited "
+                                 f"{busy_timeout_s:g} s ({str(exc).splitlines()[0]})") from None
+            time.sleep(retry_interval_s)
+        except duckdb.Error as exc:
+            raise StoreError(path, f"cannot open the store ({exc})") from None
+
+
+@contextmanager
+def open_store(path: Path, read_only: bool = False, busy_timeout_s: float = 10.0,
+               retry_interval_s: float = 0.2) -> Iterator[duckdb.DuckDBPyConnection]:
+    """`connect`, closed on exit whatever happens."""
+    con = connect(path, read_only, busy_timeout_s, retry_interval_s)
+    try:
+        yield con
+    finally:
+        con.close()
+
+
+def _views() -> list[str]:
+    key = " AND ".join(f"w.{c} = v.{c}" for c in GROUP)
+    views = [
+        "CREATE OR REPLACE VIEW latest_versions AS SELECT * FROM versions v WHERE version_id = "
+        f"(SELECT max(version_id) FROM versions w WHERE {key})",
+    ]
+    views += [f"CREATE OR REPLACE VIEW latest_{t} AS SELECT r.* FROM result_{t} r "
+              "JOIN latest_versions USING (version_id)" for t in TABLES]
+
+    def real_sim(table: str, keys: list[str], values: list[str], where: str = "TRUE") -> str:
+        cols = ", ".join([*(f"r.{v} AS real_{v}" for v in values), *(f"s.{v} AS sim_{v}" for v in values)])
+        on = " AND ".join(f"s.{k} = r.{k}" for k in keys)
+        sel = ", ".join(f"coalesce(s.{k}, r.{k}) AS {k}" for k in keys)
+        return (f"SELECT {sel}, s.human_mode AS sim_human_mode, {cols} FROM "
+                f"(SELECT * FROM latest_{table} WHERE source = 'real' AND {where}) r FULL OUTER JOIN "
+                f"(SELECT * FROM latest_{table} WHERE source = 'sim' AND {where}) s ON {on} "
+                f"ORDER BY {', '.join(keys)}, sim_human_mode")
+
+    views += [
+        "CREATE OR REPLACE VIEW paper_table1 AS " + real_sim(
+            "compliance", ["subject", "condition"],
+            ["mean_abs_ex_cm", "mean_abs_ey_cm", "sd_abs_ex_cm", "sd_abs_ey_cm", "n_trials"]),
+        "CREATE OR REPLACE VIEW paper_table2 AS " + real_sim(
+            "gait", ["subject", "condition"],
+            ["stride_length_m_mean", "stride_length_m_sd", "gait_speed_mps_mean", "gait_speed_mps_sd",
+             "n_strides"]),
+        "CREATE OR REPLACE VIEW paper_table3 AS " + real_sim(
+            "stability", ["subject", "condition", "side", "joint"], ["intercycle_sd_deg", "n_cycles"]),
+        "CREATE OR REPLACE VIEW spm_clusters AS SELECT t.subject, t.comparison, t.side, t.joint, t.source_a, "
+        "t.human_mode_a, t.condition_a, t.source_b, t.human_mode_b, t.condition_b, t.test, t.statistic, "
+        "t.zstar, c.cluster, c.start_pct, c.end_pct, c.extent_pct, c.p, t.version_id FROM latest_spm_tests t "
+        "JOIN result_spm_clusters c USING (version_id, test_id) "
+        "ORDER BY t.subject, t.comparison, t.joint, t.condition_a, t.condition_b, c.cluster",
+        "CREATE OR REPLACE VIEW subject_summary AS SELECT v.subject, "
+        "count(*) AS n_groups, "
+        "(SELECT count(*) FROM versions a WHERE a.subject = v.subject) AS n_versions, "
+        "string_agg(DISTINCT v.condition, ',' ORDER BY v.condition) AS conditions, "
+        "string_agg(DISTINCT v.source || ':' || v.human_mode, ',' ORDER BY v.source || ':' || v.human_mode) "
+        "AS sources, "
+        "(SELECT sum(n_strides) FROM latest_gait g WHERE g.subject = v.subject AND g.source = 'real') "
+        "AS real_strides, "
+        "(SELECT sum(n_strides) FROM latest_gait g WHERE g.subject = v.subject AND g.source = 'sim') "
+        "AS sim_strides, "
+        "(SELECT count(*) FROM latest_spm_tests t WHERE t.subject = v.subject AND t.status = 'ok') "
+        "AS spm_tests, "
+        "(SELECT count(*) FROM latest_spm_tests t WHERE t.subject = v.subject AND t.h0_rejected) "
+        "AS spm_significant, "
+        "max(v.created_at) AS last_change FROM latest_versions v GROUP BY v.subject ORDER BY v.subject",
+    ]
+    return views
+
+
+def ensure_schema(con: duckdb.DuckDBPyConnection) -> None:
+    """Create the versions, runs and result tables and (re)create the views."""
+    con.execute("CREATE TABLE IF NOT EXISTS versions (version_id BIGINT PRIMARY KEY, "
+                "subject VARCHAR NOT NULL, condition VARCHAR NOT NULL, source VARCHAR NOT NULL, "
+                "human_mode VARCHAR NOT NULL, "
+                "content_hash VARCHAR NOT NULL, params_hash VARCHAR NOT NULL, code_rev VARCHAR NOT NULL, "
+                "created_at TIMESTAMP NOT NULL, run_id BIGINT NOT NULL)")
+    con.execute("CREATE TABLE IF NOT EXISTS store_runs (run_id BIGINT PRIMARY KEY, created_at TIMESTAMP, "
+                "code_rev VARCHAR, subjects VARCHAR, n_groups BIGINT, n_new_versions BIGINT)")
+    for table, ddl in SCHEMAS.items():
+        con.execute(f"CREATE TABLE IF NOT EXISTS result_{table} (version_id BIGINT NOT NULL, {ddl})")
+    for view in _views():
+        con.execute(view)
+
+
+def _group_rows(results: SubjectResults) -> dict[tuple, dict[str, pd.DataFrame]]:
+    """Split each table into (subject, condition, source, human_mode) groups."""
+    out: dict[tuple, dict[str, pd.DataFrame]] = {}
+    test_keys = pd.DataFrame(columns=["test_id", *GROUP])
+    tests = results.tables.get("spm_tests")
+    if tests is not None and not tests.empty:
+        test_keys = tests.rename(columns={f"{c}_b": c for c in GROUP[1:]})[["test_id", *GROUP]]
+    for table in TABLES:
+        df = results.tables.get(table)
+        if df is None or df.empty:
+            continue
+        cols = [c.split()[0] for c in SCHEMAS[table].split(", ")]
+        missing = [c for c in cols if c not in df.columns]
+        if missing:
+            raise StoreError(f"{results.subject}/{table}", f"table lacks columns {missing}")
+        df = df[cols].reset_index(drop=True)
+        if table == "spm_tests":
+            keys = test_keys.reset_index(drop=True)[GROUP]
+        elif table in LINKED:
+            keys = df[["test_id"]].merge(test_keys, on="test_id", how="left")[GROUP]
+            if keys.isna().any().any():
+                raise StoreError(f"{results.subject}/{table}", "rows refer to SPM tests not in spm_tests")
+        else:
+            keys = df[GROUP]
+        labels = pd.Series(map(tuple, keys.astype(str).to_numpy()), index=df.index)
+        for key, idx in labels.groupby(labels).groups.items():
+            out.setdefault(key, {})[table] = df.loc[idx]
+    return out
+
+
+def content_hash(tables: dict[str, pd.DataFrame]) -> str:
+    """sha256 of a group's rows: tables by name, rows sorted, floats rounded to 9 decimals."""
+    digest = hashlib.sha256()
+    for name in sorted(tables):
+        df = tables[name]
+        df = df.round({c: 9 for c in df.columns if pd.api.types.is_float_dtype(df[c])})
+        df = df.sort_values(list(df.columns)).reset_index(drop=True)
+        digest.update(name.encode())
+        digest.update(",".join(df.columns).encode())
+        rows = pd.util.hash_pandas_object(df.astype(object), index=False).to_numpy(np.uint64)
+        digest.update(rows.tobytes())
+    return digest.hexdigest()
+
+
+def store_results(path: Path, results: list[SubjectResults], params: StoreParams = StoreParams(),
+                  rev: str | None = None, progress: Callable[[str], None] | None = None) -> StoreReport:
+    """Add new versions for every changed group of `results`, all in one transaction."""
+    start = time.perf_counter()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    rev = rev or code_rev()
+    now = datetime.now(UTC).replace(tzinfo=None)
+    with open_store(path, False, params.busy_timeout_s, params.retry_interval_s) as con:
+        con.execute("BEGIN TRANSACTION")
+        try:
+            ensure_schema(con)
+            latest = {tuple(r[:4]): r[4] for r in con.execute(
+                f"SELECT {', '.join(GROUP)}, content_hash FROM latest_versions").fetchall()}
+            next_id = con.execute("SELECT coalesce(max(version_id), 0) + 1 FROM versions").fetchone()[0]
+            run_id = con.execute("SELECT coalesce(max(run_id), 0) + 1 FROM store_runs").fetchone()[0]
+            new, n_groups = [], 0
+            for res in results:
+                for key, tables in _group_rows(res).items():
+                    n_groups += 1
+                    digest = content_hash(tables)
+                    if latest.get(key) == digest:
+                        continue
+                    con.execute("INSERT INTO versions VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                                [next_id, *key, digest, res.params_hash, rev, now, run_id])
+                    for name, df in tables.items():
+                        con.register("incoming", df)
+                        con.execute(f"INSERT INTO result_{name} BY NAME "
+                                    f"SELECT {next_id}::BIGINT AS version_id, * FROM incoming")
+                        con.unregister("incoming")
+                        if progress:
+                            progress(f"{res.subject}/{'/'.join(key[1:])}/{name}")
+                    new.append(next_id)
+                    next_id += 1
+            con.execute("INSERT INTO store_runs VALUES (?, ?, ?, ?, ?, ?)",
+                        [run_id, now, rev, ",".join(r.subject for r in results), n_groups, len(new)])
+            con.execute("COMMIT")
+        except BaseException:
+            con.execute("ROLLBACK")
+            raise
+    return StoreReport(run_id, n_groups, tuple(new), time.perf_counter() - start)
+
+
+def query(path: Path, sql: str, busy_timeout_s: float = 10.0) -> pd.DataFrame:
+    """Run one SQL statement on a read-only connection and return its result."""
+    with open_store(path, True, busy_timeout_s) as con:
+        try:
+            return con.execute(sql).df()
+        except duckdb.Error as exc:
+            raise StoreError(path, f"query failed ({' '.join(str(exc).split())})") from None
