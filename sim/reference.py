@@ -1,0 +1,276 @@
+"""The subject's reference motion on the scaled human: retargeted trials and a periodic gait cycle.
+
+`retarget_trial` turns one processed real trial (gap-filled, filtered markers; gait events) into
+model configurations (`sim.retarget`), their velocities and a per-frame gait phase.
+`periodic_cycle` averages the kept steady strides into one periodic stride for policy training
+(the imitation target of an adversarial motion prior, Peng et al. 2021), and `Reference` is what
+`reference.npz` holds. Everything here is a pure function of arrays and a MuJoCo model.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, fields
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pandas as pd
+
+from ingest.filtering import lowpass
+from ingest.process import ProcessedTrial
+from sim.errors import SimulationError
+from sim.retarget import ROOT_JOINT, MarkerFit, RetargetParams, retarget
+
+
+@dataclass(frozen=True)
+class ReferenceParams:
+    """The `retarget` section of params.yaml minus the IK settings (`RetargetParams`)."""
+
+    conditions: tuple[str, ...] = ("free",)  # trial conditions retargeted into reference.npz
+    qvel_cutoff_hz: float = 8.0     # low-pass on finite-difference velocities (zero-phase, 4th order)
+    cycle_samples: int = 100        # samples per periodic reference cycle
+    cycle_side: str = "right"       # strides from this side's heel strike to its next one
+
+    @classmethod
+    def from_dict(cls, d: dict) -> ReferenceParams:
+        d = {k: v for k, v in d.items() if k in {f.name for f in fields(cls)}}
+        if "conditions" in d:
+            d["conditions"] = tuple(d["conditions"])
+        return cls(**d)
+
+
+@dataclass(frozen=True)
+class RetargetedTrial:
+    """One real trial on the model: configurations, velocities, gait phase and fit quality."""
+
+    trial: str
+    condition: str
+    time_s: np.ndarray
+    qpos: np.ndarray
+    qvel: np.ndarray
+    phase: np.ndarray
+    fit: MarkerFit
+    ik_s: float
+
+
+def velocities(model: mujoco.MjModel, qpos: np.ndarray, rate_hz: float, cutoff_hz: float) -> np.ndarray:
+    """Generalised velocities (n, nv) of a uniformly sampled configuration path: central differences
+    in the tangent space (`mj_differentiatePos`, so quaternion joints are handled), one-sided at
+    the ends, then a zero-phase 4th-order Butterworth low-pass at `cutoff_hz`."""
+    n = len(qpos)
+    qvel = np.zeros((n, model.nv))
+    if n < 2:
+        return qvel
+    for k in range(n):
+        a, b = max(k - 1, 0), min(k + 1, n - 1)
+        mujoco.mj_differentiatePos(model, qvel[k], (b - a) / rate_hz, qpos[a], qpos[b])
+    if n > 15 and cutoff_hz < rate_hz / 2:
+        qvel = lowpass(qvel, rate_hz, cutoff_hz, 4)
+    return qvel
+
+
+def gait_phase(time_s: np.ndarray, heel_strikes_s: np.ndarray) -> np.ndarray:
+    """Phase in [0, 1) from each heel strike to the next one of the same side; NaN before the
+    first and after the last heel strike (no complete cycle there)."""
+    hs = np.sort(np.asarray(heel_strikes_s, float))
+    phase = np.full(len(time_s), np.nan)
+    if len(hs) < 2:
+        return phase
+    k = np.searchsorted(hs, time_s, side="right") - 1
+    inside = (k >= 0) & (k < len(hs) - 1)
+    phase[inside] = (time_s[inside] - hs[k[inside]]) / (hs[k[inside] + 1] - hs[k[inside]])
+    return phase
+
+
+def retarget_trial(model: mujoco.MjModel, processed: ProcessedTrial, ik: RetargetParams,
+                   p: ReferenceParams, progress: bool = False) -> RetargetedTrial:
+    """Marker IK of one processed trial, its velocities, and its gait phase (`p.cycle_side` heel
+    strikes from the ingest events)."""
+    trial = processed.trial
+    start = time.perf_counter()
+    fit = retarget(model, trial.markers, ik, progress=progress)
+    ik_s = time.perf_counter() - start
+    ev = processed.events
+    hs = ev.loc[(ev["side"] == p.cycle_side) & (ev["event"] == "heel_strike"), "time_s"].to_numpy()
+    return RetargetedTrial(trial.trial, trial.condition, trial.time_s, fit.qpos,
+                           velocities(model, fit.qpos, trial.rate_hz, p.qvel_cutoff_hz),
+                           gait_phase(trial.time_s, hs), fit, ik_s)
+
+
+@dataclass(frozen=True)
+class ReferenceCycle:
+    """One periodic stride: `qpos` (N, nq) and `qvel` (N, nv) at phase k/N, k = 0..N-1, starting at
+    the heel strike of `side`; the root starts at x = y = 0 heading +X and the stride continues
+    seamlessly into the next one shifted by `stride_length_m` along +X."""
+
+    phase: np.ndarray
+    time_s: np.ndarray
+    qpos: np.ndarray
+    qvel: np.ndarray
+    period_s: float
+    stride_length_m: float
+    speed_mps: float
+    n_strides: int
+    side: str
+
+    def qpos_at(self, k: int) -> np.ndarray:
+        """Configuration of sample `k` of any cycle (k may exceed N: later strides move on in x)."""
+        n = len(self.phase)
+        q = self.qpos[k % n].copy()
+        q[0] += (k // n) * self.stride_length_m
+        return q
+
+
+def _root_addresses(model: mujoco.MjModel) -> tuple[int, int]:
+    j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, ROOT_JOINT)
+    if j < 0:
+        raise SimulationError("reference", f"the model has no free joint named {ROOT_JOINT!r}")
+    return int(model.jnt_qposadr[j]), int(model.jnt_dofadr[j])
+
+
+def _heading_normalised(model: mujoco.MjModel, qpos: np.ndarray, start: np.ndarray,
+                        heading: float) -> np.ndarray:
+    """Configurations with the root moved so `start` (xy) is the origin and `heading` is +X."""
+    qa, _ = _root_addresses(model)
+    c, s = np.cos(-heading), np.sin(-heading)
+    out = qpos.copy()
+    xy = qpos[:, qa:qa + 2] - start
+    out[:, qa] = c * xy[:, 0] - s * xy[:, 1]
+    out[:, qa + 1] = s * xy[:, 0] + c * xy[:, 1]
+    yaw = np.array([np.cos(-heading / 2), 0.0, 0.0, np.sin(-heading / 2)])
+    for k in range(len(out)):
+        mujoco.mju_mulQuat(out[k, qa + 3:qa + 7], yaw, qpos[k, qa + 3:qa + 7])
+    return out
+
+
+def periodic_cycle(model: mujoco.MjModel, strides: list[tuple[np.ndarray, np.ndarray, float, float]],
+                   n_samples: int, side: str = "right") -> ReferenceCycle:
+    """Mean periodic stride from `strides`, each (time_s, qpos, t_start_s, t_end_s) of one trial.
+
+    Each stride is moved to start at the origin heading +X (heading = direction of the root's
+    displacement over the stride), mapped to the tangent space of a reference pose
+    (`mj_differentiatePos` from `qpos0` with the root at the origin), resampled on the phase grid
+    k/N, k = 0..N, and averaged over strides. The mean is made periodic by removing the linear
+    drift of the end-minus-start mismatch from every coordinate except the root's forward position,
+    whose advance over the stride is the mean stride length. The period is the mean stride time;
+    velocities are periodic central differences.
+    """
+    if not strides:
+        raise SimulationError("reference", "no kept stride to build the periodic cycle from")
+    qa, da = _root_addresses(model)
+    q_ref = model.qpos0.copy()
+    q_ref[qa:qa + 3] = 0.0
+    grid = np.linspace(0.0, 1.0, n_samples + 1)
+    tangents, periods = [], []
+    for time_s, qpos, t0, t1 in strides:
+        inside = (time_s >= t0) & (time_s <= t1)
+        idx = np.flatnonzero(inside)
+        lo, hi = max(idx[0] - 1, 0), min(idx[-1] + 1, len(time_s) - 1)
+        t, q = time_s[lo:hi + 1], qpos[lo:hi + 1]
+        p0 = np.array([np.interp(t0, t, q[:, qa + i]) for i in range(2)])
+        p1 = np.array([np.interp(t1, t, q[:, qa + i]) for i in range(2)])
+        heading = float(np.arctan2(*(p1 - p0)[::-1]))
+        qn = _heading_normalised(model, q, p0, heading)
+        u = np.empty((len(qn), model.nv))
+        for k, qk in enumerate(qn):
+            mujoco.mj_differentiatePos(model, u[k], 1.0, q_ref, qk)
+        phase_t = (t - t0) / (t1 - t0)
+        tangents.append(np.column_stack([np.interp(grid, phase_t, u[:, j]) for j in range(model.nv)]))
+        periods.append(t1 - t0)
+    mean = np.mean(tangents, axis=0)
+    drift = mean[-1] - mean[0]
+    length = float(drift[da])
+    drift[da] = 0.0
+    mean = mean - grid[:, None] * drift[None, :]
+    mean[:, da] -= mean[0, da]
+    qpos = np.empty((n_samples + 1, model.nq))
+    for k in range(n_samples + 1):
+        qpos[k] = q_ref
+        mujoco.mj_integratePos(model, qpos[k], mean[k], 1.0)
+    period = float(np.mean(periods))
+    dt = period / n_samples
+    qvel = np.empty((n_samples, model.nv))
+    for k in range(n_samples):
+        before = qpos[k - 1].copy() if k > 0 else qpos[n_samples - 1].copy()
+        if k == 0:
+            before[qa] -= length
+        mujoco.mj_differentiatePos(model, qvel[k], 2 * dt, before, qpos[k + 1])
+    return ReferenceCycle(grid[:-1], grid[:-1] * period, qpos[:-1], qvel, period, length,
+                          length / period, len(strides), side)
+
+
+def cycle_from_trials(model: mujoco.MjModel, trials: list[RetargetedTrial], strides: pd.DataFrame,
+                      p: ReferenceParams) -> tuple[ReferenceCycle, pd.DataFrame]:
+    """The periodic cycle from the kept `p.cycle_side` strides (ingest stride table, all trials)
+    of the retargeted `trials` whose condition is the first of `p.conditions`; also returns the
+    strides used."""
+    by_id = {t.trial: t for t in trials if t.condition == p.conditions[0]}
+    used = strides[strides["kept"] & (strides["side"] == p.cycle_side) & strides["trial"].isin(by_id)]
+    segments = [(by_id[r.trial].time_s, by_id[r.trial].qpos, float(r.t_start_s), float(r.t_end_s))
+                for r in used.itertuples()]
+    return periodic_cycle(model, segments, p.cycle_samples, p.cycle_side), used
+
+
+@dataclass(frozen=True)
+class Reference:
+    """What `reference.npz` holds: every retargeted frame (trials stacked, `trial` names each
+    frame's trial) and the periodic cycle."""
+
+    time_s: np.ndarray
+    qpos: np.ndarray
+    qvel: np.ndarray
+    phase: np.ndarray
+    trial: np.ndarray
+    condition: np.ndarray
+    marker_rms_m: np.ndarray
+    cycle: ReferenceCycle
+
+    @classmethod
+    def from_trials(cls, trials: list[RetargetedTrial], cycle: ReferenceCycle) -> Reference:
+        cat = np.concatenate
+        return cls(cat([t.time_s for t in trials]), cat([t.qpos for t in trials]),
+                   cat([t.qvel for t in trials]), cat([t.phase for t in trials]),
+                   cat([np.full(len(t.time_s), t.trial) for t in trials]),
+                   cat([np.full(len(t.time_s), t.condition) for t in trials]),
+                   cat([t.fit.rms_m for t in trials]), cycle)
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """Flat arrays for `np.savez` (cycle fields prefixed `cycle_`)."""
+        out = {f.name: np.asarray(getattr(self, f.name)) for f in fields(self) if f.name != "cycle"}
+        for f in fields(ReferenceCycle):
+            out[f"cycle_{f.name}"] = np.asarray(getattr(self.cycle, f.name))
+        return out
+
+    def motion(self, trial: str) -> tuple[np.ndarray, np.ndarray]:
+        """(time_s, qpos) of one retargeted trial."""
+        rows = self.trial == trial
+        if not rows.any():
+            raise SimulationError("reference", f"no trial {trial!r} (has: {sorted(set(self.trial))})")
+        return self.time_s[rows], self.qpos[rows]
+
+
+def save_reference(path: str | Path, ref: Reference) -> None:
+    """Write `ref` as an uncompressed npz to `path` (a file object or path; callers make it atomic)."""
+    np.savez(path, **ref.arrays())
+
+
+def load_reference(path: str | Path) -> Reference:
+    """Read a `reference.npz` written by `save_reference`."""
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            arrays = {k: z[k] for k in z.files}
+    except (OSError, ValueError) as exc:
+        raise SimulationError(path, f"cannot read reference motion ({exc})") from None
+    try:
+        cycle = ReferenceCycle(**{f.name: _scalar(arrays[f"cycle_{f.name}"]) for f in fields(ReferenceCycle)})
+        return Reference(**{f.name: arrays[f.name] for f in fields(Reference) if f.name != "cycle"},
+                         cycle=cycle)
+    except KeyError as exc:
+        raise SimulationError(path, f"reference motion lacks array {exc.args[0]!r}") from None
+
+
+def _scalar(a: np.ndarray):
+    if a.ndim:
+        return a
+    return a.item()
