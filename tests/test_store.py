@@ -1,0 +1,201 @@
+"""The versioned DuckDB store: idempotence, new versions, busy writer, crash midway, views, CLI."""
+
+import copy
+import json
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from pipeline.cli import main
+from pipeline.ingest_stage import run_ingest
+from pipeline.metrics_stage import run_metrics
+from pipeline.params import load_params
+from pipeline.store import StoreError, StoreParams, open_store, query, store_results
+from pipeline.store_stage import load_results
+
+ROOT = Path(__file__).resolve().parents[1]
+SUBJECTS = ("camargo", "opencap4")
+FAST = StoreParams(busy_timeout_s=1.0, retry_interval_s=0.05)
+
+
+@pytest.fixture(scope="module")
+def processed(tmp_path_factory) -> Path:
+    """Real example subjects ingested and their metrics computed under a temp root."""
+    root = tmp_path_factory.mktemp("processed")
+    params = load_params()
+    for sid in SUBJECTS:
+        run_ingest(sid, params, root, progress=False)
+        run_metrics(sid, params, root)
+    return root
+
+
+def results(root: Path):
+    return [load_results(sid, root) for sid in SUBJECTS]
+
+
+def count(db: Path, sql: str) -> int:
+    return int(query(db, sql).iloc[0, 0])
+
+
+def test_rerun_unchanged_adds_no_version_and_param_change_adds_one(processed, tmp_path):
+    db = tmp_path / "results.duckdb"
+    first = store_results(db, results(processed), FAST, rev="rev1")
+    n = count(db, "select count(*) from versions")
+    assert n == len(first.new_versions) == first.n_groups == 5  # camargo free + 4 opencap4 conditions
+    rows = count(db, "select count(*) from result_kinematics")
+    again = store_results(db, results(processed), FAST, rev="rev2")
+    assert again.new_versions == () and count(db, "select count(*) from versions") == n
+    assert count(db, "select count(*) from result_kinematics") == rows
+    assert count(db, "select count(*) from store_runs") == 2
+
+    # a param that changes results: per-side instead of pooled cycles -> new versions, old kept
+    changed_root = tmp_path / "changed"
+    params = copy.deepcopy(load_params())
+    params["metrics"]["pool_sides"] = False
+    for sid in SUBJECTS:
+        (changed_root / sid).mkdir(parents=True)
+        (changed_root / sid / "real").symlink_to(processed / sid / "real")
+        run_metrics(sid, params, changed_root)
+    new = store_results(db, results(changed_root), FAST, rev="rev3")
+    assert len(new.new_versions) == 5 and count(db, "select count(*) from versions") == 10
+    latest = query(db, "select * from latest_stability")
+    assert set(latest["side"]) <= {"left", "right"} and set(latest["version_id"]) == set(new.new_versions)
+    old = query(db, f"select * from result_stability where version_id in {tuple(first.new_versions)}")
+    assert set(old["side"]) == {"both"}  # the old version is still queryable
+    assert query(db, "select distinct params_hash from versions").shape[0] == 2
+
+    # back to the original content: a new version again, so that latest is what was computed last
+    back = store_results(db, results(processed), FAST, rev="rev4")
+    assert len(back.new_versions) == 5
+    assert set(query(db, "select side from latest_stability")["side"]) == {"both"}
+
+
+def test_views_are_shaped_like_the_paper_tables(processed, tmp_path):
+    db = tmp_path / "results.duckdb"
+    store_results(db, results(processed), FAST)
+    t2 = query(db, "select * from paper_table2")
+    assert {"real_stride_length_m_mean", "real_gait_speed_mps_sd", "sim_gait_speed_mps_mean"} <= set(
+        t2.columns
+    )
+    assert set(zip(t2["subject"], t2["condition"], strict=True)) >= {
+        ("camargo", "free"),
+        ("opencap4", "toe_out"),
+    }
+    gait = load_results("camargo", processed).tables["gait"].iloc[0]
+    row = t2[t2["subject"] == "camargo"].iloc[0]
+    assert row["real_gait_speed_mps_mean"] == pytest.approx(gait["gait_speed_mps_mean"])
+    t3 = query(db, "select * from paper_table3")
+    assert set(t3["joint"]) == {"hip_flexion", "knee_flexion", "ankle_dorsiflexion"}
+    assert {"real_intercycle_sd_deg", "sim_intercycle_sd_deg"} <= set(t3.columns)
+    assert {"real_mean_abs_ex_cm", "sim_mean_abs_ey_cm"} <= set(
+        query(db, "select * from paper_table1").columns
+    )
+    summary = query(db, "select * from subject_summary").set_index("subject")
+    assert summary.loc["opencap4", "conditions"] == "free,toe_in,toe_out,trunk_sway"
+    clusters = query(db, "select * from spm_clusters")
+    assert (clusters["p"] < 0.05).all()
+
+
+def test_query_is_read_only(processed, tmp_path):
+    db = tmp_path / "results.duckdb"
+    store_results(db, results(processed), FAST)
+    with pytest.raises(StoreError, match="query failed"):
+        query(db, "delete from versions")
+    with pytest.raises(StoreError, match="no results store here yet"):
+        query(tmp_path / "none.duckdb", "select 1")
+
+
+HOLD = """
+import sys, time
+import duckdb
+con = duckdb.connect(sys.argv[1])  # any other DuckDB client writing the file
+print("holding", flush=True)
+time.sleep(float(sys.argv[2]))
+"""
+
+
+def test_second_writer_gets_store_is_busy(processed, tmp_path):
+    db = tmp_path / "results.duckdb"
+    store_results(db, results(processed), FAST)
+    holder = subprocess.Popen(
+        [sys.executable, "-c", HOLD, str(db), "20"], cwd=ROOT, stdout=subprocess.PIPE, text=True
+    )
+    try:
+        assert holder.stdout.readline().strip() == "holding"
+        start = time.monotonic()
+        with pytest.raises(StoreError, match="store is busy: another process holds its lock; waited 1 s"):
+            store_results(db, results(processed), FAST)
+        assert 0.9 < time.monotonic() - start < 10
+    finally:
+        holder.kill()
+        holder.wait()
+    assert store_results(db, results(processed), FAST).new_versions == ()  # free again
+
+
+CRASH = """
+import sys, time
+from pathlib import Path
+from pipeline.store import StoreParams, store_results
+from pipeline.store_stage import load_results
+root = Path(sys.argv[2])
+res = [load_results(s, root) for s in ("camargo", "opencap4")]
+def midway(step):
+    print("midway", step, flush=True)
+    time.sleep(60)
+store_results(Path(sys.argv[1]), res, StoreParams(), rev="crash", progress=midway)
+"""
+
+
+def test_killed_store_run_leaves_previous_state(processed, tmp_path):
+    db = tmp_path / "results.duckdb"
+    store_results(db, results(processed)[:1], FAST, rev="before")  # camargo only
+    before = query(db, "select * from versions")
+    rows = count(db, "select count(*) from result_gait")
+    crash = subprocess.Popen(
+        [sys.executable, "-c", CRASH, str(db), str(processed)], cwd=ROOT, stdout=subprocess.PIPE, text=True
+    )
+    try:
+        line = crash.stdout.readline()
+        assert line.startswith("midway"), line
+    finally:
+        crash.send_signal(signal.SIGKILL)
+        crash.wait()
+    after = query(db, "select * from versions")
+    assert after.equals(before) and count(db, "select count(*) from result_gait") == rows
+    assert count(db, "select count(*) from store_runs") == 1
+    done = store_results(db, results(processed), FAST)  # the next run completes normally
+    assert len(done.new_versions) == 4 and count(db, "select count(*) from versions") == 5
+
+
+def test_store_and_query_commands(processed, tmp_path, capsys):
+    db = tmp_path / "results.duckdb"
+    store_results(db, results(processed), FAST)
+    run = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "pipeline",
+            "query",
+            "select subject, condition, real_n_strides from paper_table2 order by subject, condition",
+            "--db",
+            str(db),
+            "--format",
+            "json",
+        ],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert run.returncode == 0, run.stderr
+    rows = json.loads(run.stdout)
+    assert [r["condition"] for r in rows] == ["free", "free", "toe_in", "toe_out", "trunk_sway"]
+    assert main(["query", "select * from nope", "--db", str(db)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and "query failed" in err and "nope" in err
+    with open_store(db, read_only=True) as con:
+        assert con.execute("select count(*) from latest_versions").fetchone()[0] == 5
