@@ -1,0 +1,156 @@
+"""add-subject registers a subject from real files into a temp copy of the registry."""
+
+import os
+import shutil
+from pathlib import Path
+
+import pytest
+import yaml
+
+from ingest.canonical import load_trial
+from ingest.errors import IngestError, SubjectError
+from ingest.manifest import Manifest
+from ingest.subject import load_subject
+from pipeline.add_subject import NewTrial, Registry, add_subject
+from pipeline.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+DATA = Path(os.environ.get("GAITLOOP_MIRROR", ROOT.parent / "shared" / "data"))
+OC = DATA / "opencap_labval_subject4"
+
+
+@pytest.fixture
+def registry(tmp_path) -> Registry:
+    """Copies of the subject files, params.yaml and manifest; the repo's stay untouched."""
+    shutil.copytree(ROOT / "data" / "subjects", tmp_path / "subjects")
+    shutil.copy(ROOT / "params.yaml", tmp_path / "params.yaml")
+    shutil.copy(ROOT / "data" / "sources.yaml", tmp_path / "sources.yaml")
+    return Registry(
+        subjects_dir=tmp_path / "subjects",
+        params_path=tmp_path / "params.yaml",
+        manifest_path=tmp_path / "sources.yaml",
+        mirror=DATA,
+    )
+
+
+def toe_in_trials() -> list[NewTrial]:
+    return [
+        NewTrial.parse(
+            f"toe_in={OC}/MarkerData/walkingTI{i}.trc,{OC}/IK/walkingTI{i}_ik.mot,"
+            f"{OC}/ID/walkingTI{i}_grf.mot"
+        )
+        for i in (1, 2)
+    ]
+
+
+def snapshot(reg: Registry) -> dict:
+    return {p: p.read_bytes() for p in (reg.params_path, reg.manifest_path, *reg.subjects_dir.glob("*"))}
+
+
+def test_registers_mirror_files_through_their_manifest_entries(registry):
+    params_before = registry.params_path.read_text()
+    manifest_before = registry.manifest_path.read_text()
+    path = add_subject(
+        "oc4toein",
+        1.68,
+        62.6,
+        OC / "MarkerData" / "static1.trc",
+        toe_in_trials(),
+        up_axis="y",
+        registry=registry,
+    )
+    subject = load_subject("oc4toein", registry.subjects_dir)
+    assert path == registry.subjects_dir / "oc4toein.yaml"
+    assert subject.conditions == ("toe_in",) and [t.id for t in subject.trials] == [
+        "walkingTI1",
+        "walkingTI2",
+    ]
+    assert subject.trials[0].markers == "opencap_labval_subject4/MarkerData/walkingTI1.trc"  # existing key
+    assert subject.trials[1].grf == "opencap_labval_subject4/ID/walkingTI2_grf.mot"
+    assert subject.static.markers == "opencap_labval_subject4/MarkerData/static1.trc"
+    assert subject.markerset == load_subject("opencap4").markerset  # found by fitting the file
+    params = yaml.safe_load(registry.params_path.read_text())
+    assert params["subjects"] == ["camargo", "opencap4", "oc4toein"]
+    new_params = registry.params_path.read_text()
+    assert new_params.replace("  - oc4toein\n", "") == params_before  # comments and order kept
+    assert registry.manifest_path.read_text() == manifest_before  # nothing new to list
+    trial = load_trial(subject, subject.trials[0], Manifest.load(registry.manifest_path, mirror=DATA))
+    assert trial.plates is not None and trial.angles
+
+
+def test_files_outside_the_manifest_get_file_origins(registry, tmp_path):
+    outside = tmp_path / "lab"
+    outside.mkdir()
+    for name in ("walking2.trc", "static1.trc"):
+        shutil.copy(OC / "MarkerData" / name, outside / name)
+    (outside / "walking2.trc").write_text((outside / "walking2.trc").read_text() + "\n")  # new content
+    add_subject(
+        "newlab",
+        1.70,
+        65.0,
+        outside / "static1.trc",
+        [NewTrial("free", outside / "walking2.trc")],
+        markerset="opencap_labval",
+        up_axis="y",
+        dataset="lab",
+        registry=registry,
+    )
+    subject = load_subject("newlab", registry.subjects_dir)
+    key = subject.trials[0].markers
+    assert key == "local/newlab/walking2.trc"
+    assert subject.static.markers == "opencap_labval_subject4/MarkerData/static1.trc"  # same sha256
+    entry = yaml.safe_load(registry.manifest_path.read_text())["files"][key]
+    assert entry["url"] == (outside / "walking2.trc").as_uri() and len(entry["sha256"]) == 64
+    manifest = Manifest.load(registry.manifest_path, mirror=DATA, cache=tmp_path / "raw")
+    resolved = manifest.resolve(key)  # copied into the cache via file://, hash checked
+    assert (
+        resolved == tmp_path / "raw" / key
+        and resolved.read_bytes() == (outside / "walking2.trc").read_bytes()
+    )
+
+
+def test_refusals_leave_the_registry_unchanged(registry, tmp_path):
+    before = snapshot(registry)
+    static = OC / "MarkerData" / "static1.trc"
+    with pytest.raises(SubjectError, match="subject 'opencap4' is already registered"):
+        add_subject("opencap4", 1.68, 62.6, static, toe_in_trials(), up_axis="y", registry=registry)
+    with pytest.raises(IngestError, match="markers file not found"):
+        add_subject(
+            "x1",
+            1.68,
+            62.6,
+            static,
+            [NewTrial("free", tmp_path / "missing.trc")],
+            up_axis="y",
+            registry=registry,
+        )
+    garbage = tmp_path / "garbage.trc"
+    garbage.write_text("PathFileType\t4\nnot\ta\ntrc\nfile\nat all\n1\t2\n3\t4\n")
+    with pytest.raises(IngestError, match="unreadable markers file: not a TRC file"):
+        add_subject("x1", 1.68, 62.6, static, [NewTrial("free", garbage)], up_axis="y", registry=registry)
+    with pytest.raises(IngestError, match="cannot be ingested as subject 'x1'.*up_axis are wrong"):
+        add_subject("x1", 1.68, 62.6, static, toe_in_trials()[:1], up_axis="z", registry=registry)
+    with pytest.raises(SubjectError, match="subject id must be"):
+        add_subject("Bad Id", 1.68, 62.6, static, toe_in_trials(), registry=registry)
+    assert snapshot(registry) == before
+
+
+def test_cli_add_subject_refuses_duplicate_with_one_line(registry, capsys):
+    code = main(
+        [
+            "--params",
+            str(registry.params_path),
+            "add-subject",
+            "camargo",
+            "--height-m",
+            "1.8",
+            "--mass-kg",
+            "75",
+            "--static",
+            str(OC / "MarkerData" / "static1.trc"),
+            "--trial",
+            f"free={OC}/MarkerData/walking1.trc",
+        ]
+    )
+    assert code == 2
+    assert "already registered" in capsys.readouterr().err
