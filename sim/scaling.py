@@ -1,0 +1,346 @@
+"""Subject scaling: a static trial + height and mass -> joint centres, segment frames, lengths
+and masses of the subject's body in the static pose (`ScaledBody`), which `sim.human` turns into
+a MuJoCo model.
+
+Static frame (canonical): Z up, X = the direction the subject faces (mid-PSIS -> mid-ASIS),
+Y left, origin on the floor (lab floor, z = 0) midway between the feet (mean of heel and toe).
+Markers are the median over the static window.
+
+Joint centres: hip by the Harrington et al. (2007) regression (`ingest.kinematics`); knee and
+ankle at the midpoint of the lateral and medial markers, or the lateral marker shifted medially
+by half a knee / ankle width (a fraction of stature, params) when the set has no medial marker;
+elbow and wrist at the midpoint of their two markers; shoulder below the acromion marker by a
+fraction of the acromion-elbow distance (Rab et al. 2002, Gait Posture 15:113); lumbar joint at
+the navel level (de Leva's OMPH, by his trunk subsegment lengths). Landmarks a marker set lacks
+come from stature ratios (de Leva 1996 lengths, Winter 2009 Fig. 4.1 heights and widths) with the
+trunk upright and the arms hanging.
+
+Segment frames (columns x forward, y left, z up along the segment) follow the model's joints:
+pelvis from ASIS/PSIS; thigh and upper arm fully 3-D (ball joints above them); shank, foot and
+forearm are their parent's frame turned about the hinge's y axis by the static hinge angle, so
+the static pose is reached exactly by the model's own joints.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import yaml
+
+from ingest.canonical import rotate_z, up_to_z
+from ingest.kinematics import hip_joint_centres
+from ingest.manifest import Manifest
+from ingest.readers import read_markers
+from ingest.subject import MARKERSETS_DIR, Subject
+from sim.anthropometry import TABLES, WINTER_RATIOS, Table
+from sim.errors import ScalingError
+from sim.human_params import HumanParams
+
+SIDES = {"l": "left", "r": "right"}
+SCALING_ROLES_DIR = MARKERSETS_DIR / "scaling"
+# body -> the landmark roles whose markers ride on it (side suffix added for sided bodies)
+ROLE_BODIES = {
+    "pelvis": ("asis", "psis"),
+    "torso": ("c7", "shoulder", "sternum"),
+    "thigh": ("knee", "knee_medial"),
+    "shank": ("ankle", "ankle_medial"),
+    "foot": ("heel", "toe", "toe_medial", "toe_lateral"),
+    "upper_arm": ("elbow", "elbow_medial"),
+    "forearm": ("wrist", "wrist_medial"),
+}
+BODIES = ("pelvis", "torso", "head", "thigh_l", "thigh_r", "shank_l", "shank_r", "foot_l", "foot_r",
+          "upper_arm_l", "upper_arm_r", "forearm_l", "forearm_r")
+
+
+@dataclass(frozen=True)
+class ScaledBody:
+    """A subject's body in the static pose, in the canonical static frame (metres, kg).
+
+    joint_centres: hip_l/r, knee_l/r, ankle_l/r, mid_hip, lumbar, neck (C7), vertex, shoulder_l/r,
+    elbow_l/r, wrist_l/r, hand_l/r (third metacarpal end of the hand).
+    frames: body -> 3x3 rotation whose columns are the body's axes in the static frame.
+    contact_points: foot_l/r -> (4, 3) contact sphere centres (heel medial/lateral, toe
+    medial/lateral) resting on the floor.
+    """
+
+    subject: str
+    height_m: float
+    mass_kg: float
+    anthropometry: str
+    markers: dict[str, np.ndarray]
+    joint_centres: dict[str, np.ndarray]
+    frames: dict[str, np.ndarray]
+    contact_points: dict[str, np.ndarray]
+    segment_lengths_m: dict[str, float]
+    segment_masses_kg: dict[str, float]
+    length_sources: dict[str, str]
+    marker_bodies: dict[str, str]
+    static_angles_rad: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def table(self) -> Table:
+        return TABLES[self.anthropometry]
+
+
+def scaling_roles(subject: Subject, directory=SCALING_ROLES_DIR) -> dict[str, str]:
+    """The subject's landmark roles: its marker set plus the static-only ones in
+    `data/markersets/scaling/<markerset>.yaml` (absent file: none)."""
+    roles = dict(subject.markerset)
+    name = None
+    if subject.path is not None and subject.path.is_file():
+        name = (yaml.safe_load(subject.path.read_text()) or {}).get("markerset")
+    path = directory / f"{name}.yaml"
+    if name and path.is_file():
+        roles.update({str(k): str(v) for k, v in (yaml.safe_load(path.read_text()) or {}).items()})
+    return roles
+
+
+def static_markers(subject: Subject, manifest: Manifest) -> dict[str, np.ndarray]:
+    """Median marker positions over the subject's static window, Z up (lab axes otherwise)."""
+    if subject.static is None:
+        raise ScalingError(subject.path, "no static trial (field 'static') to scale the model from")
+    path = manifest.resolve(subject.static.markers)
+    table = read_markers(path)
+    xyz = up_to_z(table.xyz_m, subject.format.up_axis)
+    if subject.static.window_s is not None:
+        t0, t1 = subject.static.window_s
+        keep = (table.time_s >= t0) & (table.time_s <= t1)
+        if keep.sum() < 2:
+            raise ScalingError(path, f"static window {t0}-{t1} s holds {keep.sum()} frames")
+        xyz = xyz[keep]
+    with np.errstate(all="ignore"):
+        import warnings
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            med = np.nanmedian(xyz, axis=0)
+    return {n: med[j] for j, n in enumerate(table.names) if np.isfinite(med[j]).all()}
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.linalg.norm(v)
+
+
+def frame_from_zy(z: np.ndarray, y_ref: np.ndarray) -> np.ndarray:
+    """Right-handed frame with z along `z` and y as close to `y_ref` as orthogonality allows."""
+    z = _unit(z)
+    x = _unit(np.cross(y_ref, z))
+    return np.column_stack([x, np.cross(z, x), z])
+
+
+def rot_y(angle_rad: float) -> np.ndarray:
+    c, s = np.cos(angle_rad), np.sin(angle_rad)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+def _segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+    ab = b - a
+    t = np.clip(np.dot(p - a, ab) / max(np.dot(ab, ab), 1e-12), 0.0, 1.0)
+    return float(np.linalg.norm(p - (a + t * ab)))
+
+
+def assign_markers(markers: dict[str, np.ndarray], roles: dict[str, str], jc: dict[str, np.ndarray],
+                   arms_measured: bool, tie_m: float = 0.01) -> dict[str, str]:
+    """Body of each marker: by its landmark role where it has one, else the body whose bone
+    (segment between its joint centres) passes closest; within `tie_m` of the closest, the more
+    proximal body wins (a marker on the hip centre belongs to the pelvis). Arm bones placed by
+    stature ratios are not candidates (they may hang over the thigh markers)."""
+    by_role = {}
+    for role, name in roles.items():
+        side = "l" if role.endswith("_left") else "r" if role.endswith("_right") else None
+        base = role.removesuffix("_left").removesuffix("_right")
+        for body, bases in ROLE_BODIES.items():
+            if base in bases:
+                by_role[name] = f"{body}_{side}" if side and body != "pelvis" and body != "torso" else body
+    bones = [("pelvis", "hip_l", "hip_r"), ("pelvis", "mid_hip", "lumbar"), ("torso", "lumbar", "neck"),
+             ("torso", "shoulder_l", "shoulder_r"), ("head", "neck", "vertex")]
+    for s in SIDES:
+        bones += [(f"thigh_{s}", f"hip_{s}", f"knee_{s}"), (f"shank_{s}", f"knee_{s}", f"ankle_{s}"),
+                  (f"foot_{s}", f"heel_{s}", f"toe_{s}")]
+        if arms_measured:
+            bones += [(f"upper_arm_{s}", f"shoulder_{s}", f"elbow_{s}"),
+                      (f"forearm_{s}", f"elbow_{s}", f"hand_{s}")]
+    out = {}
+    for name, p in markers.items():
+        if name in by_role:
+            out[name] = by_role[name]
+            continue
+        dist = np.array([_segment_distance(p, jc[a], jc[b]) for _, a, b in bones])
+        out[name] = bones[int(np.flatnonzero(dist <= dist.min() + tie_m)[0])][0]
+    return out
+
+
+def _to_static_frame(markers: dict[str, np.ndarray], roles: dict[str, str], origin: str,
+                     floor_tol_m: float) -> dict[str, np.ndarray]:
+    """Rotate about Z so the pelvis faces +X and shift the origin between the feet."""
+    need = [f"{r}_{s}" for r in ("asis", "psis", "heel", "toe") for s in ("left", "right")]
+    missing = [f"{r} ({roles.get(r)})" for r in need if roles.get(r) not in markers]
+    if missing:
+        raise ScalingError(origin, f"static trial lacks landmark markers: {', '.join(missing)}")
+    m = lambda r: markers[roles[r]]  # noqa: E731
+    facing = (m("asis_left") + m("asis_right") - m("psis_left") - m("psis_right")) / 2
+    heading = float(np.arctan2(facing[1], facing[0]))
+    out = {n: rotate_z(p, heading) for n, p in markers.items()}
+    feet = [out[roles[f"{r}_{s}"]] for r in ("heel", "toe") for s in ("left", "right")]
+    centre = np.mean(feet, axis=0)
+    low = min(p[2] for p in feet)
+    if not -floor_tol_m <= low <= 0.15:
+        raise ScalingError(origin, f"lowest foot marker is {low:.3f} m above the lab floor (z = 0); "
+                           "expected 0-0.15 m: the static trial is not standing on the floor")
+    shift = np.array([centre[0], centre[1], 0.0])
+    return {n: p - shift for n, p in out.items()}
+
+
+def scale_subject(subject: Subject, manifest: Manifest, p: HumanParams) -> ScaledBody:
+    """Joint centres, segment frames, lengths and masses of `subject` from its static trial."""
+    origin = str(manifest.resolve(subject.static.markers)) if subject.static else str(subject.path)
+    roles = scaling_roles(subject)
+    markers = _to_static_frame(static_markers(subject, manifest), roles, origin, p.floor_tolerance_m)
+    table = TABLES.get(p.anthropometry)
+    if table is None:
+        raise ScalingError(origin, f"unknown anthropometry table {p.anthropometry!r} "
+                           f"(known: {', '.join(TABLES)})")
+    H, up = subject.height_m, np.array([0.0, 0.0, 1.0])
+
+    def lm(role: str) -> np.ndarray | None:
+        name = roles.get(role)
+        return markers.get(name) if name else None
+
+    jc: dict[str, np.ndarray] = {}
+    sources: dict[str, str] = {}
+    frames: dict[str, np.ndarray] = {}
+    angles: dict[str, float] = {}
+    asis_l, asis_r, psis_l, psis_r = (lm(r) for r in ("asis_left", "asis_right", "psis_left", "psis_right"))
+    hjc = hip_joint_centres(asis_l[None], asis_r[None], psis_l[None], psis_r[None])
+    jc["hip_l"], jc["hip_r"] = hjc["left"][0], hjc["right"][0]
+    jc["mid_hip"] = (jc["hip_l"] + jc["hip_r"]) / 2
+    pelvis_y = _unit(asis_l - asis_r)
+    frames["pelvis"] = frame_from_zy(np.cross(_unit((asis_l + asis_r - psis_l - psis_r) / 2), pelvis_y),
+                                     pelvis_y)
+    # Torso upright in the static pose, facing the pelvis' heading.
+    fwd = frames["pelvis"][:, 0].copy()
+    fwd[2] = 0.0
+    frames["torso"] = frames["head"] = np.column_stack([_unit(fwd), np.cross(up, _unit(fwd)), up])
+    torso_y = frames["torso"][:, 1]
+
+    for s, side in SIDES.items():
+        sign = 1.0 if s == "l" else -1.0  # +Y is left
+        for joint, width in (("knee", p.knee_width_per_height), ("ankle", p.ankle_width_per_height)):
+            lat, med = lm(f"{joint}_{side}"), lm(f"{joint}_medial_{side}")
+            if lat is None:
+                raise ScalingError(origin, f"static trial lacks the {joint}_{side} marker")
+            if med is not None:
+                jc[f"{joint}_{s}"], sources[f"{joint}_{s}"] = (lat + med) / 2, "markers"
+                jc[f"{joint}_axis_{s}"] = _unit(sign * (lat - med))
+            else:
+                jc[f"{joint}_{s}"] = lat - sign * pelvis_y * width * H / 2
+                sources[f"{joint}_{s}"] = "lateral marker + width ratio"
+        heel, toe = lm(f"heel_{side}"), lm(f"toe_{side}")
+        jc[f"heel_{s}"], jc[f"toe_{s}"] = heel, toe
+        axis = jc.get(f"knee_axis_{s}", pelvis_y)
+        thigh = frame_from_zy(jc[f"hip_{s}"] - jc[f"knee_{s}"], axis)
+        v = thigh.T @ (jc[f"ankle_{s}"] - jc[f"knee_{s}"])
+        angles[f"knee_{s}"] = float(np.arctan2(-v[0], -v[2]))
+        shank = thigh @ rot_y(angles[f"knee_{s}"])
+        u = shank.T @ np.array([*(toe - heel)[:2], 0.0])
+        angles[f"ankle_{s}"] = float(np.arctan2(u[2], u[0]))
+        foot = shank @ rot_y(-angles[f"ankle_{s}"])
+        frames.update({f"thigh_{s}": thigh, f"shank_{s}": shank, f"foot_{s}": foot})
+
+    # Trunk and head: C7 from the marker or from the head length; vertex at the subject's height.
+    c7 = lm("c7")
+    if c7 is None:
+        c7 = np.array([*jc["mid_hip"][:2], H - table.length_ratio("head") * H])
+    jc["neck"], sources["neck"] = c7, "markers" if lm("c7") is not None else "height ratio"
+    jc["vertex"] = np.array([c7[0], c7[1], H])
+    trunk_parts = [table.segments[n].length_mm for n in ("upper_trunk", "mid_trunk", "lower_trunk")]
+    jc["lumbar"] = jc["mid_hip"] + (c7 - jc["mid_hip"]) * trunk_parts[2] / sum(trunk_parts)
+
+    for s, side in SIDES.items():
+        sign = 1.0 if s == "l" else -1.0
+        l_ua, l_fa, l_hand = (table.length_ratio(n) * H for n in ("upper_arm", "forearm", "hand"))
+        acromion = lm(f"shoulder_{side}")
+        elbow = [lm(f"elbow_{side}"), lm(f"elbow_medial_{side}")]
+        wrist = [lm(f"wrist_{side}"), lm(f"wrist_medial_{side}")]
+        if acromion is None:
+            acromion = np.array([jc["mid_hip"][0], 0.0, WINTER_RATIOS["shoulder_height"] * H]) \
+                + sign * torso_y * WINTER_RATIOS["shoulder_width"] * H / 2
+        if all(e is not None for e in elbow):
+            ejc = (elbow[0] + elbow[1]) / 2
+            sjc = acromion - up * p.sjc_below_acromion_fraction * np.linalg.norm(acromion - ejc)
+            sources[f"elbow_{s}"] = "markers"
+        else:
+            sjc = acromion - up * p.sjc_below_acromion_fraction * l_ua
+            ejc = sjc - up * l_ua
+            sources[f"elbow_{s}"] = "height ratio"
+        if all(w is not None for w in wrist):
+            wjc, sources[f"wrist_{s}"] = (wrist[0] + wrist[1]) / 2, "markers"
+        else:
+            wjc, sources[f"wrist_{s}"] = ejc - up * l_fa, "height ratio"
+        jc[f"shoulder_{s}"], jc[f"elbow_{s}"], jc[f"wrist_{s}"] = sjc, ejc, wjc
+        jc[f"hand_{s}"] = wjc + _unit(wjc - ejc) * l_hand
+        axis = _unit(sign * (elbow[0] - elbow[1])) if all(e is not None for e in elbow) else torso_y
+        upper = frame_from_zy(sjc - ejc, axis)
+        v = upper.T @ (wjc - ejc)
+        angles[f"elbow_{s}"] = float(np.arctan2(v[0], -v[2]))
+        frames[f"upper_arm_{s}"] = upper
+        frames[f"forearm_{s}"] = upper @ rot_y(-angles[f"elbow_{s}"])
+
+    contact = {}
+    for s, side in SIDES.items():
+        contact[f"foot_{s}"] = _contact_points(jc, s, lm(f"toe_medial_{side}"), lm(f"toe_lateral_{side}"),
+                                               1.0 if s == "l" else -1.0, WINTER_RATIOS["foot_width"] * H,
+                                               p.contact_radius_m)
+
+    lengths = {"pelvis_width": float(np.linalg.norm(jc["hip_l"] - jc["hip_r"])),
+               "pelvis_height": float(np.linalg.norm(jc["lumbar"] - jc["mid_hip"])),
+               "torso": float(np.linalg.norm(jc["neck"] - jc["lumbar"])),
+               "head": float(np.linalg.norm(jc["vertex"] - jc["neck"]))}
+    for s in SIDES:
+        for seg, a, b in (("thigh", "hip", "knee"), ("shank", "knee", "ankle"),
+                          ("upper_arm", "shoulder", "elbow"), ("forearm", "elbow", "wrist"),
+                          ("hand", "wrist", "hand"), ("foot", "heel", "toe")):
+            lengths[f"{seg}_{s}"] = float(np.linalg.norm(jc[f"{b}_{s}"] - jc[f"{a}_{s}"]))
+    sources.update({"hip_l": "Harrington 2007", "hip_r": "Harrington 2007", "vertex": "height_m"})
+    return ScaledBody(subject.id, H, subject.mass_kg, p.anthropometry, markers, jc, frames, contact,
+                      lengths, segment_masses(table, subject.mass_kg), sources,
+                      assign_markers(markers, roles, jc, sources.get("elbow_l") == "markers"), angles)
+
+
+def _contact_points(jc: dict[str, np.ndarray], s: str, toe_med: np.ndarray | None,
+                    toe_lat: np.ndarray | None, sign: float, width_ratio_m: float,
+                    radius_m: float) -> np.ndarray:
+    """Heel (medial, lateral) and toe (medial, lateral) sphere centres on the floor: heel spheres
+    just in front of the heel marker, toe spheres behind the toe marker; toe width from the
+    medial/lateral toe markers when present, else the foot-width ratio; heel half as wide."""
+    heel, toe = jc[f"heel_{s}"], jc[f"toe_{s}"]
+    u = np.array([*(toe - heel)[:2], 0.0])
+    u /= np.linalg.norm(u)
+    left = np.array([-u[1], u[0], 0.0])
+    if toe_med is not None and toe_lat is not None:
+        width = abs(float(np.dot(toe_med - toe_lat, left)))
+    else:
+        width = width_ratio_m
+    half = max(width / 2 - radius_m, radius_m)
+    heel_c = heel + u * radius_m
+    toe_c = toe - u * radius_m
+    pts = [heel_c + sign * left * half / 2, heel_c - sign * left * half / 2,
+           toe_c + sign * left * half, toe_c - sign * left * half]  # medial: towards the midline
+    pts = np.array(pts)
+    pts[:, 2] = radius_m
+    return pts
+
+
+def segment_masses(table: Table, mass_kg: float) -> dict[str, float]:
+    """Body masses (kg) of the model's bodies from the table, renormalised to sum to `mass_kg`:
+    pelvis = lower trunk, torso = upper + mid trunk, forearm = forearm + hand."""
+    seg = table.segments
+    frac = {"pelvis": seg["lower_trunk"].mass_fraction,
+            "torso": seg["upper_trunk"].mass_fraction + seg["mid_trunk"].mass_fraction,
+            "head": seg["head"].mass_fraction}
+    for s in SIDES:
+        frac |= {f"thigh_{s}": seg["thigh"].mass_fraction, f"shank_{s}": seg["shank"].mass_fraction,
+                 f"foot_{s}": seg["foot"].mass_fraction, f"upper_arm_{s}": seg["upper_arm"].mass_fraction,
+                 f"forearm_{s}": seg["forearm"].mass_fraction + seg["hand"].mass_fraction}
+    total = sum(frac.values())
+    return {b: mass_kg * f / total for b, f in frac.items()}
