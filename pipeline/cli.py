@@ -44,6 +44,18 @@ def cmd_bench(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_tune_controllers(args: argparse.Namespace) -> int:
+    from pipeline.tune_stage import run_tuning, write_gains
+
+    doc = run_tuning(load_params(args.params), args.params, args.out)
+    for name, res in doc["controllers"].items():
+        print(f"{name}: J {res['initial_objective']:.4f} -> {res['objective']:.4f} in {res['n_evaluations']} "
+              f"rollouts ({res['wall_s']:.0f} s): {res['gains']}", file=sys.stderr)
+    if args.write_params:
+        write_gains(args.params, doc)
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="python -m pipeline", description=__doc__.split(";")[0])
     parser.add_argument("--params", type=Path, default=PARAMS_FILE, help="params file (default: %(default)s)")
@@ -72,6 +84,12 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--out", type=Path, default=REPO_ROOT / "reports" / "bench.json")
     bench.add_argument("--repeat", type=int, default=5, help="timed runs, best kept (default: 5)")
     bench.set_defaults(func=cmd_bench)
+
+    tune_c = commands.add_parser("tune-controllers", help="tune every follow-me controller the same way "
+                                 "on a synthetic walk (robot.tuning)")
+    tune_c.add_argument("--out", type=Path, default=REPO_ROOT / "reports" / "controller_tuning.json")
+    tune_c.add_argument("--write-params", action="store_true", help="store the tuned gains in the params file")
+    tune_c.set_defaults(func=cmd_tune_controllers)
 
     add_results_commands(commands)
     return parser

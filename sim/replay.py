@@ -1,0 +1,244 @@
+"""Human drivers for rollouts: the `HumanDriver` interface and the kinematic `ReplayHuman`.
+
+A driver adapts the human part of the world before the robot is attached (`prepare`), sets the
+human's initial state (`reset`), acts once per output sample before the physics steps
+(`before_sample`), and returns the human's joint positions per sample in the human model's own qpos
+layout (`qpos_samples`, what the virtual markers need). A torque-driven `PolicyHuman` implements the
+same methods; the rollout and robot code do not change.
+
+`ReplayHuman` (human mode ``replay``) makes the subject's recorded motion drive the human:
+
+- All human joints are removed from the physics world; the body keeps its reference posture as one
+  rigid body with the whole body mass, so the harness carries and is loaded by a body of the
+  subject's mass. The limb motion is not needed by the robot and is taken straight from the
+  reference when the human's qpos is sampled.
+- The free root is replaced by six drive joints on the pelvis (world slides x, y, z, then hinges
+  yaw, pitch, roll about the pelvis axes), each servoed to the reference by
+  ``k (target - q) + d (v_target - q')`` where the target moves linearly between output samples
+  (integrator actuator + velocity actuator, so no Python runs per physics step). The vertical servo
+  adds the body weight as feed-forward and can only push up (legs cannot pull the pelvis down), so
+  when the reference drops (a fall) and the harness holds, the body hangs in the harness with its
+  weight. The servo gains are params (`rollout.replay`); they are stiff, so the pelvis follows
+  the recording within millimetres while the harness forces stay small.
+- Human geoms do not collide (the replayed feet would fight the floor).
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from sim.errors import SimulationError
+
+DRIVE_JOINTS = ("replay_x", "replay_y", "replay_z", "replay_yaw", "replay_pitch", "replay_roll")
+
+
+@dataclass(frozen=True)
+class Motion:
+    """A human motion: `qpos` (n, nq) in the human model's layout sampled at `time_s` (n,)."""
+
+    time_s: np.ndarray
+    qpos: np.ndarray
+
+
+@dataclass(frozen=True)
+class ReplayParams:
+    """Servo of the replayed pelvis (params `rollout.replay`)."""
+
+    kp_n_per_m: float = 60000.0
+    kd_ns_per_m: float = 3000.0
+    kp_nm_per_rad: float = 3000.0
+    kd_nms_per_rad: float = 150.0
+    max_force_n: float = 5000.0
+    max_torque_nm: float = 500.0
+    max_vertical_bodyweights: float = 3.0
+
+
+class HumanDriver(ABC):
+    """What a rollout needs from the human side; see the module docstring."""
+
+    mode: str
+    duration_s: float
+
+    @abstractmethod
+    def prepare(self, spec: mujoco.MjSpec) -> None: ...
+
+    @abstractmethod
+    def start_pose(self) -> tuple[np.ndarray, float]:
+        """Pelvis world position (3,) and heading (rad) at t = 0."""
+
+    @abstractmethod
+    def reset(self, model: mujoco.MjModel, data: mujoco.MjData, sample_times_s: np.ndarray) -> None: ...
+
+    @abstractmethod
+    def before_sample(self, model: mujoco.MjModel, data: mujoco.MjData, k: int) -> None: ...
+
+    @abstractmethod
+    def record(self, model: mujoco.MjModel, data: mujoco.MjData, k: int) -> None: ...
+
+    @abstractmethod
+    def qpos_samples(self) -> np.ndarray: ...
+
+
+def quat_to_zyx(q: np.ndarray) -> np.ndarray:
+    """Intrinsic Z-Y-X angles (yaw, pitch, roll) of unit quaternions (n, 4) wxyz; yaw unwrapped."""
+    w, x, y, z = q.T
+    yaw = np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+    pitch = np.arcsin(np.clip(2 * (w * y - z * x), -1, 1))
+    roll = np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
+    return np.column_stack([np.unwrap(yaw), pitch, roll])
+
+
+def zyx_to_quat(a: np.ndarray) -> np.ndarray:
+    """Unit quaternions (n, 4) of intrinsic Z-Y-X angles (n, 3)."""
+    cy, sy = np.cos(a[:, 0] / 2), np.sin(a[:, 0] / 2)
+    cp, sp = np.cos(a[:, 1] / 2), np.sin(a[:, 1] / 2)
+    cr, sr = np.cos(a[:, 2] / 2), np.sin(a[:, 2] / 2)
+    return np.column_stack([cr * cp * cy + sr * sp * sy, sr * cp * cy - cr * sp * sy,
+                            cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy])
+
+
+def quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product of quaternion arrays (n, 4) (either may be a single (4,))."""
+    a, b = np.atleast_2d(a), np.atleast_2d(b)
+    w1, x1, y1, z1 = a.T
+    w2, x2, y2, z2 = b.T
+    return np.column_stack([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2, w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+                            w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2, w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2])
+
+
+def quat_conj(q: np.ndarray) -> np.ndarray:
+    return q * np.array([1, -1, -1, -1])
+
+
+def interpolate_qpos(motion: Motion, times_s: np.ndarray, root_adr: int) -> np.ndarray:
+    """Linear interpolation of every qpos column; the root quaternion is renormalised."""
+    out = np.column_stack([np.interp(times_s, motion.time_s, c) for c in motion.qpos.T])
+    q = out[:, root_adr + 3:root_adr + 7]
+    out[:, root_adr + 3:root_adr + 7] = q / np.linalg.norm(q, axis=1, keepdims=True)
+    return out
+
+
+def scripted_fall(motion: Motion, t_fall_s: float, drop_m: float, duration_s: float,
+                  root_adr: int = 0) -> Motion:
+    """`motion` with a scripted fall from `t_fall_s`: the root drops `drop_m` over `duration_s`
+    (smoothstep) and stays down, and its horizontal progression fades out over the same time (a
+    falling person stops walking). Issue 4 uses 20 cm in 0.3 s."""
+    t = motion.time_s
+    u = np.clip((t - t_fall_s) / duration_s, 0, 1)
+    s = 3 * u**2 - 2 * u**3
+    qpos = motion.qpos.copy()
+    qpos[:, root_adr + 2] -= drop_m * s
+    xy = motion.qpos[:, root_adr:root_adr + 2]
+    step = np.diff(xy, axis=0) * (1 - s[1:, None])  # progression scaled down as the fall proceeds
+    qpos[:, root_adr:root_adr + 2] = xy[0] + np.vstack([np.zeros((1, 2)), np.cumsum(step, axis=0)])
+    return Motion(t, qpos)
+
+
+class ReplayHuman(HumanDriver):
+    """Kinematic replay of `motion` through a stiff pelvis servo (module docstring)."""
+
+    mode = "replay"
+
+    def __init__(self, motion: Motion, p: ReplayParams, root: str = "root", pelvis: str = "pelvis") -> None:
+        if motion.qpos.ndim != 2 or len(motion.time_s) != motion.qpos.shape[0] or len(motion.time_s) < 2:
+            raise SimulationError("replay motion", f"time_s {motion.time_s.shape} and qpos "
+                                  f"{motion.qpos.shape} do not describe a trajectory")
+        self.motion, self.p, self.root, self.pelvis = motion, p, root, pelvis
+        self.duration_s = float(motion.time_s[-1] - motion.time_s[0])
+        self.root_adr = 0
+
+    def prepare(self, spec: mujoco.MjSpec) -> None:
+        original = spec.copy().compile()
+        jid = mujoco.mj_name2id(original, mujoco.mjtObj.mjOBJ_JOINT, self.root)
+        if jid < 0 or original.jnt_type[jid] != mujoco.mjtJoint.mjJNT_FREE:
+            raise SimulationError(spec.modelname or "world", f"no free joint {self.root!r} to replay")
+        if original.nq != self.motion.qpos.shape[1]:
+            raise SimulationError(spec.modelname or "world", f"motion has {self.motion.qpos.shape[1]} qpos "
+                                  f"columns, the human model {original.nq}")
+        self.root_adr = int(original.jnt_qposadr[jid])
+        body = spec.body(self.pelvis)
+        if body is None:
+            raise SimulationError(spec.modelname or "world", f"no body {self.pelvis!r}")
+        self.p0 = np.array(body.pos, dtype=float)
+        self.q0 = np.array(body.quat, dtype=float) / np.linalg.norm(body.quat)
+        for joint in list(spec.joints):
+            spec.delete(joint)
+        for geom in spec.geoms:
+            geom.contype, geom.conaffinity = 0, 0
+        rot0 = np.zeros(9)
+        mujoco.mju_quat2Mat(rot0, self.q0)
+        world_axes = rot0.reshape(3, 3).T  # world axes expressed in the pelvis frame
+        p = self.p
+        for i, name in enumerate(DRIVE_JOINTS):
+            lin = i < 3
+            axis = world_axes[i] if lin else np.eye(3)[(2, 1, 0)[i - 3]]
+            jtype = mujoco.mjtJoint.mjJNT_SLIDE if lin else mujoco.mjtJoint.mjJNT_HINGE
+            lim = p.max_force_n if lin else p.max_torque_nm
+            joint = body.add_joint(name=name, type=jtype, axis=axis, actfrclimited=True,
+                                   actfrcrange=[-lim, lim])
+            kp, kd = (p.kp_n_per_m, p.kd_ns_per_m) if lin else (p.kp_nm_per_rad, p.kd_nms_per_rad)
+            pos = spec.add_actuator(name=f"{name}_pos", target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+            pos.set_to_intvelocity(kp=kp)
+            vel = spec.add_actuator(name=f"{name}_vel", target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+            vel.set_to_velocity(kv=kd)
+            if name == "replay_z":
+                self._z_joint = joint
+
+    def bind(self, model: mujoco.MjModel) -> None:
+        ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, n) for n in DRIVE_JOINTS]
+        self.qadr = model.jnt_qposadr[ids].copy()
+        self.dadr = model.jnt_dofadr[ids].copy()
+        self.pos_act = np.array([mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, f"{n}_pos")
+                                 for n in DRIVE_JOINTS])
+        self.vel_act = np.array([mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, f"{n}_vel")
+                                 for n in DRIVE_JOINTS])
+        self.act_adr = model.actuator_actadr[self.pos_act].copy()
+        self.pelvis_id = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, self.pelvis)
+        weight = float(model.body_subtreemass[self.pelvis_id] * np.linalg.norm(model.opt.gravity))
+        self.weight_n = weight
+        model.actuator_biasprm[self.pos_act[2], 0] = weight  # body weight carried by the legs
+        z = ids[2]
+        model.jnt_actfrcrange[z] = (0.0, self.p.max_vertical_bodyweights * weight)
+
+    def targets(self, times_s: np.ndarray) -> np.ndarray:
+        """Drive-joint targets (n, 6) at `times_s`: position offsets and Z-Y-X angles."""
+        q = interpolate_qpos(self.motion, times_s + self.motion.time_s[0], self.root_adr)
+        root = q[:, self.root_adr:self.root_adr + 7]
+        rel = quat_mul(quat_conj(self.q0), root[:, 3:])
+        return np.column_stack([root[:, :3] - self.p0, quat_to_zyx(rel)])
+
+    def start_pose(self) -> tuple[np.ndarray, float]:
+        root = self.motion.qpos[0, self.root_adr:self.root_adr + 7]
+        yaw = quat_to_zyx(root[None, 3:])[0, 0]
+        return root[:3].copy(), float(yaw)
+
+    def reset(self, model: mujoco.MjModel, data: mujoco.MjData, sample_times_s: np.ndarray) -> None:
+        self.bind(model)
+        self.times_s = sample_times_s
+        self.target = self.targets(sample_times_s)
+        dt = np.diff(sample_times_s)
+        self.rate = np.diff(self.target, axis=0) / dt[:, None]
+        data.qpos[self.qadr] = self.target[0]
+        data.qvel[self.dadr] = self.rate[0]
+        data.act[self.act_adr] = self.target[0]
+        self.drive_q = np.zeros((len(sample_times_s), 6))
+
+    def before_sample(self, model: mujoco.MjModel, data: mujoco.MjData, k: int) -> None:
+        data.act[self.act_adr] = self.target[k]
+        data.ctrl[self.pos_act] = self.rate[k]
+        data.ctrl[self.vel_act] = self.rate[k]
+
+    def record(self, model: mujoco.MjModel, data: mujoco.MjData, k: int) -> None:
+        self.drive_q[k] = data.qpos[self.qadr]
+
+    def qpos_samples(self) -> np.ndarray:
+        """Reference joints at the sample times with the simulated pelvis pose as the free root."""
+        q = interpolate_qpos(self.motion, self.times_s + self.motion.time_s[0], self.root_adr)
+        a = self.root_adr
+        q[:, a:a + 3] = self.p0 + self.drive_q[:, :3]
+        q[:, a + 3:a + 7] = quat_mul(self.q0, zyx_to_quat(self.drive_q[:, 3:]))
+        return q
