@@ -56,6 +56,15 @@ def cmd_tune_controllers(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_scale(args: argparse.Namespace) -> int:
+    from pipeline.scale_stage import DEFAULT_ROOT, REPORTS_ROOT, run_scale
+
+    folder = run_scale(args.subject, load_params(args.params), args.root or DEFAULT_ROOT,
+                       args.reports or REPORTS_ROOT)
+    print(f"wrote {folder}", file=sys.stderr)
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="python -m pipeline", description=__doc__.split(";")[0])
     parser.add_argument("--params", type=Path, default=PARAMS_FILE, help="params file (default: %(default)s)")
@@ -84,6 +93,14 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--out", type=Path, default=REPO_ROOT / "reports" / "bench.json")
     bench.add_argument("--repeat", type=int, default=5, help="timed runs, best kept (default: 5)")
     bench.set_defaults(func=cmd_bench)
+
+    scale = commands.add_parser("scale", help="build a subject's scaled 27-DoF human from its static trial")
+    scale.add_argument("subject", help="subject id (data/subjects/<id>.yaml)")
+    scale.add_argument("--root", type=Path, help="model goes to <root>/<subject>/model/ "
+                       "(default: data/processed)")
+    scale.add_argument("--reports", type=Path, help="picture goes to <reports>/<subject>/model.png "
+                       "(default: reports)")
+    scale.set_defaults(func=cmd_scale)
 
     tune_c = commands.add_parser("tune-controllers", help="tune every follow-me controller the same way "
                                  "on a synthetic walk (robot.tuning)")

@@ -1,9 +1,11 @@
 """Stage `metrics <subject>`: a subject's real and simulated tables -> metric tables.
 
 Inputs: `<root>/<subject>/real/{strides,cycles}.parquet` and, once simulated,
-`<root>/<subject>/sim/{strides,cycles,robot}.parquet`. Outputs in `<root>/<subject>/metrics/`:
-one parquet per metric table (`TABLES`), `metrics.json` (headline numbers, a DVC metrics file)
-and `provenance.json` (params hash and input hashes, read by the store stage).
+`<root>/<subject>/sim/{strides,cycles,robot}.parquet` (root: data/processed). Outputs in
+`<out_root>/<subject>/` (data/metrics): one parquet per metric table (`TABLES`), `metrics.json`
+(headline numbers, a DVC metrics file) and `provenance.json` (params hash and input hashes, read
+by the store stage). They live outside data/processed so that the store stage can depend on
+`data/metrics` alone rather than on every stage's outputs under data/processed.
 """
 
 from __future__ import annotations
@@ -31,12 +33,14 @@ from metrics import (
     stability_table,
 )
 from metrics.errors import MetricsError
+from metrics.tracking import TRACKING_COLUMNS, tracking_table
 from pipeline.outputs import write_outputs
 from pipeline.params import REPO_ROOT, ParamsError
 
 DEFAULT_ROOT = REPO_ROOT / "data" / "processed"
-TABLES = ("gait", "stability", "rom", "kinematics", "compliance", "harness", "spm_tests", "spm_curves",
-          "spm_clusters")
+DEFAULT_OUT_ROOT = REPO_ROOT / "data" / "metrics"
+TABLES = ("gait", "stability", "rom", "kinematics", "compliance", "harness", "tracking", "spm_tests",
+          "spm_curves", "spm_clusters")
 SOURCES = ("real", "sim")
 # Sections whose values shape the results; the hash of these identifies a params version.
 RESULT_SECTIONS = ("ingest", "metrics", "human", "model", "retarget", "robot", "harness", "controllers",
@@ -50,6 +54,7 @@ class MetricsParams:
     pool_sides: bool = True
     exclude_locked: bool = True
     joints: tuple[str, ...] = JOINTS
+    tracking_rate_hz: float = 20.0
     spm: SpmParams = field(default_factory=SpmParams)
 
     @classmethod
@@ -61,6 +66,7 @@ class MetricsParams:
             joints = tuple(section["joints"])
             spm = dict(section["spm"])
             return cls(bool(section["pool_sides"]), bool(section["exclude_locked"]), joints,
+                       float(section["tracking_rate_hz"]),
                        SpmParams(alpha=float(spm["alpha"]), test=str(spm["test"]),
                                  min_cycles=int(spm["min_cycles"]),
                                  reference_condition=str(spm["reference_condition"]),
@@ -103,6 +109,7 @@ def compute(inputs: dict[str, pd.DataFrame], p: MetricsParams) -> dict[str, pd.D
         "kinematics": bands_table(cycles, p.pool_sides),
         "compliance": compliance_table(robot, p.exclude_locked) if has_robot else _empty("compliance"),
         "harness": harness_table(robot, p.exclude_locked) if has_robot else _empty("harness"),
+        "tracking": tracking_table(robot, p.tracking_rate_hz) if has_robot else _empty("tracking"),
         "spm_tests": spm.tests,
         "spm_curves": spm.curves,
         "spm_clusters": spm.clusters,
@@ -110,7 +117,8 @@ def compute(inputs: dict[str, pd.DataFrame], p: MetricsParams) -> dict[str, pd.D
 
 
 def _empty(name: str) -> pd.DataFrame:
-    return pd.DataFrame(columns={"compliance": compliance.COLUMNS, "harness": harness.COLUMNS}[name])
+    columns = {"compliance": compliance.COLUMNS, "harness": harness.COLUMNS, "tracking": TRACKING_COLUMNS}
+    return pd.DataFrame(columns=columns[name])
 
 
 def headline(tables: dict[str, pd.DataFrame]) -> dict:
@@ -143,7 +151,7 @@ def input_hashes(subject: str, root: Path) -> dict[str, str]:
             for p in sorted((root / subject / source).glob("*.parquet"))}
 
 
-def run_metrics(subject: str, params: dict, root: Path = DEFAULT_ROOT,
+def run_metrics(subject: str, params: dict, root: Path = DEFAULT_ROOT, out_root: Path = DEFAULT_OUT_ROOT,
                 params_path: str | Path = "params.yaml") -> Path:
     """Compute and write a subject's metric tables; returns the output folder."""
     p = MetricsParams.from_params(params, params_path)
@@ -152,7 +160,7 @@ def run_metrics(subject: str, params: dict, root: Path = DEFAULT_ROOT,
         tables = compute(read_inputs(subject, root), p)
     except (KeyError, ValueError) as exc:
         raise MetricsError(str(root / subject), f"cannot compute metrics ({exc})") from None
-    folder = root / subject / "metrics"
+    folder = Path(out_root) / subject
     provenance = {"subject": subject, "params_hash": params_hash(params),
                   "inputs": input_hashes(subject, root)}
     write_outputs(folder, tables, {"metrics": headline(tables), "provenance": provenance})

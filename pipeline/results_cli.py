@@ -10,14 +10,14 @@ from pathlib import Path
 import pandas as pd
 
 from pipeline.add_subject import NewTrial, Registry, add_subject
-from pipeline.metrics_stage import DEFAULT_ROOT, run_metrics
+from pipeline.metrics_stage import DEFAULT_OUT_ROOT, DEFAULT_ROOT, run_metrics
 from pipeline.params import load_params
 from pipeline.store import query
 from pipeline.store_stage import run_store, store_params
 
 
 def cmd_metrics(args: argparse.Namespace) -> int:
-    folder = run_metrics(args.subject, load_params(args.params), args.root, args.params)
+    folder = run_metrics(args.subject, load_params(args.params), args.root, args.out_root, args.params)
     print(f"wrote {folder}", file=sys.stderr)
     return 0
 
@@ -58,12 +58,14 @@ def add_results_commands(commands: argparse._SubParsersAction) -> None:
     metrics = commands.add_parser("metrics", help="compute a subject's metric tables (Tables I-III, SPM)")
     metrics.add_argument("subject")
     metrics.add_argument("--root", type=Path, default=DEFAULT_ROOT,
-                         help="processed data root: <root>/<subject>/{real,sim,metrics} "
-                         "(default: %(default)s)")
+                         help="inputs: <root>/<subject>/{real,sim}/ (default: %(default)s)")
+    metrics.add_argument("--out-root", type=Path, default=DEFAULT_OUT_ROOT,
+                         help="outputs: <out-root>/<subject>/ (default: %(default)s)")
     metrics.set_defaults(func=cmd_metrics)
 
     store = commands.add_parser("store", help="add every subject's metrics to the DuckDB results store")
-    store.add_argument("--root", type=Path, default=DEFAULT_ROOT)
+    store.add_argument("--root", type=Path, default=DEFAULT_OUT_ROOT,
+                       help="metric tables: <root>/<subject>/ (default: %(default)s)")
     store.add_argument("--db", type=Path, help="store file (default: params store.path)")
     store.set_defaults(func=cmd_store)
 

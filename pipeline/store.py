@@ -55,6 +55,8 @@ SCHEMAS: dict[str, str] = {
                   "fall_rate DOUBLE",
     "harness": f"{_GROUP_DDL}, quantity VARCHAR, unit VARCHAR, n_samples BIGINT, rms DOUBLE, peak DOUBLE, "
                "mean DOUBLE",
+    "tracking": f"{_GROUP_DDL}, trial VARCHAR, seed BIGINT, time_s DOUBLE, e_x_cm DOUBLE, e_y_cm DOUBLE, "
+                "force_n DOUBLE, locked BOOLEAN",
     "spm_tests": "test_id VARCHAR, subject VARCHAR, comparison VARCHAR, side VARCHAR, joint VARCHAR, "
                  "source_a VARCHAR, human_mode_a VARCHAR, condition_a VARCHAR, source_b VARCHAR, "
                  "human_mode_b VARCHAR, condition_b VARCHAR, test VARCHAR, statistic VARCHAR, n_a BIGINT, "

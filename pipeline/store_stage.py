@@ -1,6 +1,6 @@
 """Stage `store`: every subject's metric tables -> new versions in the results store.
 
-Reads `<root>/<subject>/metrics/<table>.parquet` and `provenance.json` for each subject in
+Reads `<root>/<subject>/<table>.parquet` (root: data/metrics) and `provenance.json` for each subject in
 params.yaml and adds them to `data/results.duckdb` in one transaction (`pipeline.store`).
 """
 
@@ -12,7 +12,7 @@ from pathlib import Path
 import pandas as pd
 from tqdm import tqdm
 
-from pipeline.metrics_stage import DEFAULT_ROOT
+from pipeline.metrics_stage import DEFAULT_OUT_ROOT
 from pipeline.params import ParamsError
 from pipeline.store import TABLES, StoreError, StoreParams, StoreReport, SubjectResults, store_results
 
@@ -29,9 +29,9 @@ def store_params(params: dict, path: str | Path = "params.yaml") -> StoreParams:
         raise ParamsError(path, f"invalid store section ({exc})") from None
 
 
-def load_results(subject: str, root: Path = DEFAULT_ROOT) -> SubjectResults:
+def load_results(subject: str, root: Path = DEFAULT_OUT_ROOT) -> SubjectResults:
     """A subject's metric tables as written by the metrics stage."""
-    folder = Path(root) / subject / "metrics"
+    folder = Path(root) / subject
     prov = folder / "provenance.json"
     if not prov.is_file():
         raise StoreError(folder, f"no metrics for subject {subject!r}: "
@@ -41,7 +41,7 @@ def load_results(subject: str, root: Path = DEFAULT_ROOT) -> SubjectResults:
     return SubjectResults(subject, tables, str(json.loads(prov.read_text())["params_hash"]))
 
 
-def run_store(params: dict, root: Path = DEFAULT_ROOT, db: Path | None = None,
+def run_store(params: dict, root: Path = DEFAULT_OUT_ROOT, db: Path | None = None,
               params_path: str | Path = "params.yaml", progress: bool = True) -> StoreReport:
     """Store the metrics of every subject in `params['subjects']`."""
     p = store_params(params, params_path)

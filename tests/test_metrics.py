@@ -19,6 +19,7 @@ from metrics import (
     rom_table,
     stability_table,
 )
+from metrics.tracking import tracking_table
 from pipeline.metrics_stage import MetricsParams, compute, headline
 from pipeline.params import ingest_params, load_params
 
@@ -194,3 +195,20 @@ def test_real_subjects_metrics(real_tables):
         "toe_out",
         "trunk_sway",
     }
+
+
+def test_tracking_trace_takes_the_first_run_at_the_plot_rate():
+    n = 201
+    robot = pd.concat(
+        [
+            robot_table(np.linspace(0, 0.1, n), np.zeros(n), fx=3.0, fy=4.0),
+            robot_table(np.ones(n), np.ones(n), trial="t0"),
+        ]
+    )
+    robot["time_s"] = np.tile(np.arange(n) / 100, 2)  # 2 s at 100 Hz
+    out = tracking_table(robot, rate_hz=10.0)
+    assert set(out["trial"]) == {"t0"} and len(out) == 21
+    assert out["e_x_cm"].to_numpy() == pytest.approx(np.full(21, 100.0))
+    one = tracking_table(robot[robot["trial"] == "t1"], rate_hz=10.0)
+    assert one["e_x_cm"].to_numpy() == pytest.approx(np.linspace(0, 10, 21))
+    assert one["force_n"].to_numpy() == pytest.approx(np.full(21, 5.0))

@@ -24,13 +24,13 @@ FAST = StoreParams(busy_timeout_s=1.0, retry_interval_s=0.05)
 
 @pytest.fixture(scope="module")
 def processed(tmp_path_factory) -> Path:
-    """Real example subjects ingested and their metrics computed under a temp root."""
-    root = tmp_path_factory.mktemp("processed")
+    """Real example subjects ingested (<tmp>/processed) and their metrics (<tmp>/metrics, returned)."""
+    root = tmp_path_factory.mktemp("results")
     params = load_params()
     for sid in SUBJECTS:
-        run_ingest(sid, params, root, progress=False)
-        run_metrics(sid, params, root)
-    return root
+        run_ingest(sid, params, root / "processed", progress=False)
+        run_metrics(sid, params, root / "processed", root / "metrics")
+    return root / "metrics"
 
 
 def results(root: Path):
@@ -57,9 +57,7 @@ def test_rerun_unchanged_adds_no_version_and_param_change_adds_one(processed, tm
     params = copy.deepcopy(load_params())
     params["metrics"]["pool_sides"] = False
     for sid in SUBJECTS:
-        (changed_root / sid).mkdir(parents=True)
-        (changed_root / sid / "real").symlink_to(processed / sid / "real")
-        run_metrics(sid, params, changed_root)
+        run_metrics(sid, params, processed.parent / "processed", changed_root)
     new = store_results(db, results(changed_root), FAST, rev="rev3")
     assert len(new.new_versions) == 5 and count(db, "select count(*) from versions") == 10
     latest = query(db, "select * from latest_stability")
