@@ -84,18 +84,25 @@ def gait_phase(time_s: np.ndarray, heel_strikes_s: np.ndarray) -> np.ndarray:
 
 
 def retarget_trial(model: mujoco.MjModel, processed: ProcessedTrial, ik: RetargetParams,
-                   p: ReferenceParams, progress: bool = False) -> RetargetedTrial:
-    """Marker IK of one processed trial, its velocities, and its gait phase (`p.cycle_side` heel
-    strikes from the ingest events)."""
+                   p: ReferenceParams, window_s: tuple[float, float] | None = None,
+                   progress: bool = False) -> RetargetedTrial:
+    """Marker IK of one processed trial (or of its frames within `window_s`), its velocities, and
+    its gait phase (`p.cycle_side` heel strikes from the ingest events of the whole trial)."""
     trial = processed.trial
+    keep = np.ones(trial.n_frames, bool)
+    if window_s is not None:
+        keep = (trial.time_s >= window_s[0]) & (trial.time_s <= window_s[1])
+        if keep.sum() < 2:
+            raise SimulationError(trial.origin, f"window {window_s} s holds {keep.sum()} frames")
+    time_s = trial.time_s[keep]
     start = time.perf_counter()
-    fit = retarget(model, trial.markers, ik, progress=progress)
+    fit = retarget(model, {n: x[keep] for n, x in trial.markers.items()}, ik, progress=progress)
     ik_s = time.perf_counter() - start
     ev = processed.events
     hs = ev.loc[(ev["side"] == p.cycle_side) & (ev["event"] == "heel_strike"), "time_s"].to_numpy()
-    return RetargetedTrial(trial.trial, trial.condition, trial.time_s, fit.qpos,
+    return RetargetedTrial(trial.trial, trial.condition, time_s, fit.qpos,
                            velocities(model, fit.qpos, trial.rate_hz, p.qvel_cutoff_hz),
-                           gait_phase(trial.time_s, hs), fit, ik_s)
+                           gait_phase(time_s, hs), fit, ik_s)
 
 
 @dataclass(frozen=True)
@@ -203,10 +210,13 @@ def periodic_cycle(model: mujoco.MjModel, strides: list[tuple[np.ndarray, np.nda
 def cycle_from_trials(model: mujoco.MjModel, trials: list[RetargetedTrial], strides: pd.DataFrame,
                       p: ReferenceParams) -> tuple[ReferenceCycle, pd.DataFrame]:
     """The periodic cycle from the kept `p.cycle_side` strides (ingest stride table, all trials)
-    of the retargeted `trials` whose condition is the first of `p.conditions`; also returns the
-    strides used."""
+    that lie within the retargeted `trials` whose condition is the first of `p.conditions`; also
+    returns the strides used."""
     by_id = {t.trial: t for t in trials if t.condition == p.conditions[0]}
     used = strides[strides["kept"] & (strides["side"] == p.cycle_side) & strides["trial"].isin(by_id)]
+    covered = [by_id[r.trial].time_s[0] <= r.t_start_s and r.t_end_s <= by_id[r.trial].time_s[-1]
+               for r in used.itertuples()]
+    used = used[np.array(covered, bool)]
     segments = [(by_id[r.trial].time_s, by_id[r.trial].qpos, float(r.t_start_s), float(r.t_end_s))
                 for r in used.itertuples()]
     return periodic_cycle(model, segments, p.cycle_samples, p.cycle_side), used
