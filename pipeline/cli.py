@@ -65,6 +65,17 @@ def cmd_scale(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_reference(args: argparse.Namespace) -> int:
+    from pipeline.reference_stage import DEFAULT_ROOT, REPORTS_ROOT, run_reference
+
+    doc = run_reference(args.subject, load_params(args.params), args.root or DEFAULT_ROOT,
+                        args.reports or REPORTS_ROOT)
+    print(f"{args.subject}: marker RMS {doc['marker_rms_m'] * 100:.2f} cm, "
+          f"{doc['ik_frames_per_s']:.0f} IK frames/s, cycle {doc['cycle']['stride_length_m']:.3f} m at "
+          f"{doc['cycle']['speed_mps']:.3f} m/s", file=sys.stderr)
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="python -m pipeline", description=__doc__.split(";")[0])
     parser.add_argument("--params", type=Path, default=PARAMS_FILE, help="params file (default: %(default)s)")
@@ -107,6 +118,14 @@ def build_parser() -> argparse.ArgumentParser:
     tune_c.add_argument("--out", type=Path, default=REPO_ROOT / "reports" / "controller_tuning.json")
     tune_c.add_argument("--write-params", action="store_true", help="store the tuned gains in the params file")
     tune_c.set_defaults(func=cmd_tune_controllers)
+
+    reference = commands.add_parser("reference", help="retarget a subject's walking onto its scaled human")
+    reference.add_argument("subject", help="subject id (data/subjects/<id>.yaml)")
+    reference.add_argument("--root", type=Path, help="model folder root: <root>/<subject>/model/ "
+                           "(default: data/processed)")
+    reference.add_argument("--reports", type=Path, help="figure goes to <reports>/<subject>/retarget.png "
+                           "(default: reports)")
+    reference.set_defaults(func=cmd_reference)
 
     add_results_commands(commands)
     return parser
