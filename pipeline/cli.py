@@ -38,7 +38,8 @@ def cmd_events(args: argparse.Namespace) -> int:
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
-    result = run_bench(ingest_params(load_params(args.params), args.params), args.repeat)
+    params = load_params(args.params)
+    result = run_bench(ingest_params(params, args.params), args.repeat, params)
     write_json(args.out, result)
     print(json_text(result), end="")
     return 0
