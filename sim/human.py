@@ -189,6 +189,10 @@ def _add_geoms(body: ScaledBody, name: str, b: mujoco.MjsBody, p: HumanParams) -
                        pos=centre, rgba=SKIN, contype=BODY_BIT, conaffinity=0, group=1)
         g.mass = 0.0
         _capsule(b, "neck_geom", loc("neck"), centre, 0.4 * radius)
+        nose = b.add_geom(name="nose_geom", type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.25 * radius, 0, 0],
+                          pos=centre + np.array([radius, 0.0, 0.0]), rgba=SKIN, contype=0, conaffinity=0,
+                          group=1)  # shows which way the model faces (+X) in pictures
+        nose.mass = 0.0
     else:
         seg, s = name.rsplit("_", 1)
         ends = {"thigh": ("knee",), "shank": ("ankle",), "upper_arm": ("elbow",), "forearm": ("wrist",),
@@ -206,7 +210,7 @@ def _stand_on_floor(spec: mujoco.MjSpec, p: HumanParams) -> None:
     model = spec.compile()
     data = mujoco.MjData(model)
     mujoco.mj_kinematics(model, data)
-    feet = [g for g in range(model.ngeom) if model.geom_contype[g] == FOOT_BIT]
+    feet = [g for g in range(model.ngeom) if model.geom_contype[g] == FOOT_BIT and model.geom_bodyid[g] > 0]
     low = min(data.geom_xpos[g, 2] - model.geom_size[g, 0] for g in feet)
     pelvis = spec.body("pelvis")
     pelvis.pos = [0.0, 0.0, pelvis.pos[2] - low]
@@ -271,3 +275,44 @@ def pose_hold_ctrl(model: mujoco.MjModel, data: mujoco.MjData, qpos_ref: np.ndar
     dofs, gears = actuator_dofs(model)
     torque = kp * err[dofs] - kd * data.qvel[dofs]
     return np.clip(torque / gears, -1.0, 1.0)
+
+
+def standing_height(model: mujoco.MjModel, data: mujoco.MjData) -> float:
+    """Top of the highest geom (sphere or capsule end) above the floor, for `data`'s pose."""
+    top = -np.inf
+    for g in range(model.ngeom):
+        if model.geom_bodyid[g] == 0:
+            continue
+        r = model.geom_size[g, 0]
+        if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_CAPSULE:
+            axis = data.geom_xmat[g].reshape(3, 3)[:, 2] * model.geom_size[g, 1]
+            z = max(data.geom_xpos[g, 2] + axis[2], data.geom_xpos[g, 2] - axis[2])
+        else:
+            z = data.geom_xpos[g, 2]
+        top = max(top, z + r)
+    return float(top)
+
+
+def model_checks(model: mujoco.MjModel, body: ScaledBody) -> dict:
+    """Numbers to hold the model to: DoF and motor counts, total mass vs the subject's, standing
+    height (static pose and qpos0) vs height_m, and thigh / shank lengths in the model vs the
+    joint-centre distances of the static markers."""
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, model.key("static").id)
+    mujoco.mj_kinematics(model, data)
+    out = {"nq": int(model.nq), "nv": int(model.nv), "nu": int(model.nu),
+           "total_mass_kg": round(float(model.body_mass.sum()), 4),
+           "mass_error_pct": round(100 * (model.body_mass.sum() / body.mass_kg - 1), 4),
+           "standing_height_static_m": round(standing_height(model, data), 4)}
+    out["height_error_pct"] = round(100 * (out["standing_height_static_m"] / body.height_m - 1), 3)
+    lengths = {}
+    for s in SIDES:
+        for seg, a, b in (("thigh", f"thigh_{s}", f"shank_{s}"), ("shank", f"shank_{s}", f"foot_{s}")):
+            model_len = float(np.linalg.norm(data.xpos[model.body(b).id] - data.xpos[model.body(a).id]))
+            lengths[f"{seg}_{s}"] = {"model_m": round(model_len, 4),
+                                     "markers_m": round(body.segment_lengths_m[f"{seg}_{s}"], 4)}
+    out["segment_lengths"] = lengths
+    mujoco.mj_resetData(model, data)
+    mujoco.mj_kinematics(model, data)
+    out["standing_height_qpos0_m"] = round(standing_height(model, data), 4)
+    return out

@@ -1,0 +1,247 @@
+"""The scaled human on the real subjects: DoF, mass, height, segment lengths against joint centres
+computed here from the raw static markers, virtual markers, hinge signs, and standing under a
+joint PD for 5 s with the body weight on both feet."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import mujoco
+import numpy as np
+import pytest
+
+from ingest.canonical import up_to_z
+from ingest.kinematics import hip_joint_centres
+from ingest.manifest import Manifest
+from ingest.process import landmarks
+from ingest.readers import read_markers
+from ingest.subject import load_subject
+from pipeline.params import load_params
+from pipeline.scale_stage import human_params
+from sim.errors import ScalingError, SimulationError
+from sim.human import (
+    FOOT_BIT,
+    actuator_dofs,
+    build_human,
+    load_human_model,
+    pose_hold_ctrl,
+    pose_hold_gains,
+    standing_height,
+)
+from sim.human_params import BALL_JOINTS, HINGE_JOINTS
+from sim.scaling import scale_subject, scaling_roles
+from sim.virtual_markers import marker_positions, marker_sites, trial_from_qpos
+
+SUBJECTS = {"camargo": (74.8, 1.80), "opencap4": (62.6, 1.68)}
+
+
+@pytest.fixture(scope="module")
+def params():
+    return human_params(load_params())
+
+
+@pytest.fixture(scope="module")
+def manifest():
+    return Manifest.load()
+
+
+@pytest.fixture(scope="module", params=sorted(SUBJECTS))
+def human(request, params, manifest, tmp_path_factory):
+    """(subject, body, model) with the model reloaded from its saved MJCF, as the stage writes it."""
+    subject = load_subject(request.param)
+    body = scale_subject(subject, manifest, params)
+    path = tmp_path_factory.mktemp(request.param) / "human.xml"
+    path.write_text(build_human(body, params).to_xml())
+    return subject, body, load_human_model(path)
+
+
+def static_data(model):
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, model.key("static").id)
+    mujoco.mj_forward(model, data)
+    return data
+
+
+def test_dof_motor_and_body_layout(human):
+    subject, _, model = human
+    assert (model.nv, model.nu, model.nq) == (27, 21, 33)
+    assert model.joint("root").type[0] == mujoco.mjtJoint.mjJNT_FREE
+    assert model.body(model.joint("root").bodyid[0]).name == "pelvis"
+    for j in BALL_JOINTS:
+        assert model.joint(j).type[0] == mujoco.mjtJoint.mjJNT_BALL
+        for ax in "xyz":
+            assert model.actuator(f"{j}_{ax}").trnid[0] == model.joint(j).id
+    for j in HINGE_JOINTS:
+        assert model.joint(j).type[0] == mujoco.mjtJoint.mjJNT_HINGE
+        assert model.actuator(j).trnid[0] == model.joint(j).id
+    dofs, gears = actuator_dofs(model)
+    assert sorted(dofs) == list(range(6, 27))  # one motor per actuated DoF
+    assert np.all(gears > 20) and np.all(model.actuator_ctrlrange == [-1, 1])
+    names = [model.body(i).name for i in range(model.nbody)]
+    names += [model.joint(i).name for i in range(model.njnt)]
+    assert not [n for n in names if n.startswith("mrba_")]
+    assert model.opt.timestep == pytest.approx(0.002)
+    assert model.opt.integrator == mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    assert model.geom("floor").type[0] == mujoco.mjtGeom.mjGEOM_PLANE
+
+
+def test_total_mass_within_half_a_percent(human):
+    subject, _, model = human
+    assert SUBJECTS[subject.id][0] == subject.mass_kg
+    assert abs(model.body_mass.sum() / subject.mass_kg - 1) < 0.005
+
+
+def test_standing_height_within_two_percent(human):
+    subject, _, model = human
+    top = standing_height(model, static_data(model))
+    head = static_data(model)
+    head_top = head.geom_xpos[model.geom("head_geom").id, 2] + model.geom("head_geom").size[0]
+    assert top == pytest.approx(head_top)
+    assert abs(head_top / subject.height_m - 1) < 0.02
+    upright = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, upright)
+    assert abs(standing_height(model, upright) / subject.height_m - 1) < 0.02
+
+
+def raw_joint_centres(subject, manifest, params) -> dict[str, np.ndarray]:
+    """Hip (Harrington 2007), knee and ankle centres straight from the static file, lab frame."""
+    table = read_markers(manifest.resolve(subject.static.markers))
+    xyz = up_to_z(table.xyz_m, subject.format.up_axis)
+    if subject.static.window_s:
+        keep = (table.time_s >= subject.static.window_s[0]) & (table.time_s <= subject.static.window_s[1])
+        xyz = xyz[keep]
+    med = {n: np.nanmedian(xyz[:, j], axis=0) for j, n in enumerate(table.names)}
+    roles = scaling_roles(subject)
+    m = {r: med[n] for r, n in roles.items() if n in med}
+    hjc = hip_joint_centres(*(m[r][None] for r in ("asis_left", "asis_right", "psis_left", "psis_right")))
+    out = {"hip_l": hjc["left"][0], "hip_r": hjc["right"][0]}
+    left = (m["asis_left"] - m["asis_right"]) / np.linalg.norm(m["asis_left"] - m["asis_right"])
+    for s, side, sign in (("l", "left", 1.0), ("r", "right", -1.0)):
+        widths = {"knee": params.knee_width_per_height, "ankle": params.ankle_width_per_height}
+        for joint, width in widths.items():
+            if f"{joint}_medial_{side}" in m:
+                out[f"{joint}_{s}"] = (m[f"{joint}_{side}"] + m[f"{joint}_medial_{side}"]) / 2
+            else:
+                out[f"{joint}_{s}"] = m[f"{joint}_{side}"] - sign * left * width * subject.height_m / 2
+    return out
+
+
+def test_thigh_and_shank_match_static_joint_centres(human, manifest, params):
+    subject, _, model = human
+    jc = raw_joint_centres(subject, manifest, params)
+    data = static_data(model)
+    for s in "lr":
+        pos = {b: data.xpos[model.body(f"{b}_{s}").id] for b in ("thigh", "shank", "foot")}
+        thigh, shank = np.linalg.norm(pos["shank"] - pos["thigh"]), np.linalg.norm(pos["foot"] - pos["shank"])
+        assert abs(thigh - np.linalg.norm(jc[f"knee_{s}"] - jc[f"hip_{s}"])) < 0.015
+        assert abs(shank - np.linalg.norm(jc[f"ankle_{s}"] - jc[f"knee_{s}"])) < 0.015
+        assert 0.3 < thigh < 0.55 and 0.3 < shank < 0.55
+
+
+def test_virtual_markers_sit_on_the_static_markers(human):
+    subject, body, model = human
+    names = set(read_markers(Manifest.load().resolve(subject.static.markers)).names)
+    assert set(marker_sites(model)) == names == set(body.markers)
+    got = marker_positions(model, static_data(model))
+    worst = max(np.linalg.norm(got[n] - body.markers[n]) for n in names)
+    assert worst < 1e-4  # the saved MJCF keeps about 6 significant digits
+    bodies = {model.body(model.site_bodyid[i]).name for i in marker_sites(model).values()}
+    assert {"pelvis", "thigh_l", "shank_r", "foot_l"} <= bodies
+    for role, body_name in (("heel_left", "foot_l"), ("knee_right", "thigh_r"), ("asis_left", "pelvis")):
+        assert model.body(model.site(subject.markerset[role]).bodyid[0]).name == body_name
+
+
+def test_hinge_signs_are_canonical(human):
+    """Knee + moves the ankle back, ankle + lifts the toes, elbow + brings the wrist forward."""
+    _, _, model = human
+    data = mujoco.MjData(model)
+
+    def point(body, joint, angle):
+        data.qpos[:] = model.qpos0
+        data.qpos[model.joint(joint).qposadr[0]] = angle
+        mujoco.mj_kinematics(model, data)
+        return data.geom_xpos[model.geom(body).id].copy()
+
+    for s in "lr":
+        foot, toe, hand = f"foot_{s}_geom", f"foot_{s}_contact2", f"hand_{s}_geom"
+        assert point(foot, f"knee_{s}", 0.5)[0] < point(foot, f"knee_{s}", 0.0)[0] - 0.1
+        assert point(toe, f"ankle_{s}", 0.3)[2] > point(toe, f"ankle_{s}", 0.0)[2] + 0.02
+        assert point(hand, f"elbow_{s}", 1.0)[0] > point(hand, f"elbow_{s}", 0.0)[0] + 0.1
+
+
+def test_upright_at_qpos0_feet_flat_on_the_floor(human):
+    _, _, model = human
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    feet = [g for g in range(model.ngeom) if model.geom_contype[g] == FOOT_BIT and model.geom_bodyid[g] > 0]
+    bottoms = np.array([data.geom_xpos[g, 2] - model.geom_size[g, 0] for g in feet])
+    assert bottoms.min() == pytest.approx(0.0, abs=1e-4)
+    assert bottoms.max() < 0.02  # within 2 cm: flat up to the static pose's knee-axis roll
+    assert data.xpos[model.body("head").id, 2] > data.xpos[model.body("pelvis").id, 2] + 0.3
+
+
+def test_stands_five_seconds_on_both_feet_with_body_weight(human, params):
+    subject, _, model = human
+    data = static_data(model)
+    qref = data.qpos.copy()
+    kp, kd = pose_hold_gains(model, params)
+    n = round(5.0 / model.opt.timestep)
+    last = round(1.0 / model.opt.timestep)
+    floor = model.geom("floor").id
+    force = np.zeros(6)
+    grf, feet_down = [], []
+    for k in range(n):
+        data.ctrl[:] = pose_hold_ctrl(model, data, qref, kp, kd)
+        mujoco.mj_step(model, data)
+        if k >= n - last:
+            fz, sides = 0.0, set()
+            for i in range(data.ncon):
+                c = data.contact[i]
+                if floor in (c.geom1, c.geom2):
+                    mujoco.mj_contactForce(model, data, i, force)
+                    fz += force[0]
+                    other = c.geom2 if c.geom1 == floor else c.geom1
+                    sides.add(model.body(model.geom_bodyid[other]).name)
+            grf.append(fz)
+            feet_down.append({"foot_l", "foot_r"} <= sides)
+    weight = model.body_mass.sum() * -model.opt.gravity[2]
+    assert abs(np.mean(grf) / weight - 1) < 0.02
+    assert all(feet_down)
+    torso_up = data.xmat[model.body("torso").id].reshape(3, 3)[:, 2]
+    assert torso_up[2] > np.cos(np.radians(10))
+    assert abs(data.qpos[2] - qref[2]) < 0.03
+
+
+def test_simulated_trial_is_a_canonical_trial(human):
+    subject, body, model = human
+    qref = static_data(model).qpos.copy()
+    qpos = np.repeat(qref[None], 50, axis=0)
+    qpos[:, 0] += np.arange(50) * 0.012  # 1.2 m/s glide, 100 Hz
+    trial = trial_from_qpos(model, qpos, 100.0, subject.id, "free", "glide")
+    assert trial.source == "sim" and trial.n_frames == 50 and trial.rate_hz == 100.0
+    assert set(trial.markers) == set(body.markers)
+    lm = landmarks(trial, subject.markerset)
+    heel = body.markers[subject.markerset["heel_left"]]
+    assert lm is not None and np.allclose(lm["heel_left"][0], heel, atol=1e-4)
+    assert np.allclose(np.diff(lm["asis_right"][:, 0]), 0.012)
+    for name in ("hip_flexion_left", "knee_flexion_right", "ankle_dorsiflexion_left", "pelvis_tilt"):
+        assert trial.angles[name].shape == (50,)
+    assert trial.angles["knee_flexion_right"][0] == pytest.approx(
+        np.degrees(body.static_angles_rad["knee_r"]), abs=1e-3)
+
+
+def test_errors_name_the_problem(params, manifest, tmp_path):
+    subject = load_subject("opencap4")
+    with pytest.raises(ScalingError, match="no static trial"):
+        scale_subject(dataclasses.replace(subject, static=None), manifest, params)
+    with pytest.raises(ScalingError, match="unknown anthropometry table 'nope'"):
+        scale_subject(subject, manifest, dataclasses.replace(params, anthropometry="nope"))
+    missing = dataclasses.replace(subject, markerset={**subject.markerset, "heel_left": "NoSuchMarker"})
+    with pytest.raises(ScalingError, match=r"heel_left \(NoSuchMarker\)"):
+        scale_subject(missing, manifest, params)
+    with pytest.raises(SimulationError, match="no human model here"):
+        load_human_model(tmp_path / "absent.xml")
+    bad = tmp_path / "bad.xml"
+    bad.write_text("<mujoco><worldbody><body><joint type='nonsense'/></body></worldbody></mujoco>")
+    with pytest.raises(SimulationError, match="cannot compile"):
+        load_human_model(bad)
