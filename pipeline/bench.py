@@ -7,6 +7,9 @@ real run. One untimed warm-up, then the best of `repeat` runs (`time.perf_counte
 Retargeting (`time_retarget`): marker IK (`sim.retarget.retarget`) of the whole Camargo trial and
 of opencap4's free walks on their scaled humans (built in memory from params), best of `repeat`
 runs for opencap4 and of two for the 15-s Camargo trial; ingest is not timed there.
+
+Human model (`time_human`): build + compile time of each subject's scaled human and the raw
+`mj_step` rate of that human standing (see the function).
 """
 
 from __future__ import annotations
@@ -70,6 +73,41 @@ def time_retarget(params: dict, repeat: int) -> dict:
     return out
 
 
+def time_human(params: dict, repeat: int, standing_s: float = 5.0) -> dict:
+    """Human model: `build_human` + `MjSpec.compile` time (best of `repeat`, after the static trial
+    is scaled once, untimed) and the raw `mj_step` rate of the human standing in its static pose
+    under the pose-hold PD: only the `mj_step` calls are timed (the PD runs between them), so
+    steps/s is the physics' own limit that rollout rates are compared to."""
+    import mujoco
+
+    from sim.human import build_human, pose_hold_ctrl, pose_hold_gains
+    from sim.human_params import HumanParams
+    from sim.scaling import scale_subject
+
+    manifest, hp = Manifest.load(), HumanParams.from_dict(params.get("human", {}))
+    out = {}
+    for sid in ("camargo", "opencap4"):
+        body = scale_subject(load_subject(sid), manifest, hp)
+        build = float("inf")
+        for _ in range(max(repeat, 1)):
+            start = time.perf_counter()
+            model = build_human(body, hp).compile()
+            build = min(build, time.perf_counter() - start)
+        data = mujoco.MjData(model)
+        mujoco.mj_resetDataKeyframe(model, data, model.key("static").id)
+        qref, (kp, kd) = data.qpos.copy(), pose_hold_gains(model, hp)
+        n, stepping = round(standing_s / model.opt.timestep), 0.0
+        for _ in range(n):
+            data.ctrl[:] = pose_hold_ctrl(model, data, qref, kp, kd)
+            start = time.perf_counter()
+            mujoco.mj_step(model, data)
+            stepping += time.perf_counter() - start
+        out[f"human_{sid}_build_compile_s"] = round(build, 4)
+        out[f"human_{sid}_mj_step_per_s"] = round(n / stepping)
+        out[f"human_{sid}_realtime_factor"] = round(n * model.opt.timestep / stepping, 1)
+    return out
+
+
 def run_bench(p: IngestParams, repeat: int = 5, params: dict | None = None) -> dict:
     """Timings of the Camargo trial and of all OpenCap subject-4 trials, against `TARGETS`; with
     the whole `params`, also the retargeting timings against `RETARGET_TARGETS`."""
@@ -90,6 +128,7 @@ def run_bench(p: IngestParams, repeat: int = 5, params: dict | None = None) -> d
     targets = dict(TARGETS)
     if params is not None:
         result |= time_retarget(params, repeat)
+        result |= time_human(params, repeat)
         targets |= RETARGET_TARGETS
     result["targets"] = targets
     result["meets_targets"] = all(result[k] <= v for k, v in targets.items())
