@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed-stamp
 export DVC_NO_ANALYTICS := 1
 export MPLBACKEND := Agg
 
-.PHONY: run test lint bench clean-venv
+.PHONY: run test lint bench clean-venv render-deps
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -15,7 +15,13 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install --quiet -e '.[dev]'
 	touch $(STAMP)
 
-run: $(STAMP)
+# Headless MuJoCo rendering for `scale` (sim/render.py) needs EGL (Mesa, in the base image) or
+# OSMesa; Debian's libosmesa6 is installed only when neither library is present.
+render-deps:
+	@ldconfig -p | grep -q -e libEGL_mesa -e libOSMesa || \
+		(apt-get update -qq && apt-get install -y -qq libosmesa6)
+
+run: $(STAMP) render-deps
 	PATH="$(CURDIR)/$(BIN):$$PATH" $(BIN)/dvc repro
 
 test: $(STAMP)
