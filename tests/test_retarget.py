@@ -321,3 +321,37 @@ def test_real_walk_periodic_cycle_matches_the_kept_strides(real_fit):
     assert abs(cycle.stride_length_m / real_length - 1) <= MAX_CYCLE_REL_ERROR, (subject, cycle, real_length)
     assert abs(cycle.speed_mps / real_speed - 1) <= MAX_CYCLE_REL_ERROR, (subject, cycle, real_speed)
     assert np.mean(cycle.qvel[:, 0]) == pytest.approx(cycle.speed_mps, rel=1e-6)
+
+
+def test_reference_stage_writes_npz_json_and_figure(tmp_path):
+    """`python -m pipeline reference opencap4` on a scaled model written like the scale stage's."""
+    from ingest.manifest import Manifest
+    from ingest.subject import load_subject
+    from pipeline.cli import main
+    from pipeline.params import load_params
+    from sim.human import build_human
+    from sim.human_params import HumanParams
+    from sim.reference import load_reference
+    from sim.scaling import scale_subject
+
+    hp = HumanParams.from_dict(load_params().get("human", {}))
+    xml = build_human(scale_subject(load_subject("opencap4"), Manifest.load(), hp), hp).to_xml()
+    (tmp_path / "opencap4" / "model").mkdir(parents=True)
+    (tmp_path / "opencap4" / "model" / "human.xml").write_text(xml)
+    argv = ["reference", "opencap4", "--root", str(tmp_path), "--reports", str(tmp_path / "reports")]
+    assert main(argv) == 0
+    ref = load_reference(tmp_path / "opencap4" / "model" / "reference.npz")
+    model = mujoco.MjModel.from_xml_string(xml)
+    assert ref.qpos.shape == (len(ref.time_s), model.nq) and ref.qvel.shape == (len(ref.time_s), model.nv)
+    assert set(ref.trial) == {"walking1", "walking2", "walking4"} and set(ref.condition) == {"free"}
+    ph = ref.phase[np.isfinite(ref.phase)]
+    assert len(ph) > 100 and ph.min() >= 0 and ph.max() < 1
+    assert np.all(np.diff(ref.motion("walking1")[0]) > 0)
+    assert ref.cycle.qpos.shape == (100, model.nq) and ref.cycle.n_strides == 2
+    doc = __import__("json").loads((tmp_path / "opencap4" / "model" / "reference.json").read_text())
+    assert doc["marker_rms_m"] <= MAX_MARKER_RMS_M
+    assert set(doc["angles"]) == {f"{j}_{s}" for j in ("hip_flexion", "knee_flexion", "ankle_dorsiflexion")
+                                  for s in ("left", "right")}
+    assert abs(doc["cycle"]["speed_rel_error"]) <= MAX_CYCLE_REL_ERROR
+    assert (tmp_path / "reports" / "opencap4" / "retarget.png").stat().st_size > 10_000
+    assert not list((tmp_path / "opencap4" / "model").glob(".*tmp"))
