@@ -38,8 +38,8 @@ def marker_trajectories(model: mujoco.MjModel, qpos: np.ndarray) -> dict[str, np
     """Marker name -> (n, 3) positions along the configurations `qpos` (n, nq)."""
     qpos = np.atleast_2d(np.asarray(qpos, float))
     if qpos.shape[1] != model.nq:
-        raise SimulationError(model.names[:0].decode() or "human model",
-                              f"qpos has {qpos.shape[1]} columns, the model has nq = {model.nq}")
+        raise SimulationError("human model", f"qpos has {qpos.shape[1]} columns, the model has "
+                              f"nq = {model.nq}")
     sites = marker_sites(model)
     ids = np.array(list(sites.values()), int)
     data = mujoco.MjData(model)

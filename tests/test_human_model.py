@@ -76,7 +76,12 @@ def test_dof_motor_and_body_layout(human):
         assert model.actuator(j).trnid[0] == model.joint(j).id
     dofs, gears = actuator_dofs(model)
     assert sorted(dofs) == list(range(6, 27))  # one motor per actuated DoF
-    assert np.all(gears > 20) and np.all(model.actuator_ctrlrange == [-1, 1])
+    assert np.all(model.actuator_ctrlrange == [-1, 1])
+    limits = human_params(load_params()).torque_limit_nm_per_kg
+    assert gears[list(dofs).index(model.joint("knee_l").dofadr[0])] == pytest.approx(
+        limits["knee"] * subject.mass_kg, rel=1e-5)
+    assert gears[list(dofs).index(model.joint("hip_r").dofadr[0] + 1)] == pytest.approx(
+        limits["hip"] * subject.mass_kg, rel=1e-5)
     names = [model.body(i).name for i in range(model.nbody)]
     names += [model.joint(i).name for i in range(model.njnt)]
     assert not [n for n in names if n.startswith("mrba_")]
