@@ -30,6 +30,7 @@ from sim.reference import (
     ReferenceParams,
     RetargetedTrial,
     cycle_from_trials,
+    left_right_shift,
     retarget_trial,
     save_reference,
 )
@@ -161,7 +162,7 @@ def retarget_subject(subject_id: str, model, ip: IngestParams, section: Retarget
     cycle, used = cycle_from_trials(model, trials, pd.concat(strides, ignore_index=True), section.reference)
     reference = Reference.from_trials(trials, cycle)
     doc = fit_metrics(subject_id, model, trials, real, section.reference.conditions[0])
-    doc["cycle"] = cycle_summary(cycle, used)
+    doc["cycle"] = cycle_summary(cycle, used) | {"left_right": left_right_shift(model, cycle)}
     return reference, doc, trials, real
 
 

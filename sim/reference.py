@@ -20,7 +20,7 @@ import pandas as pd
 from ingest.filtering import lowpass
 from ingest.process import ProcessedTrial
 from sim.errors import SimulationError
-from sim.retarget import ROOT_JOINT, MarkerFit, RetargetParams, retarget
+from sim.retarget import ROOT_JOINT, MarkerFit, RetargetParams, joint_angles, retarget
 
 
 @dataclass(frozen=True)
@@ -205,6 +205,23 @@ def periodic_cycle(model: mujoco.MjModel, strides: list[tuple[np.ndarray, np.nda
         mujoco.mj_differentiatePos(model, qvel[k], 2 * dt, before, qpos[k + 1])
     return ReferenceCycle(grid[:-1], grid[:-1] * period, qpos[:-1], qvel, period, length,
                           length / period, len(strides), side)
+
+
+def left_right_shift(model: mujoco.MjModel, cycle: ReferenceCycle,
+                     joints: tuple[str, ...] = ("hip_flexion", "knee_flexion", "ankle_dorsiflexion"),
+                     ) -> dict[str, dict[str, float]]:
+    """How the cycle's left and right legs relate, per sagittal joint: the circular shift (fraction
+    of the cycle) that best aligns the left curve onto the right (about 0.5 in symmetric walking)
+    and the RMS left-right difference (deg) at a shift of exactly half a cycle."""
+    angles = joint_angles(model, cycle.qpos)
+    n = len(cycle.phase)
+    out = {}
+    for j in joints:
+        right, left = angles[f"{j}_right"], angles[f"{j}_left"]
+        errs = [np.sqrt(np.mean((np.roll(left, -k) - right) ** 2)) for k in range(n)]
+        out[j] = {"best_shift": round(int(np.argmin(errs)) / n, 3),
+                  "rms_at_half_cycle_deg": round(float(errs[n // 2]), 3)}
+    return out
 
 
 def cycle_from_trials(model: mujoco.MjModel, trials: list[RetargetedTrial], strides: pd.DataFrame,

@@ -41,9 +41,9 @@ SIDES = {"left": "l", "right": "r"}
 class RetargetParams:
     """The `retarget` section of params.yaml (see the module docstring for the problem solved)."""
 
-    iterations: int = 6                  # LM iterations per warm-started frame
+    iterations: int = 4                  # LM iterations per warm-started frame
     first_frame_iterations: int = 80     # LM iterations for the first frame (cold start)
-    step_tolerance: float = 1e-5         # stop when |dq| (rad or m) falls below this
+    step_tolerance: float = 1e-4         # stop when |dq| (rad or m) falls below this
     damping: float = 1e-4                # initial Levenberg damping (m^2 per unit dq^2)
     posture_weight: float = 1e-4         # prior toward the rest pose, m^2 per rad^2 of joint motion
     default_marker_weight: float = 1.0
@@ -122,34 +122,37 @@ class MarkerIK:
         self.prior = np.full(model.nv, p.posture_weight)
         self.prior[root_dofs] = 0.0
         self.q_rest = model.qpos0.copy()
-        self._limits = self._joint_limits()
+        self._joint_limits()
+        self._diag = np.diag_indices(model.nv)
 
-    def _joint_limits(self) -> list[tuple[str, int, float, float]]:
-        m, out = self.model, []
-        for j in range(m.njnt):
-            if not m.jnt_limited[j]:
-                continue
-            lo, hi = m.jnt_range[j]
-            kind = {int(mujoco.mjtJoint.mjJNT_HINGE): "hinge", int(mujoco.mjtJoint.mjJNT_SLIDE): "hinge",
-                    int(mujoco.mjtJoint.mjJNT_BALL): "ball"}.get(int(m.jnt_type[j]))
-            if kind:
-                out.append((kind, int(m.jnt_qposadr[j]), float(lo), float(hi)))
-        return out
+    def _joint_limits(self) -> None:
+        """Index arrays of the limited hinges / slides (qpos address, range) and ball joints
+        (qpos address, cone angle) for the vectorised projection in `clamp`."""
+        m = self.model
+        hinge = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+        lim = [j for j in range(m.njnt) if m.jnt_limited[j]]
+        h = [j for j in lim if int(m.jnt_type[j]) in hinge]
+        ball = int(mujoco.mjtJoint.mjJNT_BALL)
+        b = [j for j in lim if int(m.jnt_type[j]) == ball and m.jnt_range[j, 1] > 0]
+        self._hinge_adr = m.jnt_qposadr[h].astype(int)
+        self._hinge_lo, self._hinge_hi = m.jnt_range[h, 0], m.jnt_range[h, 1]
+        self._ball_adr = (m.jnt_qposadr[b][:, None] + np.arange(4)).astype(int)
+        self._ball_max = m.jnt_range[b, 1]
 
     def clamp(self, q: np.ndarray) -> np.ndarray:
-        """Project `q` into the joint ranges: hinges clipped, ball rotations clipped to the cone."""
-        for kind, adr, lo, hi in self._limits:
-            if kind == "hinge":
-                q[adr] = min(max(q[adr], lo), hi)
-            else:
-                quat = q[adr:adr + 4]
-                if quat[0] < 0:
-                    quat = -quat
-                s = np.linalg.norm(quat[1:])
-                angle = 2 * np.arctan2(s, quat[0])
-                if angle > hi > 0 and s > 0:
-                    q[adr] = np.cos(hi / 2)
-                    q[adr + 1:adr + 4] = quat[1:] / s * np.sin(hi / 2)
+        """Project `q` into the joint ranges: hinges clipped, ball rotations clipped to their cone
+        (rotation angle at most the range, about the same axis)."""
+        q[self._hinge_adr] = np.clip(q[self._hinge_adr], self._hinge_lo, self._hinge_hi)
+        if len(self._ball_adr):
+            quat = q[self._ball_adr]
+            quat *= np.where(quat[:, :1] < 0, -1.0, 1.0)
+            s = np.sqrt(np.sum(quat[:, 1:] ** 2, axis=1))
+            over = (2 * np.arctan2(s, quat[:, 0]) > self._ball_max) & (s > 0)
+            if over.any():
+                half = self._ball_max[over] / 2
+                quat[over, 0] = np.cos(half)
+                quat[over, 1:] *= (np.sin(half) / s[over])[:, None]
+                q[self._ball_adr[over]] = quat[over]
         return q
 
     def sites(self, q: np.ndarray) -> np.ndarray:
@@ -197,11 +200,11 @@ class MarkerIK:
             lhs = jw @ jac
             rhs = jw @ err.ravel() - self.prior * dev
             diag = lhs.diagonal().copy()
-            lhs[np.diag_indices_from(lhs)] += self.prior
+            lhs[self._diag] += self.prior
             improved = False
             for _ in range(6):
                 a = lhs.copy()
-                a[np.diag_indices_from(a)] += mu * (1.0 + diag)
+                a[self._diag] += mu * (1.0 + diag)
                 dq = np.linalg.solve(a, rhs)
                 q_new = q.copy()
                 mujoco.mj_integratePos(m, q_new, dq, 1.0)
@@ -214,7 +217,7 @@ class MarkerIK:
                     improved = True
                     break
                 mu *= 10.0
-            if not improved or np.linalg.norm(dq) < self.p.step_tolerance:
+            if not improved or float(np.sqrt(dq @ dq)) < self.p.step_tolerance:
                 break
         self.sites(q)
         n = max(int(present.sum()), 1)
