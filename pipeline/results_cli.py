@@ -12,6 +12,7 @@ import pandas as pd
 from pipeline.add_subject import NewTrial, Registry, add_subject
 from pipeline.metrics_stage import DEFAULT_OUT_ROOT, DEFAULT_ROOT, run_metrics
 from pipeline.params import load_params
+from pipeline.report_stage import DEFAULT_REPORTS, ReportParams, run_report
 from pipeline.store import query
 from pipeline.store_stage import run_store, store_params
 
@@ -54,6 +55,17 @@ def cmd_add_subject(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_report(args: argparse.Namespace) -> int:
+    params = load_params(args.params)
+    p = store_params(params, args.params)
+    all_subjects = [str(s) for s in params.get("subjects") or []]
+    subjects = [] if args.summary_only else (args.subjects or all_subjects)
+    written = run_report(subjects, all_subjects, args.db or p.path, args.reports, not args.no_summary,
+                         ReportParams.from_params(params, args.params), p.busy_timeout_s)
+    print("wrote " + ", ".join(str(w) for w in written), file=sys.stderr)
+    return 0
+
+
 def add_results_commands(commands: argparse._SubParsersAction) -> None:
     metrics = commands.add_parser("metrics", help="compute a subject's metric tables (Tables I-III, SPM)")
     metrics.add_argument("subject")
@@ -74,6 +86,14 @@ def add_results_commands(commands: argparse._SubParsersAction) -> None:
     q.add_argument("--format", choices=("table", "csv", "json"), default="table")
     q.add_argument("--db", type=Path, help="store file (default: params store.path)")
     q.set_defaults(func=cmd_query)
+
+    rep = commands.add_parser("report", help="write reports/<subject>/report.md, summary.md and index.html")
+    rep.add_argument("subjects", nargs="*", help="subjects to report (default: all in params)")
+    rep.add_argument("--summary-only", action="store_true", help="only reports/summary.md and index.html")
+    rep.add_argument("--no-summary", action="store_true", help="only the per-subject reports")
+    rep.add_argument("--reports", type=Path, default=DEFAULT_REPORTS, help="output root (default: reports)")
+    rep.add_argument("--db", type=Path, help="store file (default: params store.path)")
+    rep.set_defaults(func=cmd_report)
 
     add = commands.add_parser("add-subject", help="register a new subject from its raw files")
     add.add_argument("id", help="new subject id (lower case, digits, _ or -)")

@@ -1,0 +1,138 @@
+"""Report figures from stored tidy tables. Plotting only: every number drawn was computed by the
+metrics and read back from the store; nothing here computes a statistic.
+
+Each function takes the tidy table(s) of one subject and returns a matplotlib Figure (Agg).
+"""
+
+from __future__ import annotations
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import pandas as pd  # noqa: E402
+from matplotlib.figure import Figure  # noqa: E402
+
+JOINT_LABELS = {"hip_flexion": "Hip flexion (deg)", "knee_flexion": "Knee flexion (deg)",
+                "ankle_dorsiflexion": "Ankle dorsiflexion (deg)"}
+
+
+def group_label(source: str, human_mode: str, condition: str) -> str:
+    return f"{source} {condition}" if source == "real" else f"{source}/{human_mode} {condition}"
+
+
+def kinematics_figure(bands: pd.DataFrame, title: str) -> Figure:
+    """Mean ± SD joint angle over the gait cycle per source and condition (the paper's Fig. 4)."""
+    joints = [j for j in JOINT_LABELS if j in set(bands["joint"])]
+    fig, axes = plt.subplots(1, max(len(joints), 1), figsize=(4.2 * max(len(joints), 1), 3.6), squeeze=False)
+    groups = bands[["source", "human_mode", "condition"]].drop_duplicates().sort_values(
+        ["source", "human_mode", "condition"]).itertuples(index=False)
+    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for k, (source, mode, cond) in enumerate(groups):
+        style = "-" if source == "real" else "--"
+        for ax, joint in zip(axes[0], joints, strict=False):
+            sel = ((bands["source"] == source) & (bands["human_mode"] == mode) & (bands["condition"] == cond)
+                   & (bands["joint"] == joint))
+            b = bands[sel].sort_values("pct")
+            if b.empty:
+                continue
+            c = colors[k % len(colors)]
+            n = int(b["n_cycles"].iloc[0])
+            label = f"{group_label(source, mode, cond)} (n={n})"
+            ax.plot(b["pct"], b["mean_deg"], style, color=c, label=label)
+            sd = b["sd_deg"].fillna(0)
+            ax.fill_between(b["pct"], b["mean_deg"] - sd, b["mean_deg"] + sd, color=c, alpha=0.18, lw=0)
+    for ax, joint in zip(axes[0], joints, strict=False):
+        ax.set_xlabel("Gait cycle (%)")
+        ax.set_ylabel(JOINT_LABELS[joint])
+        ax.grid(alpha=0.3)
+    if joints:
+        axes[0][0].legend(fontsize=7, loc="best")
+    fig.suptitle(title)
+    fig.tight_layout()
+    return fig
+
+
+def spm_figure(tests: pd.DataFrame, curves: pd.DataFrame, title: str) -> Figure:
+    """SPM statistic curves with their critical threshold and supra-threshold clusters shaded (the
+    paper's Fig. 3); one row per comparison, one column per joint. Skipped tests say why."""
+    pairs = tests[["comparison", "source_a", "human_mode_a", "condition_a", "source_b", "human_mode_b",
+                   "condition_b"]].drop_duplicates().sort_values(["comparison", "condition_b", "source_b"])
+    joints = [j for j in JOINT_LABELS if j in set(tests["joint"])]
+    nrows, ncols = max(len(pairs), 1), max(len(joints), 1)
+    fig, axes = plt.subplots(nrows, ncols, figsize=(4.0 * ncols, 2.6 * nrows), squeeze=False)
+    for i, pair in enumerate(pairs.itertuples(index=False)):
+        label = (f"{group_label(pair.source_a, pair.human_mode_a, pair.condition_a)} vs "
+                 f"{group_label(pair.source_b, pair.human_mode_b, pair.condition_b)}")
+        for j, joint in enumerate(joints):
+            ax = axes[i][j]
+            t = tests[(tests["comparison"] == pair.comparison) & (tests["condition_a"] == pair.condition_a)
+                      & (tests["source_a"] == pair.source_a) & (tests["condition_b"] == pair.condition_b)
+                      & (tests["source_b"] == pair.source_b) & (tests["human_mode_b"] == pair.human_mode_b)
+                      & (tests["joint"] == joint)]
+            ax.set_title(f"{label}\n{JOINT_LABELS[joint].split(' (')[0]}", fontsize=8)
+            if t.empty:
+                ax.axis("off")
+                continue
+            row = t.iloc[0]
+            if row["status"] != "ok":
+                ax.text(0.5, 0.5, f"skipped:\n{row['reason']}", ha="center", va="center", fontsize=7,
+                        wrap=True, transform=ax.transAxes)
+                ax.set_xticks([])
+                ax.set_yticks([])
+                continue
+            c = curves[curves["test_id"] == row["test_id"]].sort_values("pct")
+            ax.plot(c["pct"], c["value"], color="k", linewidth=1)
+            ax.axhline(row["zstar"], color="r", linestyle="--", linewidth=0.8)
+            if row["statistic"] == "t":
+                ax.axhline(-row["zstar"], color="r", linestyle="--", linewidth=0.8)
+            above = c["value"].abs() > row["zstar"] if row["statistic"] == "t" else c["value"] > row["zstar"]
+            ax.fill_between(c["pct"], 0, c["value"], where=above, color="orange", alpha=0.5)
+            ax.set_ylabel(f"SPM{{{row['statistic']}}}", fontsize=8)
+            note = f"{row['statistic']}*={row['zstar']:.3g}"
+            if row["h0_rejected"]:
+                note += f"; p_min={row['min_p']:.3g}"
+            ax.text(0.98, 0.95, note, ha="right", va="top", fontsize=7, transform=ax.transAxes)
+            ax.set_xlabel("Gait cycle (%)", fontsize=8)
+    if pairs.empty:
+        axes[0][0].text(0.5, 0.5, "no comparisons", ha="center", va="center")
+        axes[0][0].axis("off")
+    fig.suptitle(title)
+    fig.tight_layout()
+    return fig
+
+
+def tracking_figure(tracking: pd.DataFrame, title: str) -> Figure:
+    """Forward and lateral offset of the pelvis from the arm's neutral point and |F| of the harness
+    over one run per condition."""
+    fig, axes = plt.subplots(3, 1, figsize=(8, 7), sharex=True)
+    for (source, mode, cond), g in tracking.groupby(["source", "human_mode", "condition"], sort=True):
+        label = group_label(source, mode, cond)
+        for ax, col in zip(axes, ("e_x_cm", "e_y_cm", "force_n"), strict=True):
+            ax.plot(g["time_s"], g[col], label=label, linewidth=1)
+    for ax, name in zip(axes, ("e_x (cm)", "e_y (cm)", "|F| harness (N)"), strict=True):
+        ax.set_ylabel(name)
+        ax.grid(alpha=0.3)
+    axes[-1].set_xlabel("Time (s)")
+    axes[0].legend(fontsize=8)
+    fig.suptitle(title)
+    fig.tight_layout()
+    return fig
+
+
+def harness_figure(harness: pd.DataFrame, title: str) -> Figure:
+    """RMS and peak harness force and torque magnitude per condition."""
+    fig, axes = plt.subplots(1, 2, figsize=(9, 3.4))
+    for ax, (quantity, unit) in zip(axes, (("f_norm", "N"), ("t_norm", "N m")), strict=True):
+        h = harness[harness["quantity"] == quantity].sort_values(["source", "human_mode", "condition"])
+        labels = [group_label(*r) for r in h[["source", "human_mode", "condition"]].itertuples(index=False)]
+        x = range(len(h))
+        ax.bar([i - 0.2 for i in x], h["rms"], width=0.4, label="RMS")
+        ax.bar([i + 0.2 for i in x], h["peak"], width=0.4, label="peak")
+        ax.set_xticks(list(x), labels, rotation=20, fontsize=8)
+        ax.set_ylabel(f"|{'F' if quantity == 'f_norm' else 'T'}| ({unit})")
+        ax.grid(alpha=0.3, axis="y")
+    axes[0].legend(fontsize=8)
+    fig.suptitle(title)
+    fig.tight_layout()
+    return fig
