@@ -72,8 +72,7 @@ def run_scale(subject_id: str, params: dict, root: Path = DEFAULT_ROOT,
         if mujoco.MjModel.from_xml_path(str(xml_tmp)).nv != model.nv:
             raise ParamsError(xml_out, "saved MJCF does not reload to the same model")
         summary["render"] = render_model_png(
-            xml_tmp, model.key_qpos[0], body.markers, body.height_m, png_tmp.with_suffix(".png"),
+            xml_tmp, model.key_qpos[0], body.markers, body.height_m, png_tmp,
             title=f"{subject_id}: {body.height_m:.2f} m, {body.mass_kg:.1f} kg, static pose")
-        png_tmp.with_suffix(".png").replace(png_tmp)
         json_tmp.write_text(json_text(summary))
     return folder

@@ -131,7 +131,7 @@ def render_model_png(xml_path: str | Path, qpos: np.ndarray, markers: dict[str, 
                  "coincide in the static pose) "
                  f"[{method}]", fontsize=9)
     fig.tight_layout()
-    fig.savefig(out_png, dpi=100)
+    fig.savefig(out_png, dpi=100, format="png")
     plt.close(fig)
     return method
 
