@@ -130,6 +130,10 @@ def run_bench(p: IngestParams, repeat: int = 5, params: dict | None = None) -> d
         result |= time_retarget(params, repeat)
         result |= time_human(params, repeat)
         targets |= RETARGET_TARGETS
+        from pipeline.store_bench import STORE_TARGETS, time_store
+
+        result |= time_store(params, min(repeat, 3))
+        targets |= STORE_TARGETS
     result["targets"] = targets
     result["meets_targets"] = all(result[k] <= v for k, v in targets.items())
     return result
