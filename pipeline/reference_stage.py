@@ -97,6 +97,7 @@ def cycle_summary(cycle: ReferenceCycle, used: pd.DataFrame) -> dict:
     real_speed = float(used["gait_speed_mps"].mean())
     return {
         "n_strides": cycle.n_strides, "side": cycle.side, "period_s": round(cycle.period_s, 4),
+        "floor_shift_m": round(cycle.floor_shift_m, 4),
         "stride_length_m": round(cycle.stride_length_m, 4), "speed_mps": round(cycle.speed_mps, 4),
         "real_stride_length_m": round(real_length, 4), "real_speed_mps": round(real_speed, 4),
         "stride_length_rel_error": round(cycle.stride_length_m / real_length - 1, 4),

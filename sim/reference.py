@@ -10,7 +10,7 @@ model configurations (`sim.retarget`), their velocities and a per-frame gait pha
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, fields
+from dataclasses import MISSING, dataclass, fields, replace
 from pathlib import Path
 
 import mujoco
@@ -31,6 +31,7 @@ class ReferenceParams:
     qvel_cutoff_hz: float = 8.0     # low-pass on finite-difference velocities (zero-phase, 4th order)
     cycle_samples: int = 100        # samples per periodic reference cycle
     cycle_side: str = "right"       # strides from this side's heel strike to its next one
+    floor_align: bool = True        # shift the cycle vertically so its lowest foot point is on z = 0
 
     @classmethod
     def from_dict(cls, d: dict) -> ReferenceParams:
@@ -120,6 +121,7 @@ class ReferenceCycle:
     speed_mps: float
     n_strides: int
     side: str
+    floor_shift_m: float = 0.0
 
     def qpos_at(self, k: int) -> np.ndarray:
         """Configuration of sample `k` of any cycle (k may exceed N: later strides move on in x)."""
@@ -207,6 +209,37 @@ def periodic_cycle(model: mujoco.MjModel, strides: list[tuple[np.ndarray, np.nda
                           length / period, len(strides), side)
 
 
+def lowest_foot_z(model: mujoco.MjModel, qpos: np.ndarray) -> np.ndarray:
+    """Height (m) of the lowest point of the feet's contact spheres (geoms in collision class
+    `sim.human.FOOT_BIT` on a body) for each configuration."""
+    from sim.human import FOOT_BIT
+
+    sphere = int(mujoco.mjtGeom.mjGEOM_SPHERE)
+    feet = np.array([g for g in range(model.ngeom) if model.geom_bodyid[g] > 0
+                     and model.geom_contype[g] & FOOT_BIT and model.geom_type[g] == sphere])
+    if not len(feet):
+        raise SimulationError("reference", "the model has no foot contact spheres")
+    data = mujoco.MjData(model)
+    out = np.empty(len(qpos))
+    for k, q in enumerate(qpos):
+        data.qpos[:] = q
+        mujoco.mj_kinematics(model, data)
+        out[k] = np.min(data.geom_xpos[feet, 2] - model.geom_size[feet, 0])
+    return out
+
+
+def floor_aligned(model: mujoco.MjModel, cycle: ReferenceCycle) -> ReferenceCycle:
+    """The cycle moved vertically so that the median over the cycle of its lowest foot point is
+    on the floor (z = 0): in walking one foot is always down, so the lowest point should stay on
+    the floor; marker IK leaves it off by the difference between the static and walking floors
+    and the soft-tissue motion of the foot markers (about 1 cm)."""
+    qa, _ = _root_addresses(model)
+    shift = -float(np.median(lowest_foot_z(model, cycle.qpos)))
+    qpos = cycle.qpos.copy()
+    qpos[:, qa + 2] += shift
+    return replace(cycle, qpos=qpos, floor_shift_m=cycle.floor_shift_m + shift)
+
+
 def left_right_shift(model: mujoco.MjModel, cycle: ReferenceCycle,
                      joints: tuple[str, ...] = ("hip_flexion", "knee_flexion", "ankle_dorsiflexion"),
                      ) -> dict[str, dict[str, float]]:
@@ -236,7 +269,8 @@ def cycle_from_trials(model: mujoco.MjModel, trials: list[RetargetedTrial], stri
     used = used[np.array(covered, bool)]
     segments = [(by_id[r.trial].time_s, by_id[r.trial].qpos, float(r.t_start_s), float(r.t_end_s))
                 for r in used.itertuples()]
-    return periodic_cycle(model, segments, p.cycle_samples, p.cycle_side), used
+    cycle = periodic_cycle(model, segments, p.cycle_samples, p.cycle_side)
+    return (floor_aligned(model, cycle) if p.floor_align else cycle), used
 
 
 @dataclass(frozen=True)
@@ -290,7 +324,8 @@ def load_reference(path: str | Path) -> Reference:
     except (OSError, ValueError) as exc:
         raise SimulationError(path, f"cannot read reference motion ({exc})") from None
     try:
-        cycle = ReferenceCycle(**{f.name: _scalar(arrays[f"cycle_{f.name}"]) for f in fields(ReferenceCycle)})
+        cycle = ReferenceCycle(**{f.name: _scalar(arrays[f"cycle_{f.name}"]) for f in fields(ReferenceCycle)
+                                  if f"cycle_{f.name}" in arrays or f.default is MISSING})
         return Reference(**{f.name: arrays[f.name] for f in fields(Reference) if f.name != "cycle"},
                          cycle=cycle)
     except KeyError as exc:

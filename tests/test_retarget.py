@@ -284,7 +284,7 @@ def test_real_walk_sagittal_angles_match_the_mot_angles(real_fit):
 
 
 def test_real_walk_periodic_cycle_matches_the_kept_strides(real_fit):
-    from sim.reference import cycle_from_trials, left_right_shift
+    from sim.reference import cycle_from_trials, left_right_shift, lowest_foot_z
 
     subject, model, rt, processed, p = real_fit
     if subject == "opencap4":  # one stride per walk: pool the second free walk too
@@ -321,6 +321,9 @@ def test_real_walk_periodic_cycle_matches_the_kept_strides(real_fit):
     assert abs(cycle.stride_length_m / real_length - 1) <= MAX_CYCLE_REL_ERROR, (subject, cycle, real_length)
     assert abs(cycle.speed_mps / real_speed - 1) <= MAX_CYCLE_REL_ERROR, (subject, cycle, real_speed)
     assert np.mean(cycle.qvel[:, 0]) == pytest.approx(cycle.speed_mps, rel=1e-6)
+    # on the floor: one foot is always down, within the soft-tissue error of the foot markers
+    low = lowest_foot_z(model, cycle.qpos)
+    assert np.median(low) == pytest.approx(0.0, abs=1e-9) and np.abs(low).max() < 0.03, (subject, low)
     # left and right legs consistent: the left leg repeats the right's pattern half a cycle later
     for joint, lr in left_right_shift(model, cycle).items():
         assert 0.4 <= lr["best_shift"] <= 0.6, (subject, joint, lr)
