@@ -18,6 +18,7 @@ class HumanParams:
     """Every tunable number of the human model; units in the names."""
 
     anthropometry: str = "de_leva_male"
+    pelvis_neutral: str = "static_upright"
     timestep_s: float = 0.002
     knee_width_per_height: float = 0.071
     ankle_width_per_height: float = 0.049
@@ -49,7 +50,7 @@ class HumanParams:
         d = dict(d)
         ranges = d.pop("range_deg", {}) or {}
         out = {}
-        for key in ("anthropometry",):
+        for key in ("anthropometry", "pelvis_neutral"):
             if key in d:
                 out[key] = str(d.pop(key))
         if "contact_solref" in d:

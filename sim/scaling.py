@@ -16,9 +16,12 @@ come from stature ratios (de Leva 1996 lengths, Winter 2009 Fig. 4.1 heights and
 trunk upright and the arms hanging.
 
 Segment frames (columns x forward, y left, z up along the segment) follow the model's joints:
-pelvis from ASIS/PSIS; thigh and upper arm fully 3-D (ball joints above them); shank, foot and
-forearm are their parent's frame turned about the hinge's y axis by the static hinge angle, so
-the static pose is reached exactly by the model's own joints.
+pelvis upright and facing the ASIS in the static pose (`pelvis_neutral: static_upright`: the
+static standing pose has zero pelvis tilt, as OpenSim IK of these subjects reports within 2 deg)
+or the ASIS/PSIS plane (`asis_psis`, the marker-based tilt of `ingest.kinematics`); thigh and
+upper arm fully 3-D (ball joints above them); shank, foot and forearm are their parent's frame
+turned about the hinge's y axis by the static hinge angle, so the static pose is reached exactly
+by the model's own joints.
 """
 
 from __future__ import annotations
@@ -215,13 +218,17 @@ def scale_subject(subject: Subject, manifest: Manifest, p: HumanParams) -> Scale
     jc["hip_l"], jc["hip_r"] = hjc["left"][0], hjc["right"][0]
     jc["mid_hip"] = (jc["hip_l"] + jc["hip_r"]) / 2
     pelvis_y = _unit(asis_l - asis_r)
-    frames["pelvis"] = frame_from_zy(np.cross(_unit((asis_l + asis_r - psis_l - psis_r) / 2), pelvis_y),
-                                     pelvis_y)
-    # Torso upright in the static pose, facing the pelvis' heading.
-    fwd = frames["pelvis"][:, 0].copy()
+    anatomical = frame_from_zy(np.cross(_unit((asis_l + asis_r - psis_l - psis_r) / 2), pelvis_y), pelvis_y)
+    fwd = anatomical[:, 0].copy()
     fwd[2] = 0.0
-    frames["torso"] = frames["head"] = np.column_stack([_unit(fwd), np.cross(up, _unit(fwd)), up])
-    torso_y = frames["torso"][:, 1]
+    upright = np.column_stack([_unit(fwd), np.cross(up, _unit(fwd)), up])
+    if p.pelvis_neutral not in ("static_upright", "asis_psis"):
+        raise ScalingError(origin, f"unknown pelvis_neutral {p.pelvis_neutral!r} "
+                           "(known: static_upright, asis_psis)")
+    frames["pelvis"] = upright if p.pelvis_neutral == "static_upright" else anatomical
+    # Torso upright in the static pose, facing the pelvis' heading.
+    frames["torso"] = frames["head"] = upright
+    torso_y = upright[:, 1]
 
     for s, side in SIDES.items():
         sign = 1.0 if s == "l" else -1.0  # +Y is left
