@@ -25,7 +25,7 @@ from sim.retarget import ROOT_JOINT, MarkerFit, RetargetParams, joint_angles, re
 
 @dataclass(frozen=True)
 class ReferenceParams:
-    """The `retarget` section of params.yaml minus the IK settings (`RetargetParams`)."""
+    """The `retarget` section of params.yaml minus its `ik` block (`RetargetParams`)."""
 
     conditions: tuple[str, ...] = ("free",)  # trial conditions retargeted into reference.npz
     qvel_cutoff_hz: float = 8.0     # low-pass on finite-difference velocities (zero-phase, 4th order)
@@ -35,7 +35,10 @@ class ReferenceParams:
 
     @classmethod
     def from_dict(cls, d: dict) -> ReferenceParams:
-        d = {k: v for k, v in d.items() if k in {f.name for f in fields(cls)}}
+        d = {k: v for k, v in d.items() if k != "ik"}
+        unknown = set(d) - {f.name for f in fields(cls)}
+        if unknown:
+            raise SimulationError("params.yaml retarget", f"unknown keys {sorted(unknown)}")
         if "conditions" in d:
             d["conditions"] = tuple(d["conditions"])
         return cls(**d)

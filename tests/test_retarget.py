@@ -361,3 +361,17 @@ def test_reference_stage_writes_npz_json_and_figure(tmp_path):
     assert abs(doc["cycle"]["speed_rel_error"]) <= MAX_CYCLE_REL_ERROR
     assert (tmp_path / "reports" / "opencap4" / "retarget.png").stat().st_size > 10_000
     assert not list((tmp_path / "opencap4" / "model").glob(".*tmp"))
+
+
+def test_retarget_params_reject_unknown_keys():
+    from pipeline.params import ParamsError, load_params
+    from pipeline.reference_stage import RetargetSection
+
+    section = RetargetSection.from_params(load_params())
+    assert section.reference.conditions == ("free",) and section.ik.iterations >= 1
+    with pytest.raises(ParamsError, match="unknown keys.*cycle_sample"):
+        RetargetSection.from_params({"retarget": {"cycle_sample": 10}})
+    with pytest.raises(ParamsError, match="unknown keys.*iteration"):
+        RetargetSection.from_params({"retarget": {"ik": {"iteration": 3}}})
+    with pytest.raises(ParamsError, match="no 'retarget' section"):
+        RetargetSection.from_params({})
