@@ -1,6 +1,6 @@
 """The scaled human on the real subjects: DoF, mass, height, segment lengths against joint centres
-computed here from the raw static markers, virtual markers, hinge signs, and standing under a
-joint PD for 5 s with the body weight on both feet."""
+computed here from the raw static markers, virtual markers, hinge signs, standing under a joint PD
+for 5 s with the body weight on both feet, and a retargeted walk processed by ingest."""
 
 from __future__ import annotations
 
@@ -10,13 +10,14 @@ import mujoco
 import numpy as np
 import pytest
 
-from ingest.canonical import up_to_z
+from ingest.canonical import load_trial, up_to_z
 from ingest.kinematics import hip_joint_centres
 from ingest.manifest import Manifest
-from ingest.process import landmarks
+from ingest.process import landmarks, process_trial
 from ingest.readers import read_markers
 from ingest.subject import load_subject
-from pipeline.params import load_params
+from pipeline.params import ingest_params, load_params
+from pipeline.reference_stage import RetargetSection
 from pipeline.scale_stage import human_params
 from sim.errors import ScalingError, SimulationError
 from sim.human import (
@@ -29,6 +30,7 @@ from sim.human import (
     standing_height,
 )
 from sim.human_params import BALL_JOINTS, HINGE_JOINTS
+from sim.retarget import retarget
 from sim.scaling import scale_subject, scaling_roles
 from sim.virtual_markers import marker_positions, marker_sites, trial_from_qpos
 
@@ -250,3 +252,29 @@ def test_errors_name_the_problem(params, manifest, tmp_path):
     bad.write_text("<mujoco><worldbody><body><joint type='nonsense'/></body></worldbody></mujoco>")
     with pytest.raises(SimulationError, match="cannot compile"):
         load_human_model(bad)
+
+
+def test_retargeted_walk_runs_through_ingest_like_the_recording(params, manifest):
+    """opencap4 walking1: real markers -> marker IK on the model -> virtual-marker Trial ->
+    `process_trial`: the same kinematic gait events (within 40 ms) and stride length (3 cm)."""
+    all_params = load_params()
+    ip = ingest_params(all_params)
+    ip = dataclasses.replace(ip, events=dataclasses.replace(ip.events, method="kinematic"))
+    subject = load_subject("opencap4")
+    model = build_human(scale_subject(subject, manifest, params), params).compile()
+    real = process_trial(load_trial(subject, subject.trials[0], manifest), subject.markerset, ip)
+    fit = retarget(model, real.trial.markers, RetargetSection.from_params(all_params).ik)
+    trial = trial_from_qpos(model, fit.qpos, real.trial.rate_hz, subject.id, "free", "walking1",
+                            t0_s=real.trial.time_s[0])
+    sim = process_trial(trial, subject.markerset, ip)
+    assert len(sim.events) == len(real.events) >= 4
+    for (side, event), group in real.events.groupby(["side", "event"]):
+        same = (sim.events["side"] == side) & (sim.events["event"] == event)
+        got = sim.events.loc[same, "time_s"].to_numpy()
+        for t in group["time_s"]:
+            assert np.min(np.abs(got - t)) < 0.04
+    kept_real = real.strides.loc[real.strides["kept"], "stride_length_m"].to_numpy()
+    kept_sim = sim.strides.loc[sim.strides["kept"], "stride_length_m"].to_numpy()
+    assert len(kept_real) == len(kept_sim) >= 1
+    assert np.allclose(kept_sim, kept_real, atol=0.03)
+    assert (sim.cycles["source"] == "sim").all()
