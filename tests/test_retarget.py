@@ -254,11 +254,11 @@ def test_real_walk_virtual_markers_match_real_markers(real_fit):
 
 def test_real_walk_sagittal_angles_match_the_mot_angles(real_fit):
     """Knee: raw RMS <= 5 deg. Hip and ankle carry a constant offset from differing neutral
-    definitions (the model's pelvis frame is the ASIS/PSIS plane (ISB, Wu et al. 2002), the
-    OpenSim pelvis is the generic model's frame; the ankle's zero is the foot's heel-toe line
-    perpendicular to the shank): the offset-removed RMS must be <= 5 deg. The hip's offset is
-    the pelvis frame's: the thigh's angle to the vertical (hip flexion - anterior pelvis tilt)
-    matches the .mot raw (opencap4)."""
+    definitions (the model's pelvis neutral is `human.pelvis_neutral` (upright in the static pose
+    or the ASIS/PSIS plane), OpenSim's is its generic pelvis frame with the subject's markers
+    placed on it; the ankle's zero is the foot's heel-toe line perpendicular to the shank): the
+    offset-removed RMS must be <= 5 deg. The hip's offset is the pelvis frame's: the thigh's
+    angle to the vertical (hip flexion - anterior pelvis tilt) matches the .mot raw (opencap4)."""
     from pipeline.reference_stage import angle_errors, angle_summary
 
     subject, model, rt, processed, _ = real_fit
