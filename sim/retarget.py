@@ -39,7 +39,7 @@ SIDES = {"left": "l", "right": "r"}
 
 @dataclass(frozen=True)
 class RetargetParams:
-    """The `retarget` section of params.yaml (see the module docstring for the problem solved)."""
+    """The `retarget.ik` block of params.yaml (see the module docstring for the problem solved)."""
 
     iterations: int = 4                  # LM iterations per warm-started frame
     first_frame_iterations: int = 80     # LM iterations for the first frame (cold start)
