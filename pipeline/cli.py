@@ -40,8 +40,22 @@ def cmd_events(args: argparse.Namespace) -> int:
 def cmd_bench(args: argparse.Namespace) -> int:
     params = load_params(args.params)
     result = run_bench(ingest_params(params, args.params), args.repeat, params)
+    from pipeline.rollout_bench import run_rollout_bench
+
+    result["rollout"] = run_rollout_bench(params, args.params)
     write_json(args.out, result)
     print(json_text(result), end="")
+    return 0
+
+
+def cmd_reference(args: argparse.Namespace) -> int:
+    from pipeline.reference_stage import DEFAULT_ROOT, REPORTS_ROOT, run_reference
+
+    doc = run_reference(args.subject, load_params(args.params), args.root or DEFAULT_ROOT,
+                        args.reports or REPORTS_ROOT)
+    print(f"{args.subject}: marker RMS {doc['marker_rms_m'] * 100:.2f} cm, "
+          f"{doc['ik_frames_per_s']:.0f} IK frames/s, cycle {doc['cycle']['stride_length_m']:.3f} m at "
+          f"{doc['cycle']['speed_mps']:.3f} m/s", file=sys.stderr)
     return 0
 
 
@@ -66,14 +80,24 @@ def cmd_scale(args: argparse.Namespace) -> int:
     return 0
 
 
-def cmd_reference(args: argparse.Namespace) -> int:
-    from pipeline.reference_stage import DEFAULT_ROOT, REPORTS_ROOT, run_reference
+def cmd_simulate(args: argparse.Namespace) -> int:
+    from pipeline.simulate_stage import DEFAULT_ROOT, REPORTS_ROOT, run_simulate
 
-    doc = run_reference(args.subject, load_params(args.params), args.root or DEFAULT_ROOT,
-                        args.reports or REPORTS_ROOT)
-    print(f"{args.subject}: marker RMS {doc['marker_rms_m'] * 100:.2f} cm, "
-          f"{doc['ik_frames_per_s']:.0f} IK frames/s, cycle {doc['cycle']['stride_length_m']:.3f} m at "
-          f"{doc['cycle']['speed_mps']:.3f} m/s", file=sys.stderr)
+    doc = run_simulate(args.subject, load_params(args.params), args.params, args.root or DEFAULT_ROOT,
+                       args.reports or REPORTS_ROOT)
+    for cond, m in doc["conditions"].items():
+        print(f"{args.subject} {cond}: mean |e_x| {m['mean_abs_e_x_cm']:.2f} cm, mean |e_y| "
+              f"{m['mean_abs_e_y_cm']:.2f} cm, harness force RMS {m['harness_force_rms_n']:.1f} N, "
+              f"falls {m['falls']}", file=sys.stderr)
+    return 0
+
+
+def cmd_render(args: argparse.Namespace) -> int:
+    from pipeline.render_stage import DEFAULT_ROOT, REPORTS_ROOT, run_render
+
+    path = run_render(args.subject, args.condition, load_params(args.params), args.params,
+                      args.root or DEFAULT_ROOT, args.reports or REPORTS_ROOT, args.seed, args.bout)
+    print(f"wrote {path}", file=sys.stderr)
     return 0
 
 
@@ -114,12 +138,6 @@ def build_parser() -> argparse.ArgumentParser:
                        "(default: reports)")
     scale.set_defaults(func=cmd_scale)
 
-    tune_c = commands.add_parser("tune-controllers", help="tune every follow-me controller the same way "
-                                 "on a synthetic walk (robot.tuning)")
-    tune_c.add_argument("--out", type=Path, default=REPO_ROOT / "reports" / "controller_tuning.json")
-    tune_c.add_argument("--write-params", action="store_true", help="store the tuned gains in the params file")
-    tune_c.set_defaults(func=cmd_tune_controllers)
-
     reference = commands.add_parser("reference", help="retarget a subject's walking onto its scaled human")
     reference.add_argument("subject", help="subject id (data/subjects/<id>.yaml)")
     reference.add_argument("--root", type=Path, help="model folder root: <root>/<subject>/model/ "
@@ -127,6 +145,31 @@ def build_parser() -> argparse.ArgumentParser:
     reference.add_argument("--reports", type=Path, help="figure goes to <reports>/<subject>/retarget.png "
                            "(default: reports)")
     reference.set_defaults(func=cmd_reference)
+
+    tune_c = commands.add_parser("tune-controllers", help="tune every follow-me controller the same way "
+                                 "on a synthetic walk (robot.tuning)")
+    tune_c.add_argument("--out", type=Path, default=REPO_ROOT / "reports" / "controller_tuning.json")
+    tune_c.add_argument("--write-params", action="store_true",
+                        help="store the tuned gains in the params file")
+    tune_c.set_defaults(func=cmd_tune_controllers)
+
+    simulate = commands.add_parser("simulate", help="replay-human rollouts (free, pid, adaptive) of a "
+                                   "subject's straight bouts, processed like the real trials")
+    simulate.add_argument("subject", help="subject id (data/subjects/<id>.yaml)")
+    simulate.add_argument("--root", type=Path, help="<root>/<subject>/{model,real} in, sim/ out "
+                          "(default: data/processed)")
+    simulate.add_argument("--reports", type=Path, help="figure to <reports>/<subject>/ "
+                          "(default: reports)")
+    simulate.set_defaults(func=cmd_simulate)
+
+    render = commands.add_parser("render", help="mp4 of one replay rollout (offscreen MuJoCo)")
+    render.add_argument("subject")
+    render.add_argument("condition", help="free or a controller name in robot.controllers")
+    render.add_argument("--seed", type=int, default=0)
+    render.add_argument("--bout", type=int, default=0, help="straight bout index (default: 0)")
+    render.add_argument("--root", type=Path, help="default: data/processed")
+    render.add_argument("--reports", type=Path, help="video to <reports>/<subject>/ (default: reports)")
+    render.set_defaults(func=cmd_render)
 
     add_results_commands(commands)
     return parser

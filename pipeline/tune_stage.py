@@ -21,7 +21,7 @@ def run_tuning(params: dict, path: Path, out: Path) -> dict:
     specs = controller_specs(params, path)
     initial = params["robot"]["tuning"].get("initial", {})
     doc = {"procedure": f"scipy.optimize.minimize {p.method}, {p.max_evaluations} rollouts each, "
-                        f"seed {p.seed}, synthetic walk {dataclasses.asdict(p.walk)}",
+                        f"seed {p.seed}, synthetic walks {[dataclasses.asdict(w) for w in p.walks]}",
            "force_weight_m_per_n": p.force_weight_m_per_n, "controllers": {}}
     for name in tqdm(list(initial), desc="tune-controllers"):
         if name not in specs:

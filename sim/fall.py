@@ -1,10 +1,10 @@
 """Fall detection on what the robot senses: the passive arm's vertical motion and its deflection.
 
 A fall pulls the harness, and with it the arm's vertical slide, down faster and further than walking
-does (pelvis vertical speed in walking stays within about +-0.4 m/s; Winter 2009). The rule fires
-when the arm's vertical slide moves down faster than `drop_speed_mps`, or sits more than `drop_m`
-below its neutral height, or the horizontal deflection exceeds `deflection_m` (the user leaving the
-arm's workspace). It latches: once detected, the robot locks the arm and stops the base.
+does (pelvis vertical speed stays within about +-0.45 m/s even in fast walking: Camargo replay).
+The rule fires when the arm's vertical slide moves down faster than `drop_speed_mps`, or sits more
+than `drop_m` below its neutral height, or the horizontal deflection exceeds `deflection_m` (the
+user leaving the arm's workspace). It latches: once detected, the robot locks the arm and stops the base.
 """
 
 from __future__ import annotations

@@ -34,11 +34,13 @@ class HarnessParams:
     limit_timeconst_s: float = 0.005
 
 
-def add_harness(spec: mujoco.MjSpec, arm_end: mujoco.MjsBody, target_body: str, p: HarnessParams) -> None:
-    """Hang the harness chain from `arm_end` and weld it to `target_body` at the reference pose.
+def add_harness(spec: mujoco.MjSpec, arm_end: mujoco.MjsBody, target_body: str, p: HarnessParams,
+                target_quat: np.ndarray) -> None:
+    """Hang the harness chain from `arm_end` and weld it to `target_body`.
 
-    The harness body sits at the arm end's origin, which `attach_robot` places at the target body's
-    position in the reference configuration; the weld keeps the relative pose of that configuration.
+    With all harness joints at zero the weld holds the target body's origin at the harness origin
+    (the arm's neutral point) with the orientation `target_quat` (world frame, robot facing +X): the
+    harness as donned in the reference posture.
     """
     body = arm_end.add_body(name="mrba_harness", gravcomp=1.0)
     to_spec_angle = np.degrees(1.0) if spec.compiler.degree else 1.0  # the spec's angle unit
@@ -53,7 +55,8 @@ def add_harness(spec: mujoco.MjSpec, arm_end: mujoco.MjsBody, target_body: str, 
     weld = spec.add_equality(name="mrba_harness_weld", type=mujoco.mjtEq.mjEQ_WELD, name1="mrba_harness",
                              name2=target_body, objtype=mujoco.mjtObj.mjOBJ_BODY)
     weld.solref = [p.weld_timeconst_s, 1.0]
-    data = np.zeros(len(weld.data))  # anchor 0, relpose from the reference configuration, torquescale 1
+    data = np.zeros(len(weld.data))  # anchor 0; relpose: same origin, reference orientation; torquescale 1
+    data[6:10] = target_quat
     data[10] = 1.0
     weld.data = data
 

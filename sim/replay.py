@@ -138,6 +138,36 @@ def scripted_fall(motion: Motion, t_fall_s: float, drop_m: float, duration_s: fl
     return Motion(t, qpos)
 
 
+def with_lead_in(motion: Motion, stride_s: float, lead_in_s: float, ramp_s: float,
+                 root_adr: int = 0) -> Motion:
+    """`motion` preceded by `lead_in_s` of walking that starts from rest and ramps (smoothstep over
+    `ramp_s`) up to the motion's opening pace, so a rollout of a mid-walk bout does not begin with
+    the robot and controller in an arbitrary state. The lead-in repeats the first `stride_s` of the
+    motion: its mean root velocity scaled by the ramp plus its intra-stride oscillation scaled the
+    same way, joined continuously at the bout start; time 0 stays the bout start (lead-in times < 0).
+    """
+    t = motion.time_s - motion.time_s[0]
+    dt = float(np.median(np.diff(t)))
+    n_stride = int(np.searchsorted(t, stride_s))
+    if n_stride < 4 or n_stride >= len(t):
+        raise SimulationError("replay motion", f"cannot take a {stride_s:.2f} s stride from {t[-1]:.2f} s")
+    first = motion.qpos[:n_stride + 1]
+    a = root_adr
+    v_mean = (first[-1, a:a + 2] - first[0, a:a + 2]) / (t[n_stride] - t[0])
+    residual = first[:, a:a + 2] - first[0, a:a + 2] - np.outer(t[:n_stride + 1], v_mean)
+    n_lead = int(round(lead_in_s / dt))
+    t_lead = -dt * np.arange(n_lead, 0, -1)
+    u = np.clip((t_lead + lead_in_s) / ramp_s, 0, 1)
+    env = 3 * u**2 - 2 * u**3
+    # displacement back from the bout start: integral of env * v_mean from t to 0
+    back = np.cumsum((env * dt)[::-1])[::-1]
+    phase = np.mod(t_lead, t[n_stride]) / dt
+    idx = np.clip(np.round(phase).astype(int), 0, n_stride)
+    qpos = first[idx].copy()  # limbs, height and orientation: the first stride repeated
+    qpos[:, a:a + 2] = first[0, a:a + 2] - np.outer(back, v_mean) + env[:, None] * residual[idx]
+    return Motion(np.concatenate([t_lead, t]), np.vstack([qpos, motion.qpos]))
+
+
 class ReplayHuman(HumanDriver):
     """Kinematic replay of `motion` through a stiff pelvis servo (module docstring)."""
 
@@ -165,6 +195,11 @@ class ReplayHuman(HumanDriver):
             raise SimulationError(spec.modelname or "world", f"no body {self.pelvis!r}")
         self.p0 = np.array(body.pos, dtype=float)
         self.q0 = np.array(body.quat, dtype=float) / np.linalg.norm(body.quat)
+        # the human's own actuators, sensors, tendons, keyframes and equalities refer to its joints:
+        # a kinematic replay uses none of them
+        for group in (spec.actuators, spec.sensors, spec.tendons, spec.keys, spec.equalities, spec.pairs):
+            for element in list(group):
+                spec.delete(element)
         for joint in list(spec.joints):
             spec.delete(joint)
         for geom in spec.geoms:

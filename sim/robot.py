@@ -79,7 +79,7 @@ class ArmParams:
 class FallParams:
     """Fall rule on robot-sensed arm signals (params `robot.fall`)."""
 
-    drop_speed_mps: float = 0.5
+    drop_speed_mps: float = 0.7
     drop_m: float = 0.12
     deflection_m: float = 0.22
 
@@ -132,13 +132,17 @@ def body_pose_at_qpos0(spec: mujoco.MjSpec, body: str) -> tuple[np.ndarray, np.n
     return data.xpos[bid].copy(), data.xquat[bid].copy()
 
 
-def attach_robot(spec: mujoco.MjSpec, p: RobotParams, harness_body: str = "pelvis") -> None:
+def attach_robot(spec: mujoco.MjSpec, p: RobotParams, harness_body: str = "pelvis",
+                 neutral_height_m: float | None = None) -> None:
     """Add the MRBA behind `harness_body` (in place): base, arm, locks and harness welded to it.
 
-    The arm's neutral point is placed at the body's position in the reference configuration, the
-    base `reach_m` behind it along -X (the human faces +X at qpos0).
+    The arm's neutral point is placed above the body's reference-configuration position at
+    `neutral_height_m` (default: the body's height there), the base `reach_m` behind it along -X
+    (the human faces +X at qpos0).
     """
-    pelvis_pos, _ = body_pose_at_qpos0(spec, harness_body)
+    pelvis_pos, pelvis_quat = body_pose_at_qpos0(spec, harness_body)
+    if neutral_height_m is not None:
+        pelvis_pos = np.array([pelvis_pos[0], pelvis_pos[1], neutral_height_m])
     b, a = p.base, p.arm
     base = spec.worldbody.add_body(name="mrba_base", pos=[pelvis_pos[0] - b.reach_m, pelvis_pos[1], 0.0])
     slide, hinge = mujoco.mjtJoint.mjJNT_SLIDE, mujoco.mjtJoint.mjJNT_HINGE
@@ -179,7 +183,7 @@ def attach_robot(spec: mujoco.MjSpec, p: RobotParams, harness_body: str = "pelvi
         act.set_to_velocity(kv=kv)
         act.forcelimited = True
         act.forcerange = [-lim, lim]
-    add_harness(spec, parent, harness_body, p.harness)
+    add_harness(spec, parent, harness_body, p.harness, pelvis_quat)
 
 
 @dataclass(frozen=True)

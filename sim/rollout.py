@@ -48,6 +48,7 @@ class RolloutParams:
     subject: str = ""
     condition: str = ""
     trial: str = ""
+    discard_s: float = 0.0  # lead-in simulated but not returned; returned time 0 is this instant
 
 
 @dataclass(frozen=True)
@@ -80,7 +81,7 @@ def build_world(world: mujoco.MjSpec, human: HumanDriver, p: RolloutParams) -> m
     spec = world.copy()
     human.prepare(spec)
     if p.with_robot:
-        attach_robot(spec, p.robot, p.harness_body)
+        attach_robot(spec, p.robot, p.harness_body, neutral_height_m=float(human.start_pose()[0][2]))
     dt, _ = physics_steps(p.sample_rate_hz, p.max_physics_dt_s)
     spec.option.timestep = dt
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
@@ -224,6 +225,13 @@ def rollout(world: mujoco.MjSpec, human: HumanDriver, controller: Controller | N
     finally:
         model.eq_data[:] = eq_saved
     wall = time.perf_counter() - start
+    keep = times >= p.discard_s - 1e-9
+    human_qpos = human.qpos_samples()[keep]
+    times, rec, fall_col, lock_col, qpos_out = times[keep] - p.discard_s, rec[keep], fall_col[keep], \
+        lock_col[keep], qpos_out[keep]
+    fall_time = None
+    if robot and detector.time_s is not None:
+        fall_time = detector.time_s - p.discard_s
     warnings = {mujoco.mjtWarning(i).name: int(w.number) for i, w in enumerate(data.warning) if w.number}
     table = pd.DataFrame()
     if robot:
@@ -236,8 +244,8 @@ def rollout(world: mujoco.MjSpec, human: HumanDriver, controller: Controller | N
         table["fall"], table["locked"] = fall_col, lock_col
         table = table[ROBOT_COLUMNS]
     return RolloutResult(
-        time_s=times, human_qpos=human.qpos_samples(), robot=table, world_qpos=qpos_out,
-        fall_time_s=detector.time_s if robot else None, physics_dt_s=dt, n_physics_steps=(n - 1) * n_sub,
+        time_s=times, human_qpos=human_qpos, robot=table, world_qpos=qpos_out,
+        fall_time_s=fall_time, physics_dt_s=dt, n_physics_steps=(n - 1) * n_sub,
         wall_s=wall, warnings=warnings)
 
 

@@ -2,7 +2,8 @@
 
 The world is one free-floating capsule body ``pelvis`` (free joint ``root``) carrying the subject's
 mass; the walk starts from rest, ramps to `speed_mps` and adds the intra-stride pelvis oscillation
-of level walking: forward speed +-`surge_mps` at step frequency (two per stride), lateral sway
+of level walking: forward speed +-`surge_mps` at step frequency (two per stride) plus +-`asym_mps`
+at stride frequency (left/right step asymmetry, present in every real gait), lateral sway
 +-`sway_m` at stride frequency, vertical +-`bounce_m` at step frequency (Winter 2009: about 2-5 cm
 sway and bounce). It is not the evaluation data: the controllers are tuned on it and evaluated on
 the subjects' replayed recordings.
@@ -20,11 +21,12 @@ from sim.replay import Motion
 
 @dataclass(frozen=True)
 class WalkParams:
-    """Synthetic walk (params `robot.tuning.walk`)."""
+    """Synthetic walk (params `robot.tuning.walks`)."""
 
     speed_mps: float = 1.2
     stride_s: float = 1.1
     surge_mps: float = 0.05
+    asym_mps: float = 0.0
     sway_m: float = 0.03
     bounce_m: float = 0.02
     ramp_s: float = 1.5
@@ -54,7 +56,8 @@ def synthetic_walk(p: WalkParams, phase_rad: float = 0.0) -> Motion:
     envelope = 3 * u**2 - 2 * u**3
     f = 1.0 / p.stride_s
     # forward position: integral of envelope * (v + surge sin(2 w t)), integrated numerically
-    vx = envelope * (p.speed_mps + p.surge_mps * np.sin(4 * np.pi * f * t + phase_rad))
+    vx = envelope * (p.speed_mps + p.surge_mps * np.sin(4 * np.pi * f * t + phase_rad)
+                     + p.asym_mps * np.sin(2 * np.pi * f * t + phase_rad))
     x = np.concatenate([[0.0], np.cumsum((vx[1:] + vx[:-1]) / 2 * np.diff(t))])
     y = envelope * p.sway_m * np.sin(2 * np.pi * f * t + phase_rad)
     z = p.pelvis_height_m - envelope * p.bounce_m * (1 - np.cos(4 * np.pi * f * t + phase_rad)) / 2
