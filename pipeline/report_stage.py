@@ -96,13 +96,26 @@ def _mode(x) -> str:
     return "–" if x is None or (isinstance(x, float) and math.isnan(x)) else str(x)
 
 
+def _following(mean, sd, n_samples) -> str:
+    if _num(n_samples, 0) == "0":
+        return "no samples (arm locked by a fall in every run)"
+    return _mean_sd(mean, sd, 2)
+
+
+def _falls(rate, n_trials) -> str:
+    if _num(rate, 2) == "–":
+        return "–"
+    return f"{round(float(rate) * int(n_trials))}/{int(n_trials)}"
+
+
 def table1_rows(t: pd.DataFrame) -> tuple[list[str], list[list[str]]]:
     header = ["Condition", "Sim human", "Real mean abs e_x (cm)", "Real mean abs e_y (cm)",
-              "Sim mean abs e_x (cm)", "Sim mean abs e_y (cm)", PAPER]
+              "Sim mean abs e_x (cm)", "Sim mean abs e_y (cm)", "Sim runs with a fall", PAPER]
     rows = [[r.condition, _mode(r.sim_human_mode), _mean_sd(r.real_mean_abs_ex_cm, r.real_sd_abs_ex_cm, 2),
              _mean_sd(r.real_mean_abs_ey_cm, r.real_sd_abs_ey_cm, 2),
-             _mean_sd(r.sim_mean_abs_ex_cm, r.sim_sd_abs_ex_cm, 2),
-             _mean_sd(r.sim_mean_abs_ey_cm, r.sim_sd_abs_ey_cm, 2), "not retrieved"]
+             _following(r.sim_mean_abs_ex_cm, r.sim_sd_abs_ex_cm, r.sim_n_samples),
+             _following(r.sim_mean_abs_ey_cm, r.sim_sd_abs_ey_cm, r.sim_n_samples),
+             _falls(r.sim_fall_rate, r.sim_n_trials), "not retrieved"]
             for r in t.itertuples(index=False)]
     return header, rows
 

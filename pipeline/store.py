@@ -173,7 +173,8 @@ def _views() -> list[str]:
     views += [
         "CREATE OR REPLACE VIEW paper_table1 AS " + real_sim(
             "compliance", ["subject", "condition"],
-            ["mean_abs_ex_cm", "mean_abs_ey_cm", "sd_abs_ex_cm", "sd_abs_ey_cm", "n_trials"]),
+            ["mean_abs_ex_cm", "mean_abs_ey_cm", "sd_abs_ex_cm", "sd_abs_ey_cm", "n_trials", "n_samples",
+             "fall_rate"]),
         "CREATE OR REPLACE VIEW paper_table2 AS " + real_sim(
             "gait", ["subject", "condition"],
             ["stride_length_m_mean", "stride_length_m_sd", "gait_speed_mps_mean", "gait_speed_mps_sd",

@@ -137,6 +137,7 @@ def test_table1_numbers_match_the_query(store, reports):
         assert r.sim_mean_abs_ex_cm == pytest.approx(100 * amplitude_m[r.condition] * 2 / np.pi, rel=0.01)
         cell = f"{r.sim_mean_abs_ex_cm:.2f} ± {r.sim_sd_abs_ex_cm:.2f}"
         assert f"| {r.condition} | replay | – | – | {cell} |" in md
+        assert f"| 0/{r.sim_n_trials} |" in md
     t2 = query(db, "select * from paper_table2 where subject = 'camargo' and condition = 'free'").iloc[0]
     assert f"{t2.real_gait_speed_mps_mean:.3f}" in md and f"{t2.sim_gait_speed_mps_mean:.3f}" in md
     tests = query(db, "select comparison, condition_b from latest_spm_tests where subject = 'camargo'")
