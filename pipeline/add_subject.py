@@ -140,6 +140,10 @@ def add_subject(subject_id: str, height_m: float, mass_kg: float, static: Path, 
         raise SubjectError(subj_file, f"subject {subject_id!r} is already registered")
     if not trials:
         raise SubjectError(subject_id, "no trials given (--trial COND=FILE)")
+    needed = [str(c) for c in (params.get("retarget") or {}).get("conditions") or []]
+    if needed and not any(t.condition in needed for t in trials):
+        raise SubjectError(subject_id, f"no trial with condition in {needed} (params retarget.conditions): "
+                           "the reference motion of the simulated human is built from those")
     if not 0.5 <= height_m <= 2.5 or not 10 <= mass_kg <= 300:
         raise SubjectError(subject_id, f"height {height_m} m / mass {mass_kg} kg are not a human's")
     if up_axis not in ("y", "z") or knee_flexion_sign not in (1, -1):

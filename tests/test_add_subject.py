@@ -43,6 +43,14 @@ def toe_in_trials() -> list[NewTrial]:
     ]
 
 
+def free_and_toe_in_trials() -> list[NewTrial]:
+    """Free walking is needed: the simulated human's reference motion is built from it."""
+    free = NewTrial.parse(
+        f"free={OC}/MarkerData/walking1.trc,{OC}/IK/walking1_ik.mot,{OC}/ID/walking1_grf.mot"
+    )
+    return [free, *toe_in_trials()]
+
+
 def snapshot(reg: Registry) -> dict:
     return {p: p.read_bytes() for p in (reg.params_path, reg.manifest_path, *reg.subjects_dir.glob("*"))}
 
@@ -55,18 +63,16 @@ def test_registers_mirror_files_through_their_manifest_entries(registry):
         1.68,
         62.6,
         OC / "MarkerData" / "static1.trc",
-        toe_in_trials(),
+        free_and_toe_in_trials(),
         up_axis="y",
         registry=registry,
     )
     subject = load_subject("oc4toein", registry.subjects_dir)
     assert path == registry.subjects_dir / "oc4toein.yaml"
-    assert subject.conditions == ("toe_in",) and [t.id for t in subject.trials] == [
-        "walkingTI1",
-        "walkingTI2",
-    ]
-    assert subject.trials[0].markers == "opencap_labval_subject4/MarkerData/walkingTI1.trc"  # existing key
-    assert subject.trials[1].grf == "opencap_labval_subject4/ID/walkingTI2_grf.mot"
+    assert subject.conditions == ("free", "toe_in")
+    assert [t.id for t in subject.trials] == ["walking1", "walkingTI1", "walkingTI2"]
+    assert subject.trials[1].markers == "opencap_labval_subject4/MarkerData/walkingTI1.trc"  # existing key
+    assert subject.trials[2].grf == "opencap_labval_subject4/ID/walkingTI2_grf.mot"
     assert subject.static.markers == "opencap_labval_subject4/MarkerData/static1.trc"
     assert subject.markerset == load_subject("opencap4").markerset  # found by fitting the file
     params = yaml.safe_load(registry.params_path.read_text())
@@ -113,7 +119,7 @@ def test_refusals_leave_the_registry_unchanged(registry, tmp_path):
     before = snapshot(registry)
     static = OC / "MarkerData" / "static1.trc"
     with pytest.raises(SubjectError, match="subject 'opencap4' is already registered"):
-        add_subject("opencap4", 1.68, 62.6, static, toe_in_trials(), up_axis="y", registry=registry)
+        add_subject("opencap4", 1.68, 62.6, static, free_and_toe_in_trials(), up_axis="y", registry=registry)
     with pytest.raises(IngestError, match="markers file not found"):
         add_subject(
             "x1",
@@ -129,9 +135,11 @@ def test_refusals_leave_the_registry_unchanged(registry, tmp_path):
     with pytest.raises(IngestError, match="unreadable markers file: not a TRC file"):
         add_subject("x1", 1.68, 62.6, static, [NewTrial("free", garbage)], up_axis="y", registry=registry)
     with pytest.raises(IngestError, match="cannot be ingested as subject 'x1'.*up_axis are wrong"):
-        add_subject("x1", 1.68, 62.6, static, toe_in_trials()[:1], up_axis="z", registry=registry)
+        add_subject("x1", 1.68, 62.6, static, free_and_toe_in_trials()[:1], up_axis="z", registry=registry)
+    with pytest.raises(SubjectError, match=r"no trial with condition in \['free'\]"):
+        add_subject("x1", 1.68, 62.6, static, toe_in_trials(), up_axis="y", registry=registry)
     with pytest.raises(SubjectError, match="subject id must be"):
-        add_subject("Bad Id", 1.68, 62.6, static, toe_in_trials(), registry=registry)
+        add_subject("Bad Id", 1.68, 62.6, static, free_and_toe_in_trials(), registry=registry)
     assert snapshot(registry) == before
 
 
