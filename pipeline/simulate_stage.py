@@ -134,7 +134,7 @@ def _run_job(job: Job) -> dict:
     result = rollout(w["spec"], human, ctrl, p, job.seed)
     out = {"job": job, "stable": result.stable, "warnings": result.warnings, "fall": result.fall_time_s,
            "robot": result.robot, "wall_s": result.wall_s, "n_steps": result.n_physics_steps,
-           "sim_s": float(result.time_s[-1])}
+           "sim_s": result.n_physics_steps * result.physics_dt_s}
     trial = trial_from_qpos(w["model"], result.human_qpos, rate, subject.id, job.condition, p.trial,
                             t0_s=float(t[0]))
     try:
@@ -186,7 +186,7 @@ def summarise(robot: pd.DataFrame, results: list[dict]) -> dict:
             "warnings": sorted({k for r in results for k in r["warnings"]}),
             "skipped": [f"{r['job'].trial} bout {r['job'].bout} {r['job'].condition} seed {r['job'].seed}: "
                         f"{r['skipped']}" for r in results if "skipped" in r],
-            "realtime_factor": round(sim_s / wall, 2) if wall else None,
+            "realtime_factor": round(sim_s / wall, 2) if wall else None,  # lead-ins included
             "human_mode": "replay", "bouts": "straight bouts only (kept real strides)", "conditions": per}
 
 

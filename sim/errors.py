@@ -15,6 +15,9 @@ class SimulationError(GaitloopError):
         self.problem = problem
         super().__init__(f"{self.source}: {problem}")
 
+    def __reduce__(self):  # picklable across process pools
+        return type(self), (self.source, self.problem)
+
 
 class ScalingError(SimulationError):
     """A static trial or subject that cannot be turned into segment lengths and joint centres."""

@@ -148,8 +148,8 @@ def with_lead_in(motion: Motion, stride_s: float, lead_in_s: float, ramp_s: floa
     """
     t = motion.time_s - motion.time_s[0]
     dt = float(np.median(np.diff(t)))
-    n_stride = int(np.searchsorted(t, stride_s))
-    if n_stride < 4 or n_stride >= len(t):
+    n_stride = min(int(np.searchsorted(t, stride_s)), len(t) - 1)  # a bout shorter than a stride: all of it
+    if n_stride < 4:
         raise SimulationError("replay motion", f"cannot take a {stride_s:.2f} s stride from {t[-1]:.2f} s")
     first = motion.qpos[:n_stride + 1]
     a = root_adr
