@@ -5,15 +5,19 @@ held within 10 cm); a normal walk raises no fall."""
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
+import mujoco
 import numpy as np
 import pandas as pd
 import pytest
 
 from pipeline.params import load_params
 from pipeline.robot_config import controller_specs, replay_params, robot_params
+from pipeline.simulate_stage import straight_bouts
 from sim.controllers import make_controller
-from sim.replay import Motion, ReplayHuman, interpolate_qpos, scripted_fall
+from sim.reference import load_reference
+from sim.replay import Motion, ReplayHuman, interpolate_qpos, scripted_fall, with_lead_in
 from sim.rollout import ROBOT_COLUMNS, RolloutParams, physics_steps, robot_info, rollout
 from sim.synthetic import WalkParams, capsule_world, synthetic_walk
 
@@ -99,3 +103,41 @@ def test_rollout_rejects_a_motion_that_does_not_fit_the_model(setup):
     with pytest.raises(SimulationError, match="9 qpos columns, the human model 7"):
         rollout(capsule_world(), ReplayHuman(bad, replay), None,
                 dataclasses.replace(RolloutParams(robot=robot), with_robot=False), 0)
+
+
+CAMARGO_MODEL = Path(__file__).resolve().parent.parent / "data" / "processed" / "camargo" / "model"
+
+
+@pytest.mark.skipif(not (CAMARGO_MODEL / "reference.npz").exists(),
+                    reason="needs `dvc repro scale@camargo reference@camargo` (data/processed/camargo/model)")
+def test_camargo_replay_bout_is_stable_and_followed(setup):
+    """The real human replaying Camargo's first straight bout (with the lead-in): no NaN, no MuJoCo
+    warning, no fall, and the tuned PID keeps mean |e_x| between 1 and 15 cm (issue 4)."""
+    robot, replay, specs, _ = setup
+    ref = load_reference(CAMARGO_MODEL / "reference.npz")
+    strides = pd.read_parquet(CAMARGO_MODEL.parent / "real" / "strides.parquet")
+    trial = sorted(set(ref.trial.tolist()))[0]
+    (t0, t1), *_ = straight_bouts(strides, trial, 0.0)
+    time_s, qpos = ref.motion(trial)
+    rows = (time_s >= t0) & (time_s <= t1)
+    stride_s = float(strides.loc[strides["kept"], "stride_time_s"].median())
+    motion = with_lead_in(Motion(time_s[rows] - time_s[rows][0], qpos[rows]), stride_s, 6.0, 3.0)
+    p = RolloutParams(robot=robot, sample_rate_hz=200.0, discard_s=6.0, condition="pid")
+    result = rollout(mujoco.MjSpec.from_file(str(CAMARGO_MODEL / "human.xml")), ReplayHuman(motion, replay),
+                     make_controller(specs["pid"], robot_info(robot, 200.0)), p, 0)
+    assert result.stable and result.warnings == {}
+    assert not result.robot.fall.any()
+    assert 0.01 < result.robot.e_x_m.abs().mean() < 0.15
+    assert result.human_qpos.shape[1] == mujoco.MjModel.from_xml_path(str(CAMARGO_MODEL / "human.xml")).nq
+
+
+def test_lead_in_starts_at_rest_and_joins_the_bout():
+    walk = synthetic_walk(dataclasses.replace(WALK, rest_s=0.0, ramp_s=0.01))  # already at pace
+    led = with_lead_in(walk, WALK.stride_s, 4.0, 2.0)
+    t, x = led.time_s, led.qpos[:, 0]
+    assert t[0] == pytest.approx(-4.0, abs=0.011) and np.all(np.diff(t) > 0)
+    v = np.diff(x) / np.diff(t)
+    assert abs(v[:10]).max() < 0.02  # from rest
+    k = np.searchsorted(t, 0.0)
+    assert abs(x[k] - x[k - 1]) < 0.03  # continuous at the bout start (one 10 ms sample at ~1.2 m/s)
+    np.testing.assert_array_equal(led.qpos[k:], walk.qpos)
