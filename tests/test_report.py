@@ -1,7 +1,15 @@
 """Reports from the store: per-subject Markdown, figures, summary and a static index whose every
-image and link resolves. Headless Chromium is not installed here, so the index is checked with the
-standard library HTML parser and every PNG is decoded."""
+image and link resolves: checked with the standard library HTML parser (every PNG decoded) and,
+where Debian's `chromium` is installed, by loading the index in headless Chromium."""
 
+import functools
+import html
+import http.server
+import json
+import re
+import shutil
+import subprocess
+import threading
 from html.parser import HTMLParser
 
 import matplotlib.image as mpimg
@@ -150,3 +158,68 @@ def test_unknown_subject_is_refused(store, tmp_path):
     _, db = store
     with pytest.raises(StoreError, match="no stored results for this subject"):
         run_report(["nobody"], ["nobody"], db, tmp_path, False)
+
+
+CHECK_PAGE = """<!DOCTYPE html><html><body><iframe id="f" src="index.html" width="1200" height="800"></iframe>
+<script>
+const f = document.getElementById("f");
+f.onload = async () => {
+  const d = f.contentDocument;
+  const imgs = [...d.images];
+  await Promise.all(imgs.map(i => i.complete ? 0 : new Promise(r => { i.onload = i.onerror = r; })));
+  const badImages = imgs.filter(i => !(i.complete && i.naturalWidth > 0)).map(i => i.getAttribute("src"));
+  const links = [...d.querySelectorAll("a")].map(a => a.href);
+  const failed = await Promise.all(links.map(u => fetch(u).then(r => r.ok ? "" : u).catch(() => u)));
+  const rows = [...d.querySelectorAll("table")].map(t => t.querySelectorAll("tbody tr").length);
+  const badLinks = failed.filter(x => x);
+  document.body.setAttribute("data-result", JSON.stringify(
+    {images: imgs.length, bad_images: badImages, links: links.length, bad_links: badLinks, rows}));
+};
+</script></body></html>
+"""
+
+
+class QuietHandler(http.server.SimpleHTTPRequestHandler):
+    def log_message(self, *args) -> None:
+        pass
+
+
+@pytest.mark.skipif(shutil.which("chromium") is None, reason="headless Chromium is not installed")
+def test_index_loads_in_headless_chromium(reports, tmp_path):
+    """Serve the reports on localhost and let Chromium load index.html: every image decodes
+    (naturalWidth > 0), every link answers 200, every table has rows."""
+    (reports / "_check.html").write_text(CHECK_PAGE)
+    handler = functools.partial(QuietHandler, directory=str(reports))
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    try:
+        run = subprocess.run(
+            [
+                shutil.which("chromium"),
+                "--headless",
+                "--no-sandbox",
+                "--disable-gpu",
+                "--disable-quic",
+                "--no-first-run",
+                "--disable-background-networking",
+                "--disable-component-update",
+                "--disable-sync",
+                f"--user-data-dir={tmp_path / 'profile'}",
+                "--virtual-time-budget=20000",
+                "--dump-dom",
+                f"http://127.0.0.1:{server.server_address[1]}/_check.html",
+            ],
+            capture_output=True,
+            text=True,
+            timeout=90,
+        )
+    finally:
+        server.shutdown()
+        (reports / "_check.html").unlink()
+    match = re.search(r'data-result="([^"]*)"', run.stdout)
+    assert match, run.stderr[-2000:]
+    result = json.loads(html.unescape(match.group(1)))
+    assert result["bad_images"] == [] and result["images"] == 6
+    assert result["links"] >= 3 and result["bad_links"] == []
+    assert len(result["rows"]) == 4 and all(n > 0 for n in result["rows"])
