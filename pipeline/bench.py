@@ -108,14 +108,21 @@ def time_human(params: dict, repeat: int, standing_s: float = 5.0) -> dict:
     return out
 
 
-def run_bench(p: IngestParams, repeat: int = 5, params: dict | None = None) -> dict:
-    """Timings of the Camargo trial and of all OpenCap subject-4 trials, against `TARGETS`; with
-    the whole `params`, also the retargeting timings against `RETARGET_TARGETS`."""
+def meets(section: dict, targets: dict[str, float]) -> bool:
+    """Durations (keys ending in `_s`) are upper bounds; rates and ratios are lower bounds."""
+    return all(section[k] <= v if k.endswith("_s") else section[k] >= v for k, v in targets.items())
+
+
+SECTIONS = ("ingest", "retarget", "human", "store", "rollout")
+
+
+def run_ingest_bench(p: IngestParams, repeat: int) -> dict:
+    """Ingest timings of the Camargo trial and of all OpenCap subject-4 trials."""
     manifest = Manifest.load()
     camargo, opencap = load_subject("camargo"), load_subject("opencap4")
     cam_s, cam_frames = time_trials(camargo, camargo.trials[:1], manifest, p, repeat)
     oc_s, oc_frames = time_trials(opencap, opencap.trials, manifest, p, repeat)
-    result = {
+    return {
         "camargo_trial_s": round(cam_s, 4),
         "camargo_frames": cam_frames,
         "camargo_frames_per_s": round(cam_frames / cam_s),
@@ -123,17 +130,39 @@ def run_bench(p: IngestParams, repeat: int = 5, params: dict | None = None) -> d
         "opencap4_s": round(oc_s, 4),
         "opencap4_frames": oc_frames,
         "opencap4_frames_per_s": round(oc_frames / oc_s),
-        "repeat": repeat,
     }
-    targets = dict(TARGETS)
-    if params is not None:
-        result |= time_retarget(params, repeat)
-        result |= time_human(params, repeat)
-        targets |= RETARGET_TARGETS
-        from pipeline.store_bench import STORE_TARGETS, time_store
 
-        result |= time_store(params, min(repeat, 3))
-        targets |= STORE_TARGETS
-    result["targets"] = targets
-    result["meets_targets"] = all(result[k] <= v for k, v in targets.items())
+
+def run_bench(p: IngestParams, repeat: int = 5, params: dict | None = None,
+              sections: tuple[str, ...] = SECTIONS, params_path=None) -> dict:
+    """The benchmark sections asked for, each with its own `targets` and `meets_targets`:
+    ingest (`TARGETS`), retarget (`RETARGET_TARGETS`), human (no target: the physical limit that
+    rollouts are compared to), store (`STORE_TARGETS`) and rollout (ratio to raw `mj_step`)."""
+    unknown = sorted(set(sections) - set(SECTIONS))
+    if unknown:
+        raise ValueError(f"unknown bench sections {unknown} (known: {', '.join(SECTIONS)})")
+    if params is None and set(sections) - {"ingest"}:
+        raise ValueError("bench sections other than ingest need the whole params")
+    result: dict = {"repeat": repeat}
+    for name in sections:
+        if name == "ingest":
+            section, targets = run_ingest_bench(p, repeat), TARGETS
+        elif name == "retarget":
+            section, targets = time_retarget(params, repeat), RETARGET_TARGETS
+        elif name == "human":
+            section, targets = time_human(params, repeat), {}
+        elif name == "store":
+            from pipeline.store_bench import STORE_TARGETS, time_store
+
+            section, targets = time_store(params, min(repeat, 3)), STORE_TARGETS
+        else:
+            from pipeline.rollout_bench import run_rollout_bench
+
+            section = run_rollout_bench(params, params_path)
+            targets = section.pop("targets", {})
+            section.pop("meets_targets", None)
+        section["targets"] = dict(targets)
+        section["meets_targets"] = meets(section, targets)
+        result[name] = section
+    result["meets_targets"] = all(result[n]["meets_targets"] for n in sections)
     return result

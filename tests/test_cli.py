@@ -82,14 +82,28 @@ def test_ingest_writes_documented_tables_reproducibly(tmp_path):
 
 def test_bench_writes_report(tmp_path):
     out = tmp_path / "reports" / "bench.json"
-    assert main(["bench", "--out", str(out), "--repeat", "1"]) == 0
+    assert main(["bench", "--out", str(out), "--repeat", "1", "--only", "ingest"]) == 0
     report = json.loads(out.read_text())
-    for key in ("camargo_trial_s", "camargo_frames_per_s", "opencap4_frames_per_s", "targets",
-                "meets_targets"):
-        assert key in report
-    assert report["targets"] == {"camargo_trial_s": 0.2}
-    assert report["meets_targets"] == (report["camargo_trial_s"] <= 0.2)
-    assert report["camargo_frames_per_s"] > 0 and report["opencap4_frames_per_s"] > 0
+    ingest = report["ingest"]
+    for key in ("camargo_trial_s", "camargo_frames_per_s", "opencap4_frames_per_s"):
+        assert ingest[key] > 0
+    assert ingest["targets"] == {"camargo_trial_s": 0.2}
+    assert ingest["meets_targets"] == (ingest["camargo_trial_s"] <= 0.2)
+    assert ingest["camargo_frames"] == 3067
+    # a partial run refreshes its section and keeps the others' last numbers
+    report["rollout"] = {"ratio_to_mj_step": 0.5, "targets": {"ratio_to_mj_step": 0.8},
+                         "meets_targets": False}
+    out.write_text(json.dumps(report))
+    assert main(["bench", "--out", str(out), "--repeat", "1", "--only", "ingest"]) == 0
+    again = json.loads(out.read_text())
+    assert again["rollout"]["ratio_to_mj_step"] == 0.5 and again["meets_targets"] is False
+
+
+def test_bench_rejects_unknown_section(tmp_path, capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main(["bench", "--out", str(tmp_path / "b.json"), "--only", "nosuch"])
+    assert exit_.value.code == 2 and "nosuch" in capsys.readouterr().err
+    assert not (tmp_path / "b.json").exists()
 
 
 def test_dvc_expands_one_ingest_stage_per_subject():
