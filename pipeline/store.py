@@ -13,9 +13,11 @@ the code revision (`git rev-parse HEAD`, 'unknown' outside git) and the creation
   then fails with `StoreError` "store is busy". Connections are always closed.
 
 SPM tests belong to the group of their second sample (`*_b`: the simulated or the controller
-condition); their curves and clusters to the test's version. Base tables are `result_<name>`;
-views `latest_<name>` hold the latest version of each group; `paper_table1..3`, `spm_clusters`,
-`subject_summary` are described in README.md.
+condition); their curves and clusters to the test's version. Base tables are `result_<name>`.
+`run_groups` records, for every store run, each group it stored and the version that group resolved
+to; `latest_versions` (and every `latest_<name>` view) holds the groups of each subject's last run,
+so a condition that a subject no longer has drops out of the latest views while its old versions
+stay queryable. `paper_table1..3`, `spm_clusters`, `subject_summary` are described in README.md.
 """
 
 from __future__ import annotations
@@ -155,8 +157,13 @@ def open_store(path: Path, read_only: bool = False, busy_timeout_s: float = 10.0
 def _views() -> list[str]:
     key = " AND ".join(f"w.{c} = v.{c}" for c in GROUP)
     views = [
-        "CREATE OR REPLACE VIEW latest_versions AS SELECT * FROM versions v WHERE version_id = "
+        # newest version of every group, whether or not the subject's last run still had it
+        "CREATE OR REPLACE VIEW newest_versions AS SELECT * FROM versions v WHERE version_id = "
         f"(SELECT max(version_id) FROM versions w WHERE {key})",
+        # the groups of each subject's last store run, each at the version that run resolved it to
+        "CREATE OR REPLACE VIEW latest_versions AS SELECT v.* FROM versions v JOIN run_groups g "
+        "USING (version_id) WHERE g.run_id = (SELECT max(h.run_id) FROM run_groups h "
+        "WHERE h.subject = g.subject)",
     ]
     views += [f"CREATE OR REPLACE VIEW latest_{t} AS SELECT r.* FROM result_{t} r "
               "JOIN latest_versions USING (version_id)" for t in TABLES]
@@ -214,6 +221,9 @@ def ensure_schema(con: duckdb.DuckDBPyConnection) -> None:
                 "created_at TIMESTAMP NOT NULL, run_id BIGINT NOT NULL)")
     con.execute("CREATE TABLE IF NOT EXISTS store_runs (run_id BIGINT PRIMARY KEY, created_at TIMESTAMP, "
                 "code_rev VARCHAR, subjects VARCHAR, n_groups BIGINT, n_new_versions BIGINT)")
+    con.execute("CREATE TABLE IF NOT EXISTS run_groups (run_id BIGINT NOT NULL, subject VARCHAR NOT NULL, "
+                "condition VARCHAR NOT NULL, source VARCHAR NOT NULL, human_mode VARCHAR NOT NULL, "
+                "version_id BIGINT NOT NULL)")
     for table, ddl in SCHEMAS.items():
         con.execute(f"CREATE TABLE IF NOT EXISTS result_{table} (version_id BIGINT NOT NULL, {ddl})")
     for view in _views():
@@ -276,8 +286,8 @@ def store_results(path: Path, results: list[SubjectResults], params: StoreParams
         con.execute("BEGIN TRANSACTION")
         try:
             ensure_schema(con)
-            latest = {tuple(r[:4]): r[4] for r in con.execute(
-                f"SELECT {', '.join(GROUP)}, content_hash FROM latest_versions").fetchall()}
+            latest = {tuple(r[:4]): (r[4], r[5]) for r in con.execute(
+                f"SELECT {', '.join(GROUP)}, content_hash, version_id FROM newest_versions").fetchall()}
             next_id = con.execute("SELECT coalesce(max(version_id), 0) + 1 FROM versions").fetchone()[0]
             run_id = con.execute("SELECT coalesce(max(run_id), 0) + 1 FROM store_runs").fetchone()[0]
             new, n_groups = [], 0
@@ -285,8 +295,11 @@ def store_results(path: Path, results: list[SubjectResults], params: StoreParams
                 for key, tables in _group_rows(res).items():
                     n_groups += 1
                     digest = content_hash(tables)
-                    if latest.get(key) == digest:
+                    if key in latest and latest[key][0] == digest:
+                        con.execute("INSERT INTO run_groups VALUES (?, ?, ?, ?, ?, ?)",
+                                    [run_id, *key, latest[key][1]])
                         continue
+                    con.execute("INSERT INTO run_groups VALUES (?, ?, ?, ?, ?, ?)", [run_id, *key, next_id])
                     con.execute("INSERT INTO versions VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
                                 [next_id, *key, digest, res.params_hash, rev, now, run_id])
                     for name, df in tables.items():

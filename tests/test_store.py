@@ -197,3 +197,24 @@ def test_store_and_query_commands(processed, tmp_path, capsys):
     assert err.startswith("error: ") and "query failed" in err and "nope" in err
     with open_store(db, read_only=True) as con:
         assert con.execute("select count(*) from latest_versions").fetchone()[0] == 5
+
+
+def test_a_condition_a_subject_no_longer_has_leaves_the_latest_views(processed, tmp_path):
+    db = tmp_path / "results.duckdb"
+    store_results(db, results(processed), FAST)
+    cam, oc = results(processed)
+    no_toe_in = {
+        name: df[~(df.filter(like="condition").eq("toe_in").any(axis=1))] for name, df in oc.tables.items()
+    }
+    tests = oc.tables["spm_tests"]
+    dropped = set(tests.loc[tests["condition_b"] == "toe_in", "test_id"])
+    no_toe_in = {
+        n: (df[~df["test_id"].isin(dropped)] if "test_id" in df else df) for n, df in no_toe_in.items()
+    }
+    again = store_results(db, [cam, type(oc)(oc.subject, no_toe_in, oc.params_hash)], FAST)
+    assert again.new_versions == () and again.n_groups == 4
+    latest = query(db, "select condition from latest_versions where subject = 'opencap4'")
+    assert set(latest["condition"]) == {"free", "toe_out", "trunk_sway"}
+    assert count(db, "select count(*) from versions where condition = 'toe_in'") == 1  # still there
+    assert count(db, "select count(*) from latest_spm_tests where condition_b = 'toe_in'") == 0
+    assert count(db, "select count(*) from latest_versions where subject = 'camargo'") == 1
