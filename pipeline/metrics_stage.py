@@ -42,9 +42,9 @@ DEFAULT_OUT_ROOT = REPO_ROOT / "data" / "metrics"
 TABLES = ("gait", "stability", "rom", "kinematics", "compliance", "harness", "tracking", "spm_tests",
           "spm_curves", "spm_clusters")
 SOURCES = ("real", "sim")
-# Sections whose values shape the results; the hash of these identifies a params version.
-RESULT_SECTIONS = ("ingest", "metrics", "human", "model", "retarget", "robot", "harness", "controllers",
-                   "simulate", "sim")
+# Sections that do not shape the results; the hash of all others identifies a params version
+# (so a section added later, e.g. for a new controller, counts without editing this list).
+NON_RESULT_SECTIONS = ("subjects", "store", "report")
 
 
 @dataclass(frozen=True)
@@ -79,7 +79,7 @@ class MetricsParams:
 
 def params_hash(params: dict) -> str:
     """sha256 (16 hex) of the result-shaping params sections, in a canonical JSON form."""
-    doc = {k: params[k] for k in sorted(params) if k in RESULT_SECTIONS}
+    doc = {k: params[k] for k in sorted(params) if k not in NON_RESULT_SECTIONS}
     return hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
 

@@ -20,7 +20,7 @@ from metrics import (
     stability_table,
 )
 from metrics.tracking import tracking_table
-from pipeline.metrics_stage import MetricsParams, compute, headline
+from pipeline.metrics_stage import MetricsParams, compute, headline, params_hash
 from pipeline.params import ingest_params, load_params
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -212,3 +212,12 @@ def test_tracking_trace_takes_the_first_run_at_the_plot_rate():
     one = tracking_table(robot[robot["trial"] == "t1"], rate_hz=10.0)
     assert one["e_x_cm"].to_numpy() == pytest.approx(np.linspace(0, 10, 21))
     assert one["force_n"].to_numpy() == pytest.approx(np.full(21, 5.0))
+
+
+def test_params_hash_ignores_only_non_result_sections():
+    params = load_params()
+    base = params_hash(params)
+    assert params_hash({**params, "report": {"dpi": 1}, "subjects": ["x"]}) == base
+    assert params_hash({**params, "new_controller": {"gain": 1.0}}) != base
+    changed = {**params, "metrics": {**params["metrics"], "pool_sides": not params["metrics"]["pool_sides"]}}
+    assert params_hash(changed) != base
