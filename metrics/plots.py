@@ -91,7 +91,7 @@ def spm_figure(tests: pd.DataFrame, curves: pd.DataFrame, title: str) -> Figure:
             ax.set_ylabel(f"SPM{{{row['statistic']}}}", fontsize=8)
             note = f"{row['statistic']}*={row['zstar']:.3g}"
             if row["h0_rejected"]:
-                note += f"; p_min={row['min_p']:.3g}"
+                note += "; p_min<0.001" if row["min_p"] < 0.001 else f"; p_min={row['min_p']:.3f}"
             ax.text(0.98, 0.95, note, ha="right", va="top", fontsize=7, transform=ax.transAxes)
             ax.set_xlabel("Gait cycle (%)", fontsize=8)
     if pairs.empty:

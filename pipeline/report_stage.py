@@ -213,7 +213,8 @@ def subject_report(subject: str, data: dict[str, pd.DataFrame], reports: Path = 
               md_table(["Comparison", "Joint", "A", "B", "Cluster (% cycle)", "p"],
                        [[c.comparison, c.joint, group_label(c.source_a, c.human_mode_a, c.condition_a),
                          group_label(c.source_b, c.human_mode_b, c.condition_b),
-                         f"{c.start_pct:.1f}–{c.end_pct:.1f}", f"{c.p:.3g}"] for c in clusters.itertuples()])]
+                         f"{c.start_pct:.1f}–{c.end_pct:.1f}", "<0.001" if c.p < 0.001 else f"{c.p:.3f}"]
+                        for c in clusters.itertuples()])]
     skipped = tests[tests["status"] != "ok"]
     if not skipped.empty:
         lines += ["Skipped comparisons:", ""] + [
