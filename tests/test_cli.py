@@ -50,7 +50,7 @@ def test_unknown_subject_is_one_line_error():
 def test_events_wrong_up_axis_names_the_file(capsys):
     assert main(["events", str(CAMARGO_TRC), "--markerset", "camargo"]) == 2  # Y-up file read as Z-up
     err = capsys.readouterr().err.strip()
-    assert err.startswith(f"error: {CAMARGO_TRC}") and "up_axis" in err and "\n" not in err
+    assert err.startswith(f"error: {CAMARGO_TRC.resolve()}") and "up_axis" in err and "\n" not in err
 
 
 def test_missing_params_file_is_one_line_error(tmp_path, capsys):
