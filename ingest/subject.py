@@ -2,7 +2,9 @@
 
 Fields: id, height_m, mass_kg, dataset, markerset (name of `data/markersets/<name>.yaml`, landmark
 role -> marker name), format (how the files are written: up_axis, knee_flexion_sign, and for
-files without a unit header, angle_unit), static (scaling trial), trials (id, condition, and
+files without a unit header, angle_unit), static (scaling trial: markers, optional window_s, and
+optional `angles`, the manifest key of the static pose's IK coordinates, median over the same
+window, used to calibrate the model's joint zeros), trials (id, condition, and
 manifest keys of the markers / angles / grf files).
 """
 
@@ -43,6 +45,7 @@ class TrialSpec:
 class StaticSpec:
     markers: str
     window_s: tuple[float, float] | None = None
+    angles: str | None = None  # manifest key of the static pose's joint coordinates (.mot)
 
 
 @dataclass(frozen=True)
@@ -117,7 +120,9 @@ def load_subject(subject_id: str, directory: Path = SUBJECTS_DIR) -> Subject:
     static = None
     if static_doc:
         window = static_doc.get("window_s")
-        static = StaticSpec(str(static_doc["markers"]), tuple(window) if window else None)
+        angles = static_doc.get("angles")
+        static = StaticSpec(str(static_doc["markers"]), tuple(window) if window else None,
+                            str(angles) if angles else None)
     return Subject(
         id=subject_id,
         height_m=height,

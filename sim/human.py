@@ -136,7 +136,8 @@ def build_human(body: ScaledBody, p: HumanParams) -> mujoco.MjSpec:
                                 limited=mujoco.mjtLimited.mjLIMITED_TRUE,
                                 damping=p.joint_damping_nms_per_rad, armature=p.armature_kg_m2)
                 else:
-                    b.add_joint(name=joint, type=mujoco.mjtJoint.mjJNT_HINGE, axis=HINGE_AXES[kind],
+                    axis = body.hinge_axes.get(joint, HINGE_AXES[kind])
+                    b.add_joint(name=joint, type=mujoco.mjtJoint.mjJNT_HINGE, axis=axis,
                                 range=np.radians(p.hinge_range_deg[kind]),
                                 limited=mujoco.mjtLimited.mjLIMITED_TRUE,
                                 damping=p.joint_damping_nms_per_rad, armature=p.armature_kg_m2)

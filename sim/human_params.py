@@ -18,7 +18,8 @@ class HumanParams:
     """Every tunable number of the human model; units in the names."""
 
     anthropometry: str = "de_leva_male"
-    pelvis_neutral: str = "static_upright"
+    neutral: str = "static_ik"        # joint zeros: static_ik | static_upright | asis_psis (sim.scaling)
+    ankle_axis: str = "knee"          # ankle hinge axis with static_ik: knee | malleoli
     timestep_s: float = 0.002
     knee_width_per_height: float = 0.071
     ankle_width_per_height: float = 0.049
@@ -50,7 +51,7 @@ class HumanParams:
         d = dict(d)
         ranges = d.pop("range_deg", {}) or {}
         out = {}
-        for key in ("anthropometry", "pelvis_neutral"):
+        for key in ("anthropometry", "neutral", "ankle_axis"):
             if key in d:
                 out[key] = str(d.pop(key))
         if "contact_solref" in d:

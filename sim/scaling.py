@@ -15,13 +15,27 @@ the navel level (de Leva's OMPH, by his trunk subsegment lengths). Landmarks a m
 come from stature ratios (de Leva 1996 lengths, Winter 2009 Fig. 4.1 heights and widths) with the
 trunk upright and the arms hanging.
 
-Segment frames (columns x forward, y left, z up along the segment) follow the model's joints:
-pelvis upright and facing the ASIS in the static pose (`pelvis_neutral: static_upright`: the
-static standing pose has zero pelvis tilt, as OpenSim IK of these subjects reports within 2 deg)
-or the ASIS/PSIS plane (`asis_psis`, the marker-based tilt of `ingest.kinematics`); thigh and
-upper arm fully 3-D (ball joints above them); shank, foot and forearm are their parent's frame
-turned about the hinge's y axis by the static hinge angle, so the static pose is reached exactly
-by the model's own joints.
+Segment frames (columns x forward, y left, z up along the segment) set the zeros of the model's
+joints, which `human.neutral` chooses:
+- `static_ik` (static calibration of joint zeros, as gait labs do): the frames are placed so that
+  the model's joint angles in the static pose equal the dataset's own IK angles of that pose
+  (`static.angles` of the subject file, median over the static window): pelvis = upright facing
+  the ASIS, then pelvis tilt and list; thigh = pelvis turned by the hip flexion, adduction and
+  rotation (intrinsic Y-X-Z, as `sim.retarget.joint_angles` reads them); shank = thigh turned by the
+  knee angle about the knee axis, foot = shank turned by the ankle angle about the ankle axis. The
+  hinge axes stay anatomical (knee: medial-lateral knee markers; ankle: `human.ankle_axis`), written
+  in the child's frame (`ScaledBody.hinge_axes`). The model's angles then share the zeros of the
+  OpenSim model that produced the subject's `.mot` files. A subject without static angles falls
+  back to `static_upright`.
+- `static_upright`: pelvis upright and facing the ASIS in the static pose (zero pelvis tilt);
+  thigh along the hip-knee line, the knee axis its y; shank and foot turned about that y axis by
+  the static hinge angles: knee zero = shank along the thigh's mechanical axis, ankle zero = the
+  heel-toe line perpendicular to the shank's.
+- `asis_psis`: as `static_upright` with the pelvis in the ASIS/PSIS plane (the marker-based tilt of
+  `ingest.kinematics`).
+Upper arm is fully 3-D (ball joint above it), forearm its parent's frame turned about y by the
+static elbow angle; the torso stands upright. In every mode the static pose is reached exactly by
+the model's own joints (keyframe `static`).
 """
 
 from __future__ import annotations
@@ -31,16 +45,19 @@ from dataclasses import dataclass, field
 import numpy as np
 import yaml
 
-from ingest.canonical import rotate_z, up_to_z
+from ingest.canonical import canonical_angles, rotate_z, up_to_z
 from ingest.kinematics import hip_joint_centres
 from ingest.manifest import Manifest
-from ingest.readers import read_markers
+from ingest.readers import read_markers, read_mot
 from ingest.subject import MARKERSETS_DIR, Subject
 from sim.anthropometry import TABLES, WINTER_RATIOS, Table
 from sim.errors import ScalingError
 from sim.human_params import HumanParams
 
 SIDES = {"l": "left", "r": "right"}
+NEUTRALS = ("static_ik", "static_upright", "asis_psis")
+ANKLE_AXES = ("knee", "malleoli")
+CALIBRATED_JOINTS = ("hip_flexion", "hip_adduction", "hip_rotation", "knee_flexion", "ankle_dorsiflexion")
 SCALING_ROLES_DIR = MARKERSETS_DIR / "scaling"
 # body -> the landmark roles whose markers ride on it (side suffix added for sided bodies)
 ROLE_BODIES = {
@@ -65,6 +82,10 @@ class ScaledBody:
     frames: body -> 3x3 rotation whose columns are the body's axes in the static frame.
     contact_points: foot_l/r -> (4, 3) contact sphere centres (heel medial/lateral, toe
     medial/lateral) resting on the floor.
+    hinge_axes: knee_l/r, ankle_l/r -> unit hinge axis in the child body's frame (+ = flexion /
+    dorsiflexion); hinges absent here use `sim.human.HINGE_AXES` (the frame's y axis).
+    neutral: the joint-zero definition used (`human.neutral`, after any fallback); static_ik_deg:
+    the static IK angles it was calibrated to (canonical names, degrees; empty when not static_ik).
     """
 
     subject: str
@@ -80,6 +101,9 @@ class ScaledBody:
     length_sources: dict[str, str]
     marker_bodies: dict[str, str]
     static_angles_rad: dict[str, float] = field(default_factory=dict)
+    hinge_axes: dict[str, np.ndarray] = field(default_factory=dict)
+    neutral: str = "static_upright"
+    static_ik_deg: dict[str, float] = field(default_factory=dict)
 
     @property
     def table(self) -> Table:
@@ -118,6 +142,45 @@ def static_markers(subject: Subject, manifest: Manifest) -> dict[str, np.ndarray
             warnings.simplefilter("ignore", RuntimeWarning)
             med = np.nanmedian(xyz, axis=0)
     return {n: med[j] for j, n in enumerate(table.names) if np.isfinite(med[j]).all()}
+
+
+def static_ik_angles(subject: Subject, manifest: Manifest) -> dict[str, float]:
+    """The dataset's IK angles of the static pose (canonical names and signs, degrees): the median
+    of `static.angles` over `static.window_s` (whole file without a window); {} when the subject
+    file names no static angles."""
+    if subject.static is None or subject.static.angles is None:
+        return {}
+    path = manifest.resolve(subject.static.angles)
+    mot = read_mot(path)
+    angles = canonical_angles(mot, subject.format, None)
+    keep = np.ones(len(mot.time_s), bool)
+    if subject.static.window_s is not None:
+        t0, t1 = subject.static.window_s
+        keep = (mot.time_s >= t0) & (mot.time_s <= t1)
+    if keep.sum() < 1:
+        raise ScalingError(path, f"static window {subject.static.window_s} s holds no IK frames")
+    out = {k: float(np.nanmedian(v[keep])) for k, v in angles.items()}
+    need = [f"{j}_{s}" for j in CALIBRATED_JOINTS for s in ("left", "right")] + ["pelvis_tilt", "pelvis_list"]
+    missing = [k for k in need if not np.isfinite(out.get(k, np.nan))]
+    if missing:
+        raise ScalingError(path, f"static IK lacks {', '.join(missing)} (needed by human.neutral: static_ik)")
+    return out
+
+
+def rot_x(angle_rad: float) -> np.ndarray:
+    c, s = np.cos(angle_rad), np.sin(angle_rad)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def rot_z(angle_rad: float) -> np.ndarray:
+    c, s = np.cos(angle_rad), np.sin(angle_rad)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def rot_axis(axis: np.ndarray, angle_rad: float) -> np.ndarray:
+    """Rotation by `angle_rad` about the unit vector `axis` (Rodrigues)."""
+    k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
+    return np.eye(3) + np.sin(angle_rad) * k + (1.0 - np.cos(angle_rad)) * k @ k
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
@@ -222,10 +285,17 @@ def scale_subject(subject: Subject, manifest: Manifest, p: HumanParams) -> Scale
     fwd = anatomical[:, 0].copy()
     fwd[2] = 0.0
     upright = np.column_stack([_unit(fwd), np.cross(up, _unit(fwd)), up])
-    if p.pelvis_neutral not in ("static_upright", "asis_psis"):
-        raise ScalingError(origin, f"unknown pelvis_neutral {p.pelvis_neutral!r} "
-                           "(known: static_upright, asis_psis)")
-    frames["pelvis"] = upright if p.pelvis_neutral == "static_upright" else anatomical
+    if p.neutral not in NEUTRALS or p.ankle_axis not in ANKLE_AXES:
+        raise ScalingError(origin, f"unknown neutral {p.neutral!r} or ankle_axis {p.ankle_axis!r} "
+                           f"(known: {', '.join(NEUTRALS)}; {', '.join(ANKLE_AXES)})")
+    ik = static_ik_angles(subject, manifest) if p.neutral == "static_ik" else {}
+    neutral = "static_upright" if p.neutral == "static_ik" and not ik else p.neutral
+    hinge_axes: dict[str, np.ndarray] = {}
+    if neutral == "static_ik":
+        tilt, pelvis_list = np.radians(ik["pelvis_tilt"]), np.radians(ik["pelvis_list"])
+        frames["pelvis"] = upright @ rot_y(tilt) @ rot_x(pelvis_list)  # yaw, pitch, roll as joint_angles
+    else:
+        frames["pelvis"] = upright if neutral == "static_upright" else anatomical
     # Torso upright in the static pose, facing the pelvis' heading.
     frames["torso"] = frames["head"] = upright
     torso_y = upright[:, 1]
@@ -245,6 +315,12 @@ def scale_subject(subject: Subject, manifest: Manifest, p: HumanParams) -> Scale
         heel, toe = lm(f"heel_{side}"), lm(f"toe_{side}")
         jc[f"heel_{s}"], jc[f"toe_{s}"] = heel, toe
         axis = jc.get(f"knee_axis_{s}", pelvis_y)
+        if neutral == "static_ik":
+            thigh, shank, foot = _calibrated_leg(frames["pelvis"], ik, s, axis,
+                                                 jc.get(f"ankle_axis_{s}", axis) if p.ankle_axis == "malleoli"
+                                                 else axis, angles, hinge_axes)
+            frames.update({f"thigh_{s}": thigh, f"shank_{s}": shank, f"foot_{s}": foot})
+            continue
         thigh = frame_from_zy(jc[f"hip_{s}"] - jc[f"knee_{s}"], axis)
         v = thigh.T @ (jc[f"ankle_{s}"] - jc[f"knee_{s}"])
         angles[f"knee_{s}"] = float(np.arctan2(-v[0], -v[2]))
@@ -311,7 +387,32 @@ def scale_subject(subject: Subject, manifest: Manifest, p: HumanParams) -> Scale
     sources.update({"hip_l": "Harrington 2007", "hip_r": "Harrington 2007", "vertex": "height_m"})
     return ScaledBody(subject.id, H, subject.mass_kg, p.anthropometry, markers, jc, frames, contact,
                       lengths, segment_masses(table, subject.mass_kg), sources,
-                      assign_markers(markers, roles, jc, sources.get("elbow_l") == "markers"), angles)
+                      assign_markers(markers, roles, jc, sources.get("elbow_l") == "markers"), angles,
+                      hinge_axes, neutral, ik)
+
+
+def _calibrated_leg(pelvis: np.ndarray, ik: dict[str, float], s: str, knee_axis: np.ndarray,
+                    ankle_axis: np.ndarray, angles: dict[str, float],
+                    hinge_axes: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Thigh, shank and foot frames of side `s` whose joint angles to the calibrated pelvis are the
+    static IK angles `ik` (degrees): hip as intrinsic Y-X-Z (flexion about -y; adduction and
+    internal rotation toward the midline, mirrored on the left, as `sim.retarget.joint_angles`
+    decomposes it); knee and ankle hinges about the anatomical axes `knee_axis` / `ankle_axis`
+    (unit, static frame, pointing left). Fills the static hinge angles and the hinge axes (child
+    frame, + = flexion / dorsiflexion)."""
+    side = SIDES[s]
+    sgn = -1.0 if s == "l" else 1.0
+    rad = {k: np.radians(ik[f"{k}_{side}"]) for k in ("hip_flexion", "hip_adduction", "hip_rotation",
+                                                      "knee_flexion", "ankle_dorsiflexion")}
+    thigh = pelvis @ rot_y(-rad["hip_flexion"]) @ rot_x(sgn * rad["hip_adduction"]) \
+        @ rot_z(sgn * rad["hip_rotation"])
+    knee = _unit(thigh.T @ knee_axis)
+    shank = thigh @ rot_axis(knee, rad["knee_flexion"])
+    ankle = -_unit(shank.T @ ankle_axis)  # pointing right: + = dorsiflexion (toes up)
+    foot = shank @ rot_axis(ankle, rad["ankle_dorsiflexion"])
+    angles[f"knee_{s}"], angles[f"ankle_{s}"] = float(rad["knee_flexion"]), float(rad["ankle_dorsiflexion"])
+    hinge_axes[f"knee_{s}"], hinge_axes[f"ankle_{s}"] = knee, ankle
+    return thigh, shank, foot
 
 
 def _contact_points(jc: dict[str, np.ndarray], s: str, toe_med: np.ndarray | None,

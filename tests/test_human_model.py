@@ -176,17 +176,49 @@ def test_hinge_signs_are_canonical(human):
         assert point(hand, f"elbow_{s}", 1.0)[0] > point(hand, f"elbow_{s}", 0.0)[0] + 0.1
 
 
-def test_upright_at_qpos0_feet_flat_on_the_floor(human):
+def test_upright_at_qpos0_feet_flat_in_the_static_pose(human):
+    """qpos0 is the joint-zero pose (with `neutral: static_ik` the zeros of the dataset's OpenSim
+    model, so its feet need not be flat): upright, lowest foot contact on the floor. The static
+    keyframe stands with both feet flat on the floor."""
     _, _, model = human
     data = mujoco.MjData(model)
-    mujoco.mj_kinematics(model, data)
     feet = [g for g in range(model.ngeom) if model.geom_contype[g] == FOOT_BIT and model.geom_bodyid[g] > 0]
+    mujoco.mj_kinematics(model, data)
     bottoms = np.array([data.geom_xpos[g, 2] - model.geom_size[g, 0] for g in feet])
     assert bottoms.min() == pytest.approx(0.0, abs=1e-4)
-    assert bottoms.max() < 0.01  # flat to within 1 cm (the static knee-axis roll and leg lengths)
     assert data.xpos[model.body("head").id, 2] > data.xpos[model.body("pelvis").id, 2] + 0.3
+    data = static_data(model)
+    bottoms = np.array([data.geom_xpos[g, 2] - model.geom_size[g, 0] for g in feet])
+    assert np.abs(bottoms).max() < 0.01  # flat on the floor to within 1 cm
 
 
+def test_static_pose_joint_angles_equal_the_static_ik(human):
+    """Static calibration (`human.neutral: static_ik`): the model's joint angles in its static pose
+    are the dataset's own IK angles of that pose (opencap4: static1_ik.mot; camargo: the median of
+    the walking IK over the quiet-standing window), read here independently of sim.scaling."""
+    from ingest.canonical import canonical_angles
+    from ingest.readers import read_mot
+    from sim.retarget import joint_angles
+
+    subject, body, model = human
+    assert body.neutral == "static_ik" and subject.static.angles is not None
+    mot = read_mot(Manifest.load().resolve(subject.static.angles))
+    real = canonical_angles(mot, subject.format, None)
+    keep = np.ones(len(mot.time_s), bool)
+    if subject.static.window_s:
+        keep = (mot.time_s >= subject.static.window_s[0]) & (mot.time_s <= subject.static.window_s[1])
+    sim = joint_angles(model, model.key("static").qpos[None])
+    names = [f"{j}_{s}" for j in ("hip_flexion", "hip_adduction", "hip_rotation", "knee_flexion",
+                                  "ankle_dorsiflexion") for s in ("left", "right")]
+    names += ["pelvis_tilt", "pelvis_list"]
+    for name in names:
+        assert sim[name][0] == pytest.approx(np.median(real[name][keep]), abs=1e-3), name
+    # the hinge axes stay anatomical: the knee axis is the static knee axis (markers / pelvis)
+    data = static_data(model)
+    for s in "lr":
+        axis = data.xaxis[model.joint(f"knee_{s}").id]
+        assert abs(axis[1]) > np.cos(np.radians(25)), (s, axis)  # medial-lateral, pointing left
+        assert axis[1] > 0
 def test_stands_five_seconds_on_both_feet_with_body_weight(human, params):
     subject, _, model = human
     data = static_data(model)
