@@ -63,6 +63,8 @@ def run_scale(subject_id: str, params: dict, root: Path = DEFAULT_ROOT,
         "segment_masses_kg": _rounded(body.segment_masses_kg),
         "joint_centre_sources": body.length_sources,
         "static_hinge_angles_deg": _rounded({k: np.degrees(v) for k, v in body.static_angles_rad.items()}, 2),
+        "neutral": body.neutral,  # joint zeros (human.neutral after any fallback)
+        "static_ik_deg": _rounded(body.static_ik_deg, 2),  # the static IK the zeros are calibrated to
         "markers": len(body.marker_bodies),
         "checks": checks,
     }

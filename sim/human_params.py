@@ -20,6 +20,9 @@ class HumanParams:
     anthropometry: str = "de_leva_male"
     neutral: str = "static_ik"        # joint zeros: static_ik | static_upright | asis_psis (sim.scaling)
     ankle_axis: str = "knee"          # ankle hinge axis with static_ik: knee | malleoli
+    # OpenSim foot axes (Delp et al. 1990; gait2392, Rajagopal 2015): right side, x fwd, y up, z right
+    talocrural_axis: tuple[float, float, float] = (-0.10501355, -0.17402245, 0.97912632)
+    subtalar_axis: tuple[float, float, float] = (0.78717961, 0.60474746, -0.12094949)
     timestep_s: float = 0.002
     knee_width_per_height: float = 0.071
     ankle_width_per_height: float = 0.049
@@ -54,6 +57,9 @@ class HumanParams:
         for key in ("anthropometry", "neutral", "ankle_axis"):
             if key in d:
                 out[key] = str(d.pop(key))
+        for key in ("talocrural_axis", "subtalar_axis"):
+            if key in d:
+                out[key] = tuple(float(v) for v in d.pop(key))
         if "contact_solref" in d:
             out["contact_solref"] = tuple(float(v) for v in d.pop("contact_solref"))
         for key in ("torque_limit_nm_per_kg", "pd_kp_nm_per_rad", "pd_kd_nms_per_rad",

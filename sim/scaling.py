@@ -22,7 +22,9 @@ joints, which `human.neutral` chooses:
   (`static.angles` of the subject file, median over the static window): pelvis = upright facing
   the ASIS, then pelvis tilt and list; thigh = pelvis turned by the hip flexion, adduction and
   rotation (intrinsic Y-X-Z, as `sim.retarget.joint_angles` reads them); shank = thigh turned by the
-  knee angle about the knee axis, foot = shank turned by the ankle angle about the ankle axis. The
+  knee angle about the knee axis, foot = shank turned about the ankle axis by the calcaneus' static
+  rotation about the talocrural axis (ankle angle, then the subtalar angle the model lacks:
+  `calcaneus_dorsiflexion_deg`, OpenSim foot axes from params). The
   hinge axes stay anatomical (knee: medial-lateral knee markers; ankle: `human.ankle_axis`), written
   in the child's frame (`ScaledBody.hinge_axes`). The model's angles then share the zeros of the
   OpenSim model that produced the subject's `.mot` files. A subject without static angles falls
@@ -42,6 +44,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import mujoco
 import numpy as np
 import yaml
 
@@ -160,11 +163,31 @@ def static_ik_angles(subject: Subject, manifest: Manifest) -> dict[str, float]:
     if keep.sum() < 1:
         raise ScalingError(path, f"static window {subject.static.window_s} s holds no IK frames")
     out = {k: float(np.nanmedian(v[keep])) for k, v in angles.items()}
+    in_degrees = mot.in_degrees if mot.in_degrees is not None else subject.format.angle_unit == "deg"
+    for s, side in SIDES.items():  # not a canonical angle: the model folds it into its ankle hinge
+        column = f"subtalar_angle_{s}"
+        if column in mot.table.columns:
+            values = mot.table[column].to_numpy(float)[keep]
+            out[f"subtalar_{side}"] = float(np.nanmedian(values if in_degrees else np.degrees(values)))
     need = [f"{j}_{s}" for j in CALIBRATED_JOINTS for s in ("left", "right")] + ["pelvis_tilt", "pelvis_list"]
     missing = [k for k in need if not np.isfinite(out.get(k, np.nan))]
     if missing:
         raise ScalingError(path, f"static IK lacks {', '.join(missing)} (needed by human.neutral: static_ik)")
     return out
+
+
+def calcaneus_dorsiflexion_deg(ankle_deg: float, subtalar_deg: float, talocrural_axis: np.ndarray,
+                               subtalar_axis: np.ndarray) -> float:
+    """Rotation of the calcaneus about the talocrural axis (deg, + = dorsiflexion) for an OpenSim
+    foot turned by `ankle_deg` about the talocrural axis, then `subtalar_deg` about the subtalar
+    axis (both unit vectors in the same frame): the twist part of that composite rotation. The
+    model's one-hinge foot carries the calcaneus' markers, so this is its hinge angle; to first
+    order ankle + (subtalar axis . talocrural axis) x subtalar."""
+    h, n = _unit(np.asarray(talocrural_axis, float)), _unit(np.asarray(subtalar_axis, float))
+    rot = rot_axis(h, np.radians(ankle_deg)) @ rot_axis(n, np.radians(subtalar_deg))
+    quat = np.empty(4)
+    mujoco.mju_mat2Quat(quat, rot.ravel())
+    return float(np.degrees(2.0 * np.arctan2(quat[1:] @ h, quat[0])))
 
 
 def rot_x(angle_rad: float) -> np.ndarray:
@@ -316,9 +339,13 @@ def scale_subject(subject: Subject, manifest: Manifest, p: HumanParams) -> Scale
         jc[f"heel_{s}"], jc[f"toe_{s}"] = heel, toe
         axis = jc.get(f"knee_axis_{s}", pelvis_y)
         if neutral == "static_ik":
-            thigh, shank, foot = _calibrated_leg(frames["pelvis"], ik, s, axis,
-                                                 jc.get(f"ankle_axis_{s}", axis) if p.ankle_axis == "malleoli"
-                                                 else axis, angles, hinge_axes)
+            leg_ik = dict(ik)
+            leg_ik[f"ankle_dorsiflexion_{side}"] = calcaneus_dorsiflexion_deg(
+                ik[f"ankle_dorsiflexion_{side}"], ik.get(f"subtalar_{side}", 0.0),
+                np.array(p.talocrural_axis), np.array(p.subtalar_axis))
+            ankle_axis = jc.get(f"ankle_axis_{s}", axis) if p.ankle_axis == "malleoli" else axis
+            thigh, shank, foot = _calibrated_leg(frames["pelvis"], leg_ik, s, axis, ankle_axis, angles,
+                                                 hinge_axes)
             frames.update({f"thigh_{s}": thigh, f"shank_{s}": shank, f"foot_{s}": foot})
             continue
         thigh = frame_from_zy(jc[f"hip_{s}"] - jc[f"knee_{s}"], axis)

@@ -192,10 +192,12 @@ def test_upright_at_qpos0_feet_flat_in_the_static_pose(human):
     assert np.abs(bottoms).max() < 0.01  # flat on the floor to within 1 cm
 
 
-def test_static_pose_joint_angles_equal_the_static_ik(human):
+def test_static_pose_joint_angles_equal_the_static_ik(human, params):
     """Static calibration (`human.neutral: static_ik`): the model's joint angles in its static pose
     are the dataset's own IK angles of that pose (opencap4: static1_ik.mot; camargo: the median of
-    the walking IK over the quiet-standing window), read here independently of sim.scaling."""
+    the walking IK over the quiet-standing window), read here independently of sim.scaling. The
+    ankle hinge carries the calcaneus: ankle angle + (subtalar axis . talocrural axis) x subtalar
+    angle to first order."""
     from ingest.canonical import canonical_angles
     from ingest.readers import read_mot
     from sim.retarget import joint_angles
@@ -203,6 +205,7 @@ def test_static_pose_joint_angles_equal_the_static_ik(human):
     subject, body, model = human
     assert body.neutral == "static_ik" and subject.static.angles is not None
     mot = read_mot(Manifest.load().resolve(subject.static.angles))
+    assert mot.in_degrees is False
     real = canonical_angles(mot, subject.format, None)
     keep = np.ones(len(mot.time_s), bool)
     if subject.static.window_s:
@@ -212,7 +215,15 @@ def test_static_pose_joint_angles_equal_the_static_ik(human):
                                   "ankle_dorsiflexion") for s in ("left", "right")]
     names += ["pelvis_tilt", "pelvis_list"]
     for name in names:
+        if name.startswith("ankle"):
+            continue
         assert sim[name][0] == pytest.approx(np.median(real[name][keep]), abs=1e-3), name
+    share = float(np.dot(params.subtalar_axis, params.talocrural_axis))
+    assert share == pytest.approx(-0.31, abs=0.01)
+    for s, side in (("l", "left"), ("r", "right")):
+        subtalar = np.degrees(np.median(mot.table[f"subtalar_angle_{s}"].to_numpy(float)[keep]))  # radians
+        expected = np.median(real[f"ankle_dorsiflexion_{side}"][keep]) + share * subtalar
+        assert sim[f"ankle_dorsiflexion_{side}"][0] == pytest.approx(expected, abs=0.3), (side, subtalar)
     # the hinge axes stay anatomical: the knee axis is the static knee axis (markers / pelvis)
     data = static_data(model)
     for s in "lr":
@@ -267,6 +278,18 @@ def test_simulated_trial_is_a_canonical_trial(human):
         assert trial.angles[name].shape == (50,)
     assert trial.angles["knee_flexion_right"][0] == pytest.approx(
         np.degrees(body.static_angles_rad["knee_r"]), abs=1e-3)
+
+
+def test_calcaneus_angle_is_the_twist_about_the_talocrural_axis():
+    from sim.scaling import calcaneus_dorsiflexion_deg
+
+    h, n = np.array([-0.105, -0.174, 0.979]), np.array([0.787, 0.605, -0.121])
+    h, n = h / np.linalg.norm(h), n / np.linalg.norm(n)
+    assert calcaneus_dorsiflexion_deg(12.0, 0.0, h, n) == pytest.approx(12.0, abs=1e-9)
+    assert calcaneus_dorsiflexion_deg(12.0, -20.0, h, h) == pytest.approx(-8.0, abs=1e-9)
+    assert calcaneus_dorsiflexion_deg(0.0, 10.0, h, n) == pytest.approx(10.0 * (h @ n), abs=0.1)
+    side = np.cross(h, [0.0, 1.0, 0.0])
+    assert abs(calcaneus_dorsiflexion_deg(5.0, 10.0, h, side / np.linalg.norm(side)) - 5.0) < 0.2
 
 
 def test_errors_name_the_problem(params, manifest, tmp_path):
