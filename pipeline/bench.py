@@ -113,7 +113,7 @@ def meets(section: dict, targets: dict[str, float]) -> bool:
     return all(section[k] <= v if k.endswith("_s") else section[k] >= v for k, v in targets.items())
 
 
-SECTIONS = ("ingest", "retarget", "human", "store", "rollout")
+SECTIONS = ("ingest", "retarget", "human", "store", "rollout", "train")
 
 
 def run_ingest_bench(p: IngestParams, repeat: int) -> dict:
@@ -155,6 +155,10 @@ def run_bench(p: IngestParams, repeat: int = 5, params: dict | None = None,
             from pipeline.store_bench import STORE_TARGETS, time_store
 
             section, targets = time_store(params, min(repeat, 3)), STORE_TARGETS
+        elif name == "train":
+            from pipeline.train_bench import TRAIN_TARGETS, time_training
+
+            section, targets = time_training(params), TRAIN_TARGETS
         else:
             from pipeline.rollout_bench import run_rollout_bench
 

@@ -94,12 +94,41 @@ def cmd_scale(args: argparse.Namespace) -> int:
 def cmd_simulate(args: argparse.Namespace) -> int:
     from pipeline.simulate_stage import DEFAULT_ROOT, REPORTS_ROOT, run_simulate
 
+    if getattr(args, "human", "replay") == "policy":
+        from pipeline.policy_stage import run_simulate_policy
+
+        doc = run_simulate_policy(args.subject, load_params(args.params), args.params,
+                                  args.root or DEFAULT_ROOT)
+        print(f"{args.subject} policy: falls {doc['falls']}, {doc['conditions']}", file=sys.stderr)
+        return 0
+
     doc = run_simulate(args.subject, load_params(args.params), args.params, args.root or DEFAULT_ROOT,
                        args.reports or REPORTS_ROOT)
     for cond, m in doc["conditions"].items():
         print(f"{args.subject} {cond}: mean |e_x| {m['mean_abs_e_x_cm']:.2f} cm, mean |e_y| "
               f"{m['mean_abs_e_y_cm']:.2f} cm, harness force RMS {m['harness_force_rms_n']:.1f} N, "
               f"falls {m['falls']}", file=sys.stderr)
+    return 0
+
+
+def cmd_train(args: argparse.Namespace) -> int:
+    from pipeline.policy_stage import run_train
+
+    rec = run_train(args.subject, load_params(args.params), args.params, n_envs=args.n_envs,
+                    threads=args.threads, steps=args.steps, resume=args.resume, max_wall_s=args.max_wall_s,
+                    subprocess=True if args.subprocess else None)
+    print(f"{args.subject}: policy at {rec['steps']} steps, {rec['wall_s']:.0f} s of training in total",
+          file=sys.stderr)
+    return 0
+
+
+def cmd_evaluate_policy(args: argparse.Namespace) -> int:
+    from pipeline.policy_stage import evaluate_policy
+
+    doc = evaluate_policy(args.subject, load_params(args.params), args.params, progress=not args.json)
+    if args.out:
+        write_json(args.out, doc)
+    print(json_text(doc), end="")
     return 0
 
 
@@ -173,7 +202,26 @@ def build_parser() -> argparse.ArgumentParser:
                           "(default: data/processed)")
     simulate.add_argument("--reports", type=Path, help="figure to <reports>/<subject>/ "
                           "(default: reports)")
+    simulate.add_argument("--human", choices=("replay", "policy"), default="replay",
+                          help="replay: kinematic replay (default); policy: the trained walking policy, "
+                          "written to <root>/<subject>/sim_policy/")
     simulate.set_defaults(func=cmd_simulate)
+
+    train = commands.add_parser("train", help="train the subject's walking policy (PPO + AMP)")
+    train.add_argument("subject")
+    train.add_argument("--n-envs", type=int, help="parallel environments (default: params train.n_envs)")
+    train.add_argument("--threads", type=int, help="torch threads (default: params train.threads)")
+    train.add_argument("--steps", type=int, help="total env steps (default: params train.total_steps)")
+    train.add_argument("--resume", action="store_true", help="continue from data/policies/<subject>/")
+    train.add_argument("--max-wall-s", type=float, help="stop (with a checkpoint) after this long")
+    train.add_argument("--subprocess", action="store_true", help="one process per environment")
+    train.set_defaults(func=cmd_train)
+
+    evaluate = commands.add_parser("evaluate-policy", help="issue-6 checks of the trained walking policy")
+    evaluate.add_argument("subject")
+    evaluate.add_argument("--json", action="store_true", help="JSON only on stdout (no progress bar)")
+    evaluate.add_argument("--out", type=Path, help="also write the JSON here")
+    evaluate.set_defaults(func=cmd_evaluate_policy)
 
     render = commands.add_parser("render", help="mp4 of one replay rollout (offscreen MuJoCo)")
     render.add_argument("subject")

@@ -15,6 +15,7 @@ SB3's Adam; network sizes are params.
 from __future__ import annotations
 
 import csv
+import hashlib
 import json
 import time
 from collections.abc import Callable
@@ -33,6 +34,7 @@ from sim.reference import ReferenceCycle
 from sim.walk_env import AMP_SIZE, WalkEnv, WalkEnvParams, make_walk_env
 
 POLICY_FILE, NORM_FILE, AMP_FILE, PROGRESS_FILE = "policy.zip", "vecnormalize.pkl", "amp.pt", "progress.json"
+BODY_FILE, CYCLE_FILE = "human.xml", "cycle.npz"  # the body and reference cycle the policy was trained on
 
 
 @dataclass(frozen=True)
@@ -196,13 +198,16 @@ def train(model_path: str | Path, cycle: ReferenceCycle, p: TrainParams, out_dir
     steps0 = int(prior.get("steps", 0))
     wall0 = float(prior.get("wall_s", 0.0))
     runs = list(prior.get("runs", []))
+    model_sha = hashlib.sha256(Path(model_path).read_bytes()).hexdigest()[:16]
 
     def save() -> dict:
+        save_body(out, model_path, cycle)
         model.save(str(out / POLICY_FILE))
         venv.save(str(out / NORM_FILE))
         torch.save(amp.state_dict(), out / AMP_FILE)
         rec = {"steps": int(model.num_timesteps), "wall_s": round(wall0 + time.perf_counter() - start, 1),
-               "runs": runs + [{"command": command, "n_envs": n_envs, "threads": threads or p.threads,
+               "runs": runs + [{"command": command, "human_xml_sha256_16": model_sha,
+                                "n_envs": n_envs, "threads": threads or p.threads,
                                 "steps": int(model.num_timesteps) - steps0,
                                 "wall_s": round(time.perf_counter() - start, 1)}]}
         last = rec["runs"][-1]
@@ -222,6 +227,24 @@ def train(model_path: str | Path, cycle: ReferenceCycle, p: TrainParams, out_dir
     return rec
 
 
+def save_body(out_dir: str | Path, model_path: str | Path, cycle: ReferenceCycle) -> None:
+    """Keep the human model and reference cycle a policy was trained on beside it: a policy is bound
+    to that body (joint frames, segment lengths) and is evaluated on it."""
+    out = Path(out_dir)
+    src = Path(model_path).read_bytes()
+    if not (out / BODY_FILE).exists() or (out / BODY_FILE).read_bytes() != src:
+        (out / BODY_FILE).write_bytes(src)
+    np.savez(out / CYCLE_FILE, **{f.name: np.asarray(getattr(cycle, f.name)) for f in fields(ReferenceCycle)})
+
+
+def load_body(out_dir: str | Path) -> tuple[Path, ReferenceCycle]:
+    """(human.xml path, reference cycle) a policy was trained on (`save_body`)."""
+    out = Path(out_dir)
+    with np.load(out / CYCLE_FILE, allow_pickle=False) as z:
+        kw = {k: (z[k].item() if z[k].ndim == 0 else z[k]) for k in z.files}
+    return out / BODY_FILE, ReferenceCycle(**kw)
+
+
 def load_policy(out_dir: str | Path) -> tuple[PPO, VecNormalize | None]:
     """The trained PPO policy and its observation normaliser (for `PolicyHuman`)."""
     out = Path(out_dir)
@@ -234,5 +257,5 @@ def load_policy(out_dir: str | Path) -> tuple[PPO, VecNormalize | None]:
     return model, norm
 
 
-__all__ = ["AMP_FILE", "NORM_FILE", "POLICY_FILE", "PROGRESS_FILE", "TrainParams", "load_policy",
-           "make_vec_env", "train"]
+__all__ = ["AMP_FILE", "BODY_FILE", "CYCLE_FILE", "NORM_FILE", "POLICY_FILE", "PROGRESS_FILE", "TrainParams",
+           "load_body", "load_policy", "make_vec_env", "save_body", "train"]

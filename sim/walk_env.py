@@ -37,6 +37,9 @@ from sim.human_params import joint_kind
 from sim.reference import ReferenceCycle
 
 SIDES = ("l", "r")
+HUMAN_ACTUATORS = ("lumbar_x", "lumbar_y", "lumbar_z", "hip_l_x", "hip_l_y", "hip_l_z", "hip_r_x", "hip_r_y",
+                   "hip_r_z", "shoulder_l_x", "shoulder_l_y", "shoulder_l_z", "shoulder_r_x", "shoulder_r_y",
+                   "shoulder_r_z", "knee_l", "knee_r", "ankle_l", "ankle_r", "elbow_l", "elbow_r")
 OBS_SIZE = 72
 AMP_SIZE = 61
 
@@ -149,9 +152,10 @@ class ReferenceTable:
 
 
 class BodyIndex:
-    """Ids the env reads every step."""
+    """Ids the env reads every step: bodies, the human's root qpos / dof address, its 21 servos and
+    its 21 joint dofs (a world with the robot attached has more of each)."""
 
-    def __init__(self, model: mujoco.MjModel) -> None:
+    def __init__(self, model: mujoco.MjModel, root: str = "root") -> None:
         def body(name: str) -> int:
             i = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
             if i < 0:
@@ -160,6 +164,20 @@ class BodyIndex:
         self.pelvis = body("pelvis")
         self.torso = body("torso")
         self.feet = np.array([body(f"foot_{s}") for s in SIDES])
+        j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, root)
+        if j < 0:
+            raise SimulationError("human model", f"no free joint {root!r}")
+        self.root_q, self.root_d = int(model.jnt_qposadr[j]), int(model.jnt_dofadr[j])
+        act = mujoco.mjtObj.mjOBJ_ACTUATOR
+        self.act = np.array([mujoco.mj_name2id(model, act, n) for n in HUMAN_ACTUATORS])
+        if (self.act < 0).any():
+            raise SimulationError("human model", f"missing motors {np.array(HUMAN_ACTUATORS)[self.act < 0]}")
+        human_joints = [model.actuator_trnid[a, 0] for a in self.act]
+        dofs = sorted({int(model.jnt_dofadr[jj]) + k for jj in human_joints
+                       for k in range(3 if model.jnt_type[jj] == mujoco.mjtJoint.mjJNT_BALL else 1)})
+        self.jdof = np.array(dofs)
+        ball = mujoco.mjtJoint.mjJNT_BALL
+        self.nq = 7 + sum(4 if model.jnt_type[jj] == ball else 1 for jj in set(human_joints))
 
 
 def _heading(xmat_row: np.ndarray) -> tuple[float, float]:
@@ -185,7 +203,8 @@ def amp_features(data: mujoco.MjData, idx: BodyIndex, out: np.ndarray) -> None:
     heading frame, joint coordinates and velocities, end effectors relative to the root) into `out`."""
     c, s = _heading(data.xmat[idx.pelvis])
     r = data.xmat[idx.pelvis].reshape(3, 3)
-    out[0] = data.qpos[2]
+    q, d = idx.root_q, idx.root_d
+    out[0] = data.qpos[q + 2]
     # rotation without yaw: Rz(-yaw) R, first two columns
     out[1] = c * r[0, 0] + s * r[1, 0]
     out[2] = -s * r[0, 0] + c * r[1, 0]
@@ -194,13 +213,13 @@ def amp_features(data: mujoco.MjData, idx: BodyIndex, out: np.ndarray) -> None:
     out[5] = -s * r[0, 1] + c * r[1, 1]
     out[6] = r[2, 1]
     v = data.qvel
-    out[7] = c * v[0] + s * v[1]
-    out[8] = -s * v[0] + c * v[1]
-    out[9] = v[2]
-    out[10:13] = v[3:6]  # free-joint angular velocity is in the pelvis frame
-    nu = data.actuator_length.shape[0]
-    out[13:13 + nu] = data.actuator_length
-    out[13 + nu:13 + 2 * nu] = v[6:6 + nu]
+    out[7] = c * v[d] + s * v[d + 1]
+    out[8] = -s * v[d] + c * v[d + 1]
+    out[9] = v[d + 2]
+    out[10:13] = v[d + 3:d + 6]  # free-joint angular velocity is in the pelvis frame
+    nu = len(idx.act)
+    out[13:13 + nu] = data.actuator_length[idx.act]
+    out[13 + nu:13 + 2 * nu] = v[idx.jdof]
     out[13 + 2 * nu:] = feet_in_heading(data, idx)
 
 
@@ -336,19 +355,25 @@ class WalkEnv(gym.Env):
         return float(p.w_imitation * imitation + p.w_task * terms[5]), terms
 
     def _observe(self) -> np.ndarray:
-        o, a = self._obs, self._amp_cur
-        c, s = _heading(self.data.xmat[self.idx.pelvis])
-        o[0:7] = a[0:7]
-        o[7], o[8] = s, c
-        o[9:15] = a[7:13]
-        nu = self.model.nu
-        o[15:15 + 2 * nu] = a[13:13 + 2 * nu]
-        o[15 + nu:15 + 2 * nu] *= 0.1  # joint velocities to O(1)
-        o[57:63] = a[-6:]
-        o[63], o[64] = np.sin(2 * np.pi * self.phase), np.cos(2 * np.pi * self.phase)
-        o[65] = self.target_speed
-        o[66:72] = self.wrench * 0.01
-        return o.copy()
+        observe(self.data, self.idx, self._amp_cur, self.phase, self.target_speed, self.wrench, self._obs)
+        return self._obs.copy()
+
+
+def observe(data: mujoco.MjData, idx: BodyIndex, amp: np.ndarray, phase: float, target_speed_mps: float,
+            wrench: np.ndarray, out: np.ndarray) -> None:
+    """The policy observation (module docstring) into `out` (OBS_SIZE,), from the current AMP
+    features `amp` of the state in `data`."""
+    c, s = _heading(data.xmat[idx.pelvis])
+    out[0:7] = amp[0:7]
+    out[7], out[8] = s, c
+    out[9:15] = amp[7:13]
+    nu = len(idx.act)
+    out[15:15 + 2 * nu] = amp[13:13 + 2 * nu]
+    out[15 + nu:15 + 2 * nu] *= 0.1  # joint velocities to O(1)
+    out[57:63] = amp[-6:]
+    out[63], out[64] = np.sin(2 * np.pi * phase), np.cos(2 * np.pi * phase)
+    out[65] = target_speed_mps
+    out[66:72] = wrench * 0.01
 
 
 def make_walk_env(model_path: str | Path, cycle: ReferenceCycle, p: WalkEnvParams, seed: int | None = None,
@@ -361,5 +386,5 @@ def make_walk_env(model_path: str | Path, cycle: ReferenceCycle, p: WalkEnvParam
     return WalkEnv(model, cycle, p, target_speed_mps=target_speed_mps, seed=seed)
 
 
-__all__ = ["AMP_SIZE", "OBS_SIZE", "BodyIndex", "ReferenceTable", "WalkEnv", "WalkEnvParams", "amp_features",
-           "feet_in_heading", "make_walk_env", "pd_servo_spec"]
+__all__ = ["AMP_SIZE", "HUMAN_ACTUATORS", "OBS_SIZE", "BodyIndex", "ReferenceTable", "WalkEnv",
+           "WalkEnvParams", "amp_features", "feet_in_heading", "make_walk_env", "observe", "pd_servo_spec"]

@@ -1,0 +1,154 @@
+"""Walking environment, AMP discriminator, training loop and policy human on the real camargo model
+and reference cycle (the `scale` and `reference` stages' outputs)."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+
+import mujoco
+import numpy as np
+import pytest
+import torch
+from gymnasium.utils.env_checker import check_env
+
+from pipeline.params import PARAMS_FILE, REPO_ROOT, load_params
+from pipeline.policy_stage import train_section
+from sim.amp import AMP, style_reward
+from sim.human_params import HumanParams, joint_kind
+from sim.policy_human import PolicyHuman
+from sim.reference import load_reference
+from sim.rollout import RolloutParams, rollout
+from sim.train import load_policy, train
+from sim.walk_env import AMP_SIZE, OBS_SIZE, make_walk_env
+
+MODEL = REPO_ROOT / "data" / "processed" / "camargo" / "model"
+POLICY = REPO_ROOT / "data" / "policies" / "camargo"
+pytestmark = pytest.mark.skipif(not (MODEL / "reference.npz").exists(),
+                                reason="needs `dvc repro scale@camargo reference@camargo`")
+
+
+@pytest.fixture(scope="module")
+def setup():
+    params = load_params()
+    tp, ev = train_section(params, PARAMS_FILE)
+    cycle = load_reference(MODEL / "reference.npz").cycle
+    return params, tp, ev, cycle
+
+
+@pytest.fixture
+def env(setup):
+    _, tp, _, cycle = setup
+    return make_walk_env(MODEL / "human.xml", cycle, tp.env, seed=0)
+
+
+def test_env_api_passes_gymnasium_checker(env):
+    check_env(env, skip_render_check=True)
+    obs, _ = env.reset(seed=1)
+    assert obs.shape == (OBS_SIZE,) and np.isfinite(obs).all()
+    obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
+    assert info["amp"].shape == (2 * AMP_SIZE,) and 0.0 <= reward <= 1.0
+
+
+def test_servos_keep_the_literature_torque_limits(setup, env):
+    params, _, _, _ = setup
+    hp = HumanParams.from_dict(params["human"])
+    mass = float(env.model.body_mass.sum())
+    for a in range(env.model.nu):
+        kind = joint_kind(env.model.joint(env.model.actuator_trnid[a, 0]).name)
+        assert env.model.actuator_forcerange[a, 1] == pytest.approx(hp.torque_limit_nm_per_kg[kind] * mass,
+                                                                     rel=0.01)
+        assert env.model.actuator_gainprm[a, 0] == env.p.pd_kp_nm_per_rad[kind]
+
+
+def test_reference_state_init_and_imitation_reward(env, setup):
+    _, _, _, cycle = setup
+    env.reset(seed=0, options={"phase": 0.5, "pushes": False})
+    k = int(0.5 * len(cycle.phase))
+    assert np.allclose(env.data.qpos[2:], cycle.qpos[k, 2:]) and np.allclose(env.data.qpos[:2], 0)
+    assert np.allclose(env.data.qvel, cycle.qvel[k])
+    reward, terms = env._reward()
+    assert terms[0] > 0.999 and terms[2] > 0.999 and terms[3] > 0.999  # pose, feet, height on the reference
+    knee = env.model.joint("knee_r").qposadr[0]
+    env.data.qpos[knee] += 0.6
+    mujoco.mj_forward(env.model, env.data)
+    worse, terms_off = env._reward()
+    assert terms_off[0] < 0.6 and worse < reward
+
+
+def test_early_termination_on_a_fall(env):
+    env.reset(seed=0, options={"pushes": False})
+    assert not env.fallen()
+    env.data.qpos[2] = 0.3
+    mujoco.mj_forward(env.model, env.data)
+    assert env.fallen()
+    _, reward, terminated, truncated, _ = env.step(np.zeros(21))
+    assert terminated and not truncated and reward == 0.0
+
+
+def test_random_pushes_act_on_the_pelvis(setup):
+    _, tp, _, cycle = setup
+    p = replace(tp.env, push_probability=1.0, push_force_n=(100.0, 100.0), push_interval_s=(0.05, 0.05),
+                push_duration_s=0.1)
+    env = make_walk_env(MODEL / "human.xml", cycle, p, seed=3)
+    env.reset(seed=3)
+    seen = []
+    for _ in range(8):
+        env.step(np.zeros(21))
+        seen.append(np.linalg.norm(env.data.xfrc_applied[env.idx.pelvis, :2]))
+    assert max(seen) == pytest.approx(100.0) and min(seen) == 0.0
+
+
+def test_discriminator_separates_reference_from_other_motion(env, setup):
+    _, tp, _, _ = setup
+    rng = np.random.default_rng(0)
+    amp = AMP(2 * AMP_SIZE, replace(tp.amp, hidden=(64, 64), epochs=2, learning_rate=1e-3),
+              lambda n: env.ref.amp_pairs(rng, n, env.step_phase))
+    fake = env.ref.amp_pairs(rng, 1024, env.step_phase)
+    fake[:, 13:34] += 0.3  # joints offset by 0.3 rad: not the subject's motion
+    fake[:, AMP_SIZE + 13:AMP_SIZE + 34] += 0.3
+    for _ in range(10):
+        stats = amp.update(fake)
+    assert stats["disc_acc_reference"] > 0.9 and stats["disc_acc_policy"] > 0.9
+    real = env.ref.amp_pairs(rng, 512, env.step_phase)
+    assert amp.reward(real).mean() > amp.reward(fake[:512]).mean() + 0.3
+    assert float(style_reward(torch.tensor(1.0))) == 1.0 and float(style_reward(torch.tensor(-1.0))) == 0.0
+
+
+def test_short_training_run_checkpoints_and_resumes(tmp_path, setup):
+    _, tp, _, cycle = setup
+    p = replace(tp, n_steps=128, batch_size=256, n_epochs=1, net_arch=(32, 32),
+                amp=replace(tp.amp, hidden=(32, 32)))
+    rec = train(MODEL / "human.xml", cycle, p, tmp_path, n_envs=2, threads=1, total_steps=512, progress=False)
+    assert rec["steps"] >= 512
+    for name in ("policy.zip", "vecnormalize.pkl", "amp.pt", "progress.json"):
+        assert (tmp_path / name).exists()
+    rec2 = train(MODEL / "human.xml", cycle, p, tmp_path, n_envs=2, threads=1, total_steps=1024, resume=True,
+                 progress=False)
+    assert rec2["steps"] >= 1024 and len(rec2["runs"]) == 2
+    logged = tmp_path / "dvclive" / "metrics.json"
+    metrics = json.loads(logged.read_text())["train"] if logged.exists() else None
+    if metrics is None:  # dvclive not installed: CSV
+        assert (tmp_path / "metrics.csv").read_text().count("\n") >= 2
+    else:
+        assert {"disc_acc_reference", "style_reward", "r_pose"} <= set(metrics)
+
+
+@pytest.mark.skipif(not (POLICY / "policy.zip").exists(), reason="no committed camargo policy")
+def test_committed_policy_walks_through_the_rollout_engine(setup):
+    params, tp, ev, cycle = setup
+    model, norm = load_policy(POLICY)
+    env = make_walk_env(MODEL / "human.xml", cycle, tp.env)
+
+    def policy(obs):
+        return model.predict(norm.normalize_obs(obs), deterministic=True)[0]
+
+    human = PolicyHuman(policy, env.model, cycle, tp.env, 3.0, start_phase=0.3)
+    from pipeline.robot_config import robot_params
+
+    p = RolloutParams(robot=robot_params(params), sample_rate_hz=100.0, with_robot=False)
+    result = rollout(mujoco.MjSpec.from_file(str(MODEL / "human.xml")), human, None, p, 0)
+    assert result.stable and human.fall_time_s is None
+    assert result.human_qpos.shape == (301, env.model.nq)
+    speed = (result.human_qpos[-1, 0] - result.human_qpos[0, 0]) / 3.0
+    assert speed == pytest.approx(cycle.speed_mps, rel=0.15)
