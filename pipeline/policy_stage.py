@@ -7,7 +7,8 @@ commands, steps and wall time of every run; metrics via dvclive or metrics.csv).
 Policy rollouts: the trained policy drives the human through `sim.rollout.rollout` (the same code
 as the replay human) in the conditions free / pid / adaptive; each rollout becomes a canonical sim
 `Trial` through the virtual markers and is processed by `ingest.process.process_trial`, like the
-replay rollouts. `simulate --human policy` writes them to `<root>/<subject>/sim_policy/`.
+replay rollouts. `simulate --human policy` writes them to `<root>/<subject>/sim_policy/` with the
+metrics tables (gait, compliance, harness) of the policy mode.
 
 `evaluate-policy`: the checks of issue 6 (10 seeded 20-s free walks: falls, gait speed and stride
 length vs the real kept strides, knee flexion peak in swing; pid and adaptive 15-s walks; a 200 N,
@@ -231,6 +232,14 @@ def run_simulate_policy(subject: str, params: dict, path, root: Path = DEFAULT_R
             for c in r.get("conditions", ["free"]) for s in range(int(r.get("n_seeds", 3)))]
     results = policy_rollouts(subject, params, path, jobs, root, policy_root, progress=progress)
     tables = _tables(results)
+    # the metrics issue's tables for the policy mode (metrics/ library, same functions as the stage)
+    from metrics.compliance import compliance_table
+    from metrics.gait import gait_table
+    from metrics.harness import harness_table
+
+    tables["metrics_gait"] = gait_table(tables["strides"])
+    tables["metrics_compliance"] = compliance_table(tables["robot"])
+    tables["metrics_harness"] = harness_table(tables["robot"])
     summary = {"human_mode": "policy", "rollouts": len(results),
                "falls": {c: sum(_fell(x) for x in results if x["job"].condition == c) for c in
                          sorted({x["job"].condition for x in results})},

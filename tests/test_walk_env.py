@@ -19,7 +19,7 @@ from sim.human_params import HumanParams, joint_kind
 from sim.policy_human import PolicyHuman
 from sim.reference import load_reference
 from sim.rollout import RolloutParams, rollout
-from sim.train import load_policy, train
+from sim.train import load_body, load_policy, train
 from sim.walk_env import AMP_SIZE, OBS_SIZE, make_walk_env
 
 MODEL = REPO_ROOT / "data" / "processed" / "camargo" / "model"
@@ -136,9 +136,10 @@ def test_short_training_run_checkpoints_and_resumes(tmp_path, setup):
 
 @pytest.mark.skipif(not (POLICY / "policy.zip").exists(), reason="no committed camargo policy")
 def test_committed_policy_walks_through_the_rollout_engine(setup):
-    params, tp, ev, cycle = setup
+    params, tp, _, _ = setup
     model, norm = load_policy(POLICY)
-    env = make_walk_env(MODEL / "human.xml", cycle, tp.env)
+    body, cycle = load_body(POLICY)  # the body the policy was trained on
+    env = make_walk_env(body, cycle, tp.env)
 
     def policy(obs):
         return model.predict(norm.normalize_obs(obs), deterministic=True)[0]
@@ -147,7 +148,7 @@ def test_committed_policy_walks_through_the_rollout_engine(setup):
     from pipeline.robot_config import robot_params
 
     p = RolloutParams(robot=robot_params(params), sample_rate_hz=100.0, with_robot=False)
-    result = rollout(mujoco.MjSpec.from_file(str(MODEL / "human.xml")), human, None, p, 0)
+    result = rollout(mujoco.MjSpec.from_file(str(body)), human, None, p, 0)
     assert result.stable and human.fall_time_s is None
     assert result.human_qpos.shape == (301, env.model.nq)
     speed = (result.human_qpos[-1, 0] - result.human_qpos[0, 0]) / 3.0
