@@ -92,7 +92,7 @@ def run_render(subject_id: str, condition: str, params: dict, path, root: Path =
         if condition not in section.controllers:
             raise SimulationError(subject_id, f"condition {condition!r} is neither free nor in "
                                   "robot.controllers")
-        ctrl = make_controller(section.controllers[condition], robot_info(section.robot, rate))
+        ctrl = make_controller(section.controllers[condition], robot_info(section.robot))
     physics = build_world(spec, human, p)
     result = rollout(spec, human, ctrl, p, seed, model=physics)
     frames = render_frames(physics, result.world_qpos, spec, result.human_qpos, rate, with_robot,

@@ -128,7 +128,7 @@ def _run_job(job: Job) -> dict:
     if with_robot:
         if job.condition not in section.controllers:
             raise SimulationError(f"rollout.conditions: {job.condition}", "not in robot.controllers")
-        ctrl = make_controller(section.controllers[job.condition], robot_info(section.robot, rate))
+        ctrl = make_controller(section.controllers[job.condition], robot_info(section.robot))
     motion = with_lead_in(Motion(t - t[0], q), job.stride_s, section.lead_in_s, section.lead_in_ramp_s)
     human = ReplayHuman(motion, w["replay"])
     result = rollout(w["spec"], human, ctrl, p, job.seed)

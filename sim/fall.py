@@ -9,9 +9,8 @@ user leaving the arm's workspace). It latches: once detected, the robot locks th
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
-
-import numpy as np
 
 from sim.controllers.base import RobotSensors
 from sim.robot import FallParams
@@ -30,7 +29,7 @@ class FallDetector:
         """True from the first sample that meets the rule on."""
         if not self.detected:
             z, zd = s.arm_q[2], s.arm_qd[2]
-            deflection = float(np.hypot(s.arm_q[0], s.arm_q[1]))
+            deflection = math.hypot(s.arm_q[0], s.arm_q[1])
             if zd < -self.p.drop_speed_mps or z < -self.p.drop_m or deflection > self.p.deflection_m:
                 self.detected, self.time_s = True, s.time_s
         return self.detected

@@ -106,3 +106,16 @@ def harness_wrench(data: mujoco.MjData, idx: HarnessIndex) -> np.ndarray:
     """
     passive = data.qfrc_spring[idx.dof] + data.qfrc_damper[idx.dof]
     return -(passive + limit_forces(data, idx))
+
+
+def wrench_from_sensors(model: mujoco.MjModel, idx: HarnessIndex, q: np.ndarray, qd: np.ndarray,
+                        limit: np.ndarray) -> np.ndarray:
+    """`harness_wrench` for many samples at once from the robot's harness sensors (n, 6) each:
+    joint positions, velocities and joint-limit forces (>= 0, pushing back into the range).
+
+    ``k (q - q_spring) + d q' + sign(q) f_limit``: the negated spring, damper and limit forces.
+    """
+    k = model.jnt_stiffness[idx.joints]
+    d = model.dof_damping[idx.dof]
+    q_spring = model.qpos_spring[idx.qpos]
+    return k * (q - q_spring) + d * qd + np.sign(q) * limit

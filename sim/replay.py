@@ -2,8 +2,9 @@
 
 A driver adapts the human part of the world before the robot is attached (`prepare`), sets the
 human's initial state (`reset`), acts once per output sample before the physics steps
-(`before_sample`), and returns the human's joint positions per sample in the human model's own qpos
-layout (`qpos_samples`, what the virtual markers need). A torque-driven `PolicyHuman` implements the
+(`before_sample`), records what it needs after them (`record`), and returns the human's joint
+positions per sample in the human model's own qpos layout (`qpos_samples`, what the virtual markers
+need). A torque-driven `PolicyHuman` implements the
 same methods; the rollout and robot code do not change.
 
 `ReplayHuman` (human mode ``replay``) makes the subject's recorded motion drive the human:
@@ -112,6 +113,14 @@ def quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def quat_conj(q: np.ndarray) -> np.ndarray:
     return q * np.array([1, -1, -1, -1])
+
+
+def _strided(arr: np.ndarray, idx: np.ndarray) -> np.ndarray | None:
+    """`arr[idx]` as a view when the indices are evenly spaced and increasing, else None."""
+    step = int(idx[1] - idx[0])
+    if step <= 0 or not np.all(np.diff(idx) == step):
+        return None
+    return arr[idx[0]:idx[-1] + 1:step]
 
 
 def interpolate_qpos(motion: Motion, times_s: np.ndarray, root_adr: int) -> np.ndarray:
@@ -260,20 +269,34 @@ class ReplayHuman(HumanDriver):
         data.qpos[self.qadr] = self.target[0]
         data.qvel[self.dadr] = self.rate[0]
         data.act[self.act_adr] = self.target[0]
+        # views of the servo states: the drive actuators come in (position, velocity) pairs per joint,
+        # so their controls are one contiguous block set from the rate repeated pairwise
+        act = _strided(data.act, self.act_adr)
+        pairs = np.column_stack([self.pos_act, self.vel_act]).ravel()
+        ctrl = data.ctrl[pairs[0]:pairs[0] + 12] if np.array_equal(pairs, pairs[0] + np.arange(12)) else None
+        self._act_view, self._ctrl_view = act, ctrl
+        self._rate2 = np.repeat(self.rate, 2, axis=1)
         self.drive_q = np.zeros((len(sample_times_s), 6))
+        self._q_view = _strided(data.qpos, self.qadr)
 
     def before_sample(self, model: mujoco.MjModel, data: mujoco.MjData, k: int) -> None:
+        """Servo targets for the sample interval from k: position now, velocity of the linear segment."""
+        if self._act_view is not None and self._ctrl_view is not None:
+            self._act_view[:] = self.target[k]
+            self._ctrl_view[:] = self._rate2[k]
+            return
         data.act[self.act_adr] = self.target[k]
         data.ctrl[self.pos_act] = self.rate[k]
         data.ctrl[self.vel_act] = self.rate[k]
 
     def record(self, model: mujoco.MjModel, data: mujoco.MjData, k: int) -> None:
-        self.drive_q[k] = data.qpos[self.qadr]
+        self.drive_q[k] = self._q_view if self._q_view is not None else data.qpos[self.qadr]
 
     def qpos_samples(self) -> np.ndarray:
         """Reference joints at the sample times with the simulated pelvis pose as the free root."""
         q = interpolate_qpos(self.motion, self.times_s + self.motion.time_s[0], self.root_adr)
+        drive_q = self.drive_q
         a = self.root_adr
-        q[:, a:a + 3] = self.p0 + self.drive_q[:, :3]
-        q[:, a + 3:a + 7] = quat_mul(self.q0, zyx_to_quat(self.drive_q[:, 3:]))
+        q[:, a:a + 3] = self.p0 + drive_q[:, :3]
+        q[:, a + 3:a + 7] = quat_mul(self.q0, zyx_to_quat(drive_q[:, 3:]))
         return q

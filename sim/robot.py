@@ -23,6 +23,11 @@ Model (every name prefixed ``mrba_``):
   centre at the user's standing pelvis height. ``mrba_neutral`` is a site at that point on the base.
 - ``mrba_lock_*``: joint equality constraints, inactive until a fall locks the arm.
 - The harness (sim.harness) hangs from the arm's end body ``mrba_arm_z``.
+- Sensors (``mrba_sens_*``, `SENSORS`, one contiguous block of ``data.sensordata``): the harness
+  body's position in the neutral-point frame (e_x, e_y, e_z in the robot frame), base joint positions
+  and velocities (odometry), and per harness DoF its position, velocity and joint-limit force, from
+  which the harness wrench follows exactly (`sim.harness.wrench_from_sensors`). A rollout records the
+  block with one array copy per output sample.
 """
 
 from __future__ import annotations
@@ -35,13 +40,17 @@ import mujoco
 import numpy as np
 
 from sim.errors import SimulationError
-from sim.harness import HarnessParams, add_harness
+from sim.harness import HARNESS_JOINTS, HarnessParams, add_harness
 
 PREFIX = "mrba_"
 BASE_JOINTS = ("mrba_base_x", "mrba_base_y", "mrba_base_yaw")
 ARM_JOINTS = ("mrba_arm_x", "mrba_arm_y", "mrba_arm_z")
 DRIVE_ACTUATORS = ("mrba_drive_x", "mrba_drive_y", "mrba_drive_yaw")
 LOCKS = ("mrba_lock_x", "mrba_lock_y", "mrba_lock_z")
+# sensordata block of the robot: name -> (start, width) relative to the block's first value
+SENSORS = {"e": (0, 3), "base_pos": (3, 3), "base_vel": (6, 3), "harness_pos": (9, 6), "harness_vel": (15, 6),
+           "harness_limit": (21, 6)}
+SENSOR_WIDTH = 27
 
 
 @dataclass(frozen=True)
@@ -62,6 +71,7 @@ class BaseParams:
     max_accel_mps2: float = 1.5
     max_yaw_accel_rps2: float = 4.0
     latency_s: float = 0.03
+    control_rate_hz: float = 100.0
 
 
 @dataclass(frozen=True)
@@ -184,6 +194,21 @@ def attach_robot(spec: mujoco.MjSpec, p: RobotParams, harness_body: str = "pelvi
         act.forcelimited = True
         act.forcerange = [-lim, lim]
     add_harness(spec, parent, harness_body, p.harness, pelvis_quat)
+    add_sensors(spec, harness_body)
+
+
+def add_sensors(spec: mujoco.MjSpec, harness_body: str) -> None:
+    """The robot's sensor block (`SENSORS` order); see the module docstring."""
+    S, obj = mujoco.mjtSensor, mujoco.mjtObj
+    spec.add_sensor(name="mrba_sens_e", type=S.mjSENS_FRAMEPOS, objtype=obj.mjOBJ_XBODY, objname=harness_body,
+                    reftype=obj.mjOBJ_SITE, refname="mrba_neutral")
+    for kind, stype in (("pos", S.mjSENS_JOINTPOS), ("vel", S.mjSENS_JOINTVEL)):
+        for j in BASE_JOINTS:
+            spec.add_sensor(name=f"mrba_sens_{kind}_{j}", type=stype, objtype=obj.mjOBJ_JOINT, objname=j)
+    harness_kinds = (("pos", S.mjSENS_JOINTPOS), ("vel", S.mjSENS_JOINTVEL), ("lim", S.mjSENS_JOINTLIMITFRC))
+    for kind, stype in harness_kinds:
+        for j in HARNESS_JOINTS:
+            spec.add_sensor(name=f"mrba_sens_{kind}_{j}", type=stype, objtype=obj.mjOBJ_JOINT, objname=j)
 
 
 @dataclass(frozen=True)
@@ -198,6 +223,7 @@ class RobotIndex:
     locks: np.ndarray
     neutral_site: int
     base_body: int
+    sensor_adr: int  # first value of the robot's sensor block in data.sensordata
 
     @classmethod
     def of(cls, model: mujoco.MjModel) -> RobotIndex:
@@ -217,6 +243,8 @@ class RobotIndex:
             locks=np.array([mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_EQUALITY, n) for n in LOCKS]),
             neutral_site=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, "mrba_neutral"),
             base_body=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "mrba_base"),
+            sensor_adr=int(model.sensor_adr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SENSOR,
+                                                               "mrba_sens_e")]),
         )
 
 
@@ -229,9 +257,10 @@ def lock_arm(model: mujoco.MjModel, data: mujoco.MjData, idx: RobotIndex) -> Non
 class BaseDrive:
     """Differential-drive command path: latency FIFO, saturation, acceleration limits, servo targets.
 
-    Commands (forward speed, yaw rate) are delayed by `latency_s` (rounded to control samples),
-    clipped to the speed limits and rate-limited by the acceleration limits, then written as the
-    velocity-servo targets of the planar base joints.
+    Commands (forward speed, yaw rate) are delayed by `latency_s` (rounded to control ticks of
+    `dt_s`), clipped to the speed limits and rate-limited by the acceleration limits, then written as
+    the velocity-servo targets of the planar base joints once per control tick (the base heading
+    changes by < 0.02 rad within a 10 ms tick, so the non-holonomic targets stay aligned).
     """
 
     def __init__(self, p: BaseParams, dt_s: float) -> None:

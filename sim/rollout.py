@@ -1,12 +1,19 @@
 """Closed-loop rollouts: a human driver, the MRBA (optional) and a follow-me controller, one seed.
 
 `rollout` is a pure function of (world, human driver, controller, params, seed): it builds its own
-model, so it can be called many times and in parallel processes. Physics runs at the largest step
-<= `max_physics_dt_s` that divides the output sample period; the controller, the fall rule, the
-drive and the human driver act once per output sample (the real capture rate, 100-200 Hz), and the
-`mj_step(..., nstep)` call in between runs in C. Each sample records the state at the start of the
-last physics step (MuJoCo's derived quantities of that step): e, harness wrench and base state share
-that instant.
+model, so it can be called many times and in parallel processes.
+
+Timing: the controller, the fall rule and the drive act once per control tick (`control_rate_hz`,
+100 Hz as on a real mobile base: the command path of a differential drive); the human driver acts
+once per output sample (the real capture rate, 100-200 Hz); physics runs at the largest step <=
+`max_physics_dt_s` dividing both periods, and the `mj_step(..., nstep)` calls in between run in C.
+Per control tick the Python work is a handful of float operations: sensors are read from contiguous
+`qpos` / `qvel` views as floats into one reused `RobotSensors`, the controller answers a `BaseCommand`
+tuple, the drive writes three servo targets into a `ctrl` view. Per output sample the rollout copies
+`qpos` and the robot's sensor block (sim.robot `SENSORS`) into preallocated arrays; the robot table
+(e_x, e_y, base state, harness wrench, commands, fall flags) is computed from them with numpy after
+the loop. Recorded sensors are MuJoCo's values of the last physics step (evaluated at its start, one
+step before the sample instant; at t = 0, the initial state).
 
 The seed sets the robot's start offset (arm deflection uniform in +-`start_offset_m`, x and y) and
 the sensor noise of the arm and odometry.
@@ -17,6 +24,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
+from fractions import Fraction
 
 import mujoco
 import numpy as np
@@ -25,9 +33,9 @@ import pandas as pd
 from sim.controllers.base import BaseCommand, Controller, RobotInfo, RobotSensors
 from sim.errors import SimulationError
 from sim.fall import FallDetector
-from sim.harness import HarnessIndex, harness_wrench
+from sim.harness import HarnessIndex, wrench_from_sensors
 from sim.replay import HumanDriver, quat_conj, quat_mul, quat_to_zyx
-from sim.robot import BaseDrive, RobotIndex, RobotParams, attach_robot, lock_arm
+from sim.robot import SENSOR_WIDTH, SENSORS, BaseDrive, RobotIndex, RobotParams, attach_robot, lock_arm
 
 ROBOT_COLUMNS = ["subject", "source", "human_mode", "condition", "trial", "seed", "time_s", "e_x_m", "e_y_m",
                  "base_x_m", "base_y_m", "base_yaw_rad", "base_speed_mps", "base_yaw_rate_rps",
@@ -50,6 +58,11 @@ class RolloutParams:
     trial: str = ""
     discard_s: float = 0.0  # lead-in simulated but not returned; returned time 0 is this instant
 
+    @property
+    def control_rate_hz(self) -> float:
+        """The robot's control rate (params `robot.base.control_rate_hz`)."""
+        return self.robot.base.control_rate_hz
+
 
 @dataclass(frozen=True)
 class RolloutResult:
@@ -64,16 +77,35 @@ class RolloutResult:
     n_physics_steps: int
     wall_s: float
     warnings: dict[str, int]
+    initial_state: np.ndarray  # mj_getState(mjSTATE_INTEGRATION) when the loop starts (for benchmarks)
 
     @property
     def stable(self) -> bool:
         return not self.warnings and bool(np.isfinite(self.world_qpos).all())
 
 
-def physics_steps(sample_rate_hz: float, max_dt_s: float) -> tuple[float, int]:
-    """(physics dt, steps per sample): the largest dt <= `max_dt_s` dividing the sample period."""
-    n = int(np.ceil(1.0 / sample_rate_hz / max_dt_s - 1e-9))
-    return 1.0 / sample_rate_hz / n, n
+def _period(rate_hz: float) -> Fraction:
+    return 1 / Fraction(rate_hz).limit_denominator(1000)
+
+
+def step_grid(sample_rate_hz: float, max_dt_s: float, control_rate_hz: float | None = None
+              ) -> tuple[float, int, int]:
+    """(physics dt, steps per output sample, steps per control tick): the largest dt <= `max_dt_s`
+    dividing both periods (control rate default: the sample rate)."""
+    ps = _period(sample_rate_hz)
+    pc = ps if control_rate_hz is None else _period(control_rate_hz)
+    g = Fraction(math.gcd(ps.numerator * pc.denominator, pc.numerator * ps.denominator),
+                 ps.denominator * pc.denominator)
+    n = int(math.ceil(float(g) / max_dt_s - 1e-9))
+    dt = g / n
+    return float(dt), int(ps / dt), int(pc / dt)
+
+
+def physics_steps(sample_rate_hz: float, max_dt_s: float, control_rate_hz: float | None = None
+                  ) -> tuple[float, int]:
+    """(physics dt, steps per output sample); see `step_grid`."""
+    dt, n_sample, _ = step_grid(sample_rate_hz, max_dt_s, control_rate_hz)
+    return dt, n_sample
 
 
 def build_world(world: mujoco.MjSpec, human: HumanDriver, p: RolloutParams) -> mujoco.MjModel:
@@ -82,7 +114,7 @@ def build_world(world: mujoco.MjSpec, human: HumanDriver, p: RolloutParams) -> m
     human.prepare(spec)
     if p.with_robot:
         attach_robot(spec, p.robot, p.harness_body, neutral_height_m=float(human.start_pose()[0][2]))
-    dt, _ = physics_steps(p.sample_rate_hz, p.max_physics_dt_s)
+    dt, _ = physics_steps(p.sample_rate_hz, p.max_physics_dt_s, p.control_rate_hz)
     spec.option.timestep = dt
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
     try:
@@ -91,11 +123,13 @@ def build_world(world: mujoco.MjSpec, human: HumanDriver, p: RolloutParams) -> m
         raise SimulationError(world.modelname or "world", f"rollout world does not compile ({exc})") from None
 
 
-def robot_info(p: RobotParams, sample_rate_hz: float) -> RobotInfo:
-    """Constants a controller may model: reach, drive lag (latency + servo time constant), period."""
+def robot_info(p: RobotParams, control_rate_hz: float | None = None) -> RobotInfo:
+    """Constants a controller may model: reach, drive lag (latency + servo time constant), control
+    period (default the robot's `control_rate_hz`), latency."""
     b = p.base
+    control_rate_hz = b.control_rate_hz if control_rate_hz is None else control_rate_hz
     tau = b.latency_s + (b.mass_kg + 3 * p.arm.link_mass_kg) / b.drive_gain_n_per_mps
-    return RobotInfo(reach_m=b.reach_m, drive_tau_s=tau, dt_s=1.0 / sample_rate_hz)
+    return RobotInfo(reach_m=b.reach_m, drive_tau_s=tau, dt_s=1.0 / control_rate_hz, latency_s=b.latency_s)
 
 
 def _rot2(yaw: float) -> np.ndarray:
@@ -136,25 +170,58 @@ def _initial_speed(human: HumanDriver, times_s: np.ndarray) -> float:
     return float(d @ np.array([np.cos(yaw), np.sin(yaw)]) / (times_s[k] - times_s[0]))
 
 
+def _schedule(n_samples: int, n_sample: int, n_control: int) -> list[tuple[int, int, int]]:
+    """Events of a rollout as (physics steps to run first, output sample or -1, control tick or -1)."""
+    total = (n_samples - 1) * n_sample
+    events = sorted(set(range(0, total + 1, n_sample)) | set(range(0, total, n_control)))
+    out, prev = [], 0
+    for s in events:
+        out.append((s - prev, s // n_sample if s % n_sample == 0 else -1,
+                    s // n_control if s % n_control == 0 and s < total else -1))
+        prev = s
+    return out
+
+
+def _view(arr: np.ndarray, idx: np.ndarray) -> np.ndarray | None:
+    """A strided view of `arr[idx]` when the indices are evenly spaced, else None."""
+    idx = np.asarray(idx)
+    if len(idx) == 1:
+        return arr[idx[0]:idx[0] + 1]
+    step = int(idx[1] - idx[0])
+    if step <= 0 or not np.all(np.diff(idx) == step):
+        return None
+    return arr[idx[0]:idx[-1] + 1:step]
+
+
 def rollout(world: mujoco.MjSpec, human: HumanDriver, controller: Controller | None, p: RolloutParams,
             seed: int, model: mujoco.MjModel | None = None, duration_s: float | None = None) -> RolloutResult:
     """Run one closed-loop rollout. `model`: a world already built by `build_world` for this `human`
-    and `p` (saves compiling in loops); `duration_s`: default the human's motion length."""
+    and `p` (saves compiling in loops); `duration_s`: default the human's motion length. The
+    controller's `RobotInfo.dt_s` must be the control period."""
     rng = np.random.default_rng(seed)
     model = build_world(world, human, p) if model is None else model
-    dt, n_sub = physics_steps(p.sample_rate_hz, p.max_physics_dt_s)
+    dt, n_sample, n_control = step_grid(p.sample_rate_hz, p.max_physics_dt_s, p.control_rate_hz)
+    if abs(model.opt.timestep - dt) > 1e-12:
+        raise SimulationError(p.trial or "rollout", f"model timestep {model.opt.timestep} is not {dt}")
+    dt_control = n_control * dt
+    if controller is not None and abs(controller.robot.dt_s - dt_control) > 1e-9:
+        raise SimulationError(p.trial or "rollout", f"controller period {controller.robot.dt_s} s differs "
+                              f"from the control period {dt_control} s (robot_info(..., control_rate_hz))")
     duration = human.duration_s if duration_s is None else min(duration_s, human.duration_s)
     times = np.arange(int(np.floor(duration * p.sample_rate_hz + 1e-9)) + 1) / p.sample_rate_hz
     n = len(times)
     if n < 2:
         raise SimulationError(p.trial or "rollout", f"motion of {duration:.3f} s is shorter than one sample")
+    plan = _schedule(n, n_sample, n_control)
+    n_ticks = (n - 1) * n_sample // n_control + (1 if (n - 1) * n_sample % n_control else 0)
     data = mujoco.MjData(model)
     human.reset(model, data, times)
     robot = p.with_robot
     eq_saved = model.eq_data.copy()
-    rec = np.zeros((n, 17))
-    fall_col, lock_col = np.zeros(n, bool), np.zeros(n, bool)
     qpos_out = np.zeros((n, model.nq))
+    sens_out = np.zeros((n, SENSOR_WIDTH if robot else 0))
+    cmd_log: list[BaseCommand] = []
+    fall_tick = -1
     if robot:
         rp = p.robot
         idx, hidx = RobotIndex.of(model), HarnessIndex.of(model)
@@ -163,91 +230,107 @@ def rollout(world: mujoco.MjSpec, human: HumanDriver, controller: Controller | N
         v0 = _initial_speed(human, times)
         yaw0 = data.qpos[idx.base_qpos[2]]
         data.qvel[idx.base_dof[:2]] = v0 * np.cos(yaw0), v0 * np.sin(yaw0)
-        drive = BaseDrive(rp.base, 1.0 / p.sample_rate_hz)
+        drive = BaseDrive(rp.base, dt_control)
         drive.reset(v0, 0.0)
         drive.apply(data, idx)
         detector = FallDetector(rp.fall)
         if controller is not None:
             controller.reset()
-        pelvis_id = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, p.harness_body)
         sd = np.array([rp.sensors.arm_noise_m] * 3 + [rp.sensors.velocity_noise_mps] * 5)
-        noise_all = rng.normal(0.0, 1.0, (n, 8)) * sd
+        noise = (rng.normal(0.0, 1.0, (n_ticks, 8)) * sd).tolist()
+        # contiguous views: base x, y, yaw then arm x, y, z (attach_robot adds them in this order)
+        qb, vb = idx.base_qpos[0], idx.base_dof[0]
+        if not (np.array_equal(np.r_[idx.base_qpos, idx.arm_qpos], qb + np.arange(6))
+                and np.array_equal(np.r_[idx.base_dof, idx.arm_dof], vb + np.arange(6))):
+            raise SimulationError(p.trial or "rollout", "robot joints are not contiguous in qpos / qvel")
+        q_view, v_view = data.qpos[qb:qb + 6], data.qvel[vb:vb + 6]
+        ctrl_view = _view(data.ctrl, idx.drive_act)
+        sens_view = data.sensordata[idx.sensor_adr:idx.sensor_adr + SENSOR_WIDTH]
+        sensors = RobotSensors(0.0, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0.0, 0.0)
+        stop_cmd = BaseCommand(0.0, 0.0)
     mujoco.mj_forward(model, data)
-    cmd = BaseCommand(0.0, 0.0)
+    initial_state = np.zeros(mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_INTEGRATION))
+    mujoco.mj_getState(model, data, initial_state, mujoco.mjtState.mjSTATE_INTEGRATION)
     locked = False
+    cmd = BaseCommand(0.0, 0.0)
+    bad_qacc = data.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)]
+    qpos = data.qpos
+    last = n - 1
+    cos, sin = math.cos, math.sin
     start = time.perf_counter()
-
-    def record(k: int) -> None:
-        human.record(model, data, k)
-        qpos_out[k] = data.qpos
-        if not robot:
-            return
-        yaw = data.qpos[idx.base_qpos[2]]
-        c, s = math.cos(yaw), math.sin(yaw)
-        dx, dy = data.xpos[pelvis_id, :2] - data.site_xpos[idx.neutral_site, :2]
-        vb = data.qvel[idx.base_dof]
-        speed = vb[0] * c + vb[1] * s
-        rec[k, :2] = c * dx + s * dy, -s * dx + c * dy
-        rec[k, 2:5] = data.qpos[idx.base_qpos]
-        rec[k, 5:7] = speed, vb[2]
-        rec[k, 7:9] = cmd.speed_mps, cmd.yaw_rate_rps
-        rec[k, 9:15] = harness_wrench(data, hidx)
-        fall_col[k], lock_col[k] = detector.detected, locked
-
     try:
-        record(0)
-        for k in range(n - 1):
-            if robot:
-                vb = data.qvel[idx.base_dof]
-                yaw = data.qpos[idx.base_qpos[2]]
-                noise = noise_all[k]
-                sensors = RobotSensors(
-                    time_s=float(times[k]),
-                    arm_q=data.qpos[idx.arm_qpos] + noise[:3],
-                    arm_qd=data.qvel[idx.arm_dof] + noise[3:6],
-                    base_pose=data.qpos[idx.base_qpos].copy(),
-                    base_speed_mps=float(vb[0] * math.cos(yaw) + vb[1] * math.sin(yaw) + noise[6]),
-                    base_yaw_rate_rps=float(vb[2] + noise[7]))
-                if detector.update(sensors) and not locked:
+        for nstep, k, j in plan:
+            if nstep:
+                mujoco.mj_step(model, data, nstep=nstep)
+            if k >= 0:
+                qpos_out[k] = qpos
+                human.record(model, data, k)
+                if robot:
+                    sens_out[k] = sens_view
+                if bad_qacc.number:
+                    break
+            if j >= 0 and robot:
+                q = q_view.tolist()
+                v = v_view.tolist()
+                z = noise[j]
+                yaw = q[2]
+                c, s = cos(yaw), sin(yaw)
+                sensors.time_s = j * dt_control
+                sensors.arm_q = (q[3] + z[0], q[4] + z[1], q[5] + z[2])
+                sensors.arm_qd = (v[3] + z[3], v[4] + z[4], v[5] + z[5])
+                sensors.base_pose = (q[0], q[1], yaw)
+                sensors.base_speed_mps = v[0] * c + v[1] * s + z[6]
+                sensors.base_yaw_rate_rps = v[2] + z[7]
+                if not locked and detector.update(sensors):
                     lock_arm(model, data, idx)
-                    locked = True
-                if controller is not None and not locked:
-                    cmd = controller.step(sensors)
+                    locked, fall_tick = True, j
+                cmd = controller.step(sensors) if controller is not None and not locked else stop_cmd
+                cmd_log.append(cmd)
+                vd, wd = drive.step(cmd[0], cmd[1], stop=locked)
+                if ctrl_view is not None:
+                    ctrl_view[:] = (vd * c, vd * s, wd)
                 else:
-                    cmd = BaseCommand(0.0, 0.0)
-                drive.step(cmd.speed_mps, cmd.yaw_rate_rps, stop=locked)
-                drive.apply(data, idx)
-            human.before_sample(model, data, k)
-            mujoco.mj_step(model, data, nstep=n_sub)
-            record(k + 1)
-            if not np.isfinite(data.qacc).all():
-                break
+                    drive.apply(data, idx)
+            if 0 <= k < last:
+                human.before_sample(model, data, k)
     finally:
         model.eq_data[:] = eq_saved
     wall = time.perf_counter() - start
     keep = times >= p.discard_s - 1e-9
     human_qpos = human.qpos_samples()[keep]
-    times, rec, fall_col, lock_col, qpos_out = times[keep] - p.discard_s, rec[keep], fall_col[keep], \
-        lock_col[keep], qpos_out[keep]
-    fall_time = None
-    if robot and detector.time_s is not None:
-        fall_time = detector.time_s - p.discard_s
+    fall_time = None if fall_tick < 0 else fall_tick * dt_control - p.discard_s
     warnings = {mujoco.mjtWarning(i).name: int(w.number) for i, w in enumerate(data.warning) if w.number}
     table = pd.DataFrame()
     if robot:
-        table = pd.DataFrame(rec[:, :15], columns=ROBOT_COLUMNS[7:22])
-        table.insert(0, "time_s", times)
+        step_of = np.arange(n) * n_sample
+        tick_of = -(-step_of // n_control) - 1  # last control tick strictly before each sample
+        cmds = np.vstack([np.zeros((1, 2)), np.array(cmd_log, dtype=float).reshape(-1, 2)])
+        cmd_col = cmds[np.clip(tick_of + 1, 0, len(cmds) - 1)]
+        fall_col = (step_of > fall_tick * n_control) if fall_tick >= 0 else np.zeros(n, bool)
+
+        def block(name: str) -> np.ndarray:
+            a, w = SENSORS[name]
+            return sens_out[:, a:a + w]
+
+        yaw = block("base_pos")[:, 2]
+        bv = block("base_vel")
+        speed = bv[:, 0] * np.cos(yaw) + bv[:, 1] * np.sin(yaw)
+        rec = np.column_stack([block("e")[:, :2], block("base_pos"), speed, bv[:, 2], cmd_col,
+                               wrench_from_sensors(model, hidx, block("harness_pos"), block("harness_vel"),
+                                                   block("harness_limit"))])[keep]
+        table = pd.DataFrame(rec, columns=ROBOT_COLUMNS[7:22])
+        table.insert(0, "time_s", times[keep] - p.discard_s)
         for col, val in reversed(list({"subject": p.subject, "source": "sim", "human_mode": human.mode,
                                        "condition": p.condition, "trial": p.trial, "seed": seed}.items())):
             table.insert(0, col, val)
         table["seed"] = table["seed"].astype("int64")
-        table["fall"], table["locked"] = fall_col, lock_col
+        table["fall"], table["locked"] = fall_col[keep], fall_col[keep]
         table = table[ROBOT_COLUMNS]
     return RolloutResult(
-        time_s=times, human_qpos=human_qpos, robot=table, world_qpos=qpos_out,
-        fall_time_s=fall_time, physics_dt_s=dt, n_physics_steps=(n - 1) * n_sub,
-        wall_s=wall, warnings=warnings)
+        time_s=times[keep] - p.discard_s, human_qpos=human_qpos, robot=table, world_qpos=qpos_out[keep],
+        fall_time_s=fall_time, physics_dt_s=dt, n_physics_steps=(n - 1) * n_sample,
+        wall_s=wall, warnings=warnings, initial_state=initial_state)
 
 
 __all__ = ["ROBOT_COLUMNS", "RolloutParams", "RolloutResult", "build_world", "physics_steps", "robot_info",
-           "rollout"]
+           "rollout", "step_grid"]

@@ -5,8 +5,10 @@ mass; the walk starts from rest, ramps to `speed_mps` and adds the intra-stride 
 of level walking: forward speed +-`surge_mps` at step frequency (two per stride) plus +-`asym_mps`
 at stride frequency (left/right step asymmetry, present in every real gait), lateral sway
 +-`sway_m` at stride frequency, vertical +-`bounce_m` at step frequency (Winter 2009: about 2-5 cm
-sway and bounce). It is not the evaluation data: the controllers are tuned on it and evaluated on
-the subjects' replayed recordings.
+sway and bounce). Optionally the path curves gently (`turn_rate_rps`): real "straight" bouts drift
+in heading and end in turns, and a controller tuned on a perfectly straight line alone is never
+asked to correct a lateral offset. It is not the evaluation data: the controllers are tuned on it
+and evaluated on the subjects' replayed recordings.
 """
 
 from __future__ import annotations
@@ -35,6 +37,7 @@ class WalkParams:
     pelvis_height_m: float = 0.95
     mass_kg: float = 75.0
     rate_hz: float = 100.0
+    turn_rate_rps: float = 0.0  # heading rate once at speed (scaled by the ramp): a gently curving path
 
 
 def capsule_world(mass_kg: float = 75.0, height_m: float = 0.95) -> mujoco.MjSpec:
@@ -62,4 +65,15 @@ def synthetic_walk(p: WalkParams, phase_rad: float = 0.0) -> Motion:
     y = envelope * p.sway_m * np.sin(2 * np.pi * f * t + phase_rad)
     z = p.pelvis_height_m - envelope * p.bounce_m * (1 - np.cos(4 * np.pi * f * t + phase_rad)) / 2
     quat = np.tile([1.0, 0, 0, 0], (len(t), 1))
+    if p.turn_rate_rps:
+        # along a curving path: heading integrates turn_rate x envelope; progression and sway are
+        # expressed in the path frame, the pelvis yaws with the path
+        heading = np.concatenate([[0.0], np.cumsum((envelope[1:] + envelope[:-1]) / 2 * np.diff(t))]) \
+            * p.turn_rate_rps
+        c, s = np.cos(heading), np.sin(heading)
+        dx = np.diff(x)
+        px = np.concatenate([[0.0], np.cumsum(dx * (c[1:] + c[:-1]) / 2)]) - s * y
+        py = np.concatenate([[0.0], np.cumsum(dx * (s[1:] + s[:-1]) / 2)]) + c * y
+        x, y = px, py
+        quat = np.column_stack([np.cos(heading / 2), np.zeros_like(t), np.zeros_like(t), np.sin(heading / 2)])
     return Motion(t, np.column_stack([x, y, z, quat]))

@@ -127,7 +127,7 @@ def evaluate(spec: dict, robot: RobotParams, replay: ReplayParams, p: TuningPara
     for i, walk in enumerate(p.walks):
         human = ReplayHuman(synthetic_walk(walk), replay)
         world = capsule_world(walk.mass_kg, walk.pelvis_height_m)
-        ctrl = make_controller(spec, robot_info(robot, p.sample_rate_hz))
+        ctrl = make_controller(spec, robot_info(robot))
         j, m = score(rollout(world, human, ctrl, rp, p.seed), p.force_weight_m_per_n, robot.base,
                      p.limit_weight_m)
         js.append(j)
@@ -144,7 +144,7 @@ def tune(name: str, spec: dict, robot: RobotParams, replay: ReplayParams, p: Tun
         human = ReplayHuman(synthetic_walk(walk), replay)
         world = capsule_world(walk.mass_kg, walk.pelvis_height_m)
         cases.append((world, human, build_world(world, human, rp)))
-    info = robot_info(robot, p.sample_rate_hz)
+    info = robot_info(robot)
     base = dict(spec.get("gains", {}))
 
     def cost(x: np.ndarray) -> float:

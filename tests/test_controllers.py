@@ -44,7 +44,7 @@ class RecordingAdaptive(Adaptive):
 
     def step(self, s: RobotSensors) -> BaseCommand:
         cmd = super().step(s)
-        self.log.append((s.time_s, self.speed_mps))
+        self.log.append((s.time_s, self.speed_mps, self.stride_s))
         return cmd
 
 
@@ -92,7 +92,7 @@ def test_pid_signs():
 
 def test_lqr_closed_loops_are_stable(setup):
     robot, _, _ = setup
-    info = robot_info(robot, 100.0)
+    info = robot_info(robot)
     k = forward_gain(info.drive_tau_s, 10.0, 100.0, 1.0)
     a = np.array([[0, 1, 0], [0, 0, -1], [0, 0, -1 / info.drive_tau_s]])
     b = np.array([[0], [0], [1 / info.drive_tau_s]])
@@ -107,10 +107,10 @@ def test_lqr_closed_loops_are_stable(setup):
 
 def test_adaptive_speed_estimate_ignores_intra_stride_oscillation(setup):
     robot, replay, specs = setup
-    ctrl = RecordingAdaptive(specs["adaptive"]["gains"], robot_info(robot, 100.0))
+    ctrl = RecordingAdaptive(specs["adaptive"]["gains"], robot_info(robot))
     walk = TEST_WALK
     result = walk_rollout(ctrl, robot, replay, walk=walk)
-    t, v = np.array(ctrl.log).T
+    t, v, _ = np.array(ctrl.log).T
     steady = v[t > walk.rest_s + walk.ramp_s + walk.stride_s * 1.5]
     assert steady.mean() == pytest.approx(walk.speed_mps, rel=0.03)
     # the surge is +-0.05 m/s at step frequency; after the gait-cycle average it must be far smaller
@@ -118,9 +118,23 @@ def test_adaptive_speed_estimate_ignores_intra_stride_oscillation(setup):
     assert not result.robot.fall.any()
 
 
+@pytest.mark.parametrize("stride_s", [0.9, 1.3])
+def test_adaptive_estimates_the_stride_period_online(setup, stride_s):
+    """The observer's averaging window follows the user's stride (init 1.1 s), from the arm and
+    odometry only; with it the stride average of a 0.9 s or 1.3 s stride stays flat."""
+    robot, replay, specs = setup
+    ctrl = RecordingAdaptive(specs["adaptive"]["gains"], robot_info(robot))
+    walk = WalkParams(duration_s=9.0, stride_s=stride_s, surge_mps=0.1, asym_mps=0.04)
+    walk_rollout(ctrl, robot, replay, walk=walk)
+    t, v, stride = np.array(ctrl.log).T
+    late = t > 6.0
+    assert np.abs(stride[late] / stride_s - 1).max() < 0.03
+    assert v[late].max() - v[late].min() < 0.4 * 2 * walk.surge_mps
+
+
 def test_custom_controller_runs_through_the_same_rollout_and_is_compared(setup):
     robot, replay, specs = setup
-    info = robot_info(robot, 100.0)
+    info = robot_info(robot)
     rows = {}
     for name, spec in {"custom": {"class": f"{FeedForwardP.__module__}:FeedForwardP", "gains": {"k": 8.0}},
                        "pid": specs["pid"], "adaptive": specs["adaptive"]}.items():
@@ -133,3 +147,17 @@ def test_custom_controller_runs_through_the_same_rollout_and_is_compared(setup):
     for tuned in ("pid", "adaptive"):
         assert rows[tuned]["mean_abs_e_x_m"] < rows["custom"]["mean_abs_e_x_m"]
     print({k: {m: round(v, 4) for m, v in r.items() if isinstance(v, float)} for k, r in rows.items()})
+
+
+def test_curving_tuning_walk_keeps_speed_and_yaws_with_its_path():
+    walk = WalkParams(speed_mps=1.4, stride_s=1.05, duration_s=10.0, turn_rate_rps=0.2)
+    m = synthetic_walk(walk)
+    t, q = m.time_s, m.qpos
+    late = t > walk.rest_s + walk.ramp_s + walk.stride_s
+    v = np.gradient(q[:, :2], t, axis=0)
+    n = int(round(walk.stride_s * walk.rate_hz))
+    mean_v = (q[n:, :2] - q[:-n, :2]) / walk.stride_s  # stride-averaged velocity
+    assert np.hypot(*mean_v[late[n:]].T).mean() == pytest.approx(walk.speed_mps, rel=0.02)
+    yaw = 2 * np.arctan2(q[:, 6], q[:, 3])
+    assert np.gradient(np.unwrap(yaw), t)[late].mean() == pytest.approx(walk.turn_rate_rps, rel=0.01)
+    assert np.isfinite(v).all()

@@ -8,8 +8,8 @@ import pytest
 
 from pipeline.params import load_params
 from pipeline.robot_config import robot_params
-from sim.harness import AXES, HarnessIndex, harness_wrench
-from sim.robot import BaseDrive, RobotIndex, attach_robot, lock_arm
+from sim.harness import AXES, HarnessIndex, harness_wrench, wrench_from_sensors
+from sim.robot import SENSOR_WIDTH, SENSORS, BaseDrive, RobotIndex, attach_robot, lock_arm
 from sim.synthetic import capsule_world
 
 MASS_KG = 75.0
@@ -78,6 +78,42 @@ def test_harness_limit_adds_constraint_force(robot):
     assert data.qpos[h.qpos[2]] <= -robot.harness.range[2] + 2e-3
     assert wrench[2] == pytest.approx(-weight, rel=0.03)
     assert abs(data.qpos[idx.arm_qpos[2]]) < 1e-3  # the lock holds the arm
+    # the rollouts' recorded form: the same wrench from the robot's sensor block (limit force included)
+    np.testing.assert_allclose(sensor_wrench(model, data), wrench, atol=0.02 * weight)
+
+
+def sensor_wrench(model, data) -> np.ndarray:
+    idx, h = RobotIndex.of(model), HarnessIndex.of(model)
+    block = data.sensordata[idx.sensor_adr:idx.sensor_adr + SENSOR_WIDTH][None]
+
+    def part(name):
+        a, w = SENSORS[name]
+        return block[:, a:a + w]
+
+    return wrench_from_sensors(model, h, part("harness_pos"), part("harness_vel"), part("harness_limit"))[0]
+
+
+def test_sensor_block_matches_the_simulator_state(robot):
+    """e (pelvis in the neutral-point frame), odometry and harness wrench from the sensors equal what
+    the simulator state gives, with the base turned and the harness deflected inside its limits."""
+    model, data = world(robot, gravity=False)
+    idx, h = RobotIndex.of(model), HarnessIndex.of(model)
+    rng = np.random.default_rng(3)
+    data.qpos[idx.base_qpos] = (0.2, -0.1, 0.7)
+    data.qpos[idx.arm_qpos] = (0.05, -0.03, 0.02)
+    data.qpos[h.qpos] = rng.uniform(-0.5, 0.5, 6) * np.array(robot.harness.range)
+    data.qvel[h.dof] = rng.normal(0, 0.2, 6)
+    data.qvel[idx.base_dof] = (0.5, 0.2, 0.3)
+    mujoco.mj_forward(model, data)
+    block = data.sensordata[idx.sensor_adr:idx.sensor_adr + SENSOR_WIDTH]
+    yaw = 0.7
+    pelvis = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "pelvis")
+    d = data.xpos[pelvis] - data.site_xpos[idx.neutral_site]
+    rot = np.array([[np.cos(yaw), np.sin(yaw), 0], [-np.sin(yaw), np.cos(yaw), 0], [0, 0, 1]])
+    np.testing.assert_allclose(block[:3], rot @ d, atol=1e-9)
+    np.testing.assert_allclose(block[3:6], data.qpos[idx.base_qpos], atol=1e-12)
+    np.testing.assert_allclose(block[6:9], data.qvel[idx.base_dof], atol=1e-12)
+    np.testing.assert_allclose(sensor_wrench(model, data), harness_wrench(data, h), atol=1e-9)
 
 
 def test_base_drive_latency_and_acceleration_limit(robot):

@@ -16,9 +16,10 @@ from pipeline.params import load_params
 from pipeline.robot_config import controller_specs, replay_params, robot_params
 from pipeline.simulate_stage import straight_bouts
 from sim.controllers import make_controller
+from sim.errors import SimulationError
 from sim.reference import load_reference
 from sim.replay import Motion, ReplayHuman, interpolate_qpos, scripted_fall, with_lead_in
-from sim.rollout import ROBOT_COLUMNS, RolloutParams, physics_steps, robot_info, rollout
+from sim.rollout import ROBOT_COLUMNS, RolloutParams, physics_steps, robot_info, rollout, step_grid
 from sim.synthetic import WalkParams, capsule_world, synthetic_walk
 
 WALK = WalkParams(duration_s=6.0)
@@ -35,7 +36,7 @@ def run(setup, condition: str, seed: int = 0, motion: Motion | None = None, rate
     robot, replay, specs, _ = setup
     p = RolloutParams(robot=robot, sample_rate_hz=rate_hz, with_robot=condition != "free",
                       subject="synthetic", condition=condition, trial="walk")
-    ctrl = make_controller(specs[condition], robot_info(robot, rate_hz)) if condition != "free" else None
+    ctrl = make_controller(specs[condition], robot_info(robot)) if condition != "free" else None
     human = ReplayHuman(motion if motion is not None else synthetic_walk(WALK), replay)
     return rollout(capsule_world(WALK.mass_kg), human, ctrl, p, seed)
 
@@ -61,6 +62,26 @@ def test_physics_step_divides_the_sample_period():
     assert physics_steps(100.0, 0.002) == pytest.approx((0.002, 5))
     dt, n = physics_steps(200.0, 0.002)
     assert n == 3 and dt * n == pytest.approx(0.005) and dt <= 0.002
+    # control at 100 Hz: output 200 Hz -> 3 steps per sample, 6 per tick; 60 Hz output -> common 1/300 s grid
+    assert step_grid(200.0, 0.002, 100.0)[1:] == (3, 6)
+    dt, n_s, n_c = step_grid(60.0, 0.002, 100.0)
+    assert dt * n_s == pytest.approx(1 / 60) and dt * n_c == pytest.approx(0.01) and dt <= 0.002
+
+
+def test_controller_period_must_match_the_control_rate(setup):
+    robot, replay, specs, _ = setup
+    ctrl = make_controller(specs["pid"], robot_info(robot, 200.0))  # robot controls at 100 Hz
+    with pytest.raises(SimulationError, match="control period"):
+        rollout(capsule_world(WALK.mass_kg), ReplayHuman(synthetic_walk(WALK), replay), ctrl,
+                RolloutParams(robot=robot, sample_rate_hz=200.0), 0)
+
+
+def test_commands_change_at_the_control_rate_only(setup):
+    """Output at 200 Hz, control at 100 Hz: commands hold for two samples."""
+    df = run(setup, "pid", rate_hz=200.0).robot
+    v = df.cmd_speed_mps.to_numpy()[1:]
+    assert np.array_equal(v[0::2][:len(v[1::2])], v[1::2][:len(v[0::2])])
+    assert np.abs(np.diff(v[0::2])).max() > 0
 
 
 def test_free_condition_replays_the_motion_closely(setup):
@@ -96,8 +117,6 @@ def test_scripted_fall_is_caught(setup, condition):
 
 
 def test_rollout_rejects_a_motion_that_does_not_fit_the_model(setup):
-    from sim.errors import SimulationError
-
     bad = Motion(np.arange(3) / 100, np.zeros((3, 9)))
     robot, replay, *_ = setup
     with pytest.raises(SimulationError, match="9 qpos columns, the human model 7"):
@@ -124,7 +143,7 @@ def test_camargo_replay_bout_is_stable_and_followed(setup):
     motion = with_lead_in(Motion(time_s[rows] - time_s[rows][0], qpos[rows]), stride_s, 6.0, 3.0)
     p = RolloutParams(robot=robot, sample_rate_hz=200.0, discard_s=6.0, condition="pid")
     result = rollout(mujoco.MjSpec.from_file(str(CAMARGO_MODEL / "human.xml")), ReplayHuman(motion, replay),
-                     make_controller(specs["pid"], robot_info(robot, 200.0)), p, 0)
+                     make_controller(specs["pid"], robot_info(robot)), p, 0)
     assert result.stable and result.warnings == {}
     assert not result.robot.fall.any()
     assert 0.01 < result.robot.e_x_m.abs().mean() < 0.15

@@ -4,46 +4,53 @@ A controller sees only what the MRBA itself measures -- the passive arm's joint 
 velocities, the base odometry and the time -- never the simulator's human state; it returns a
 differential-drive command (forward speed, yaw rate). `RobotInfo` carries the robot constants a
 controller may build a model from.
+
+The rollout calls `step` once per control tick (`rollout.control_rate_hz`, 100 Hz as on a real mobile
+base) and reuses one `RobotSensors` object, updating its fields in place, so no objects are built per
+tick: a controller that keeps sensor values beyond its `step` call must copy them.
 """
 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import NamedTuple
 
-import numpy as np
 
-
-@dataclass(frozen=True)
+@dataclass(slots=True)
 class RobotSensors:
-    """One control sample of the robot's own sensors.
+    """One control tick of the robot's own sensors (mutable: the rollout refills one instance).
 
     `arm_q` / `arm_qd`: forward, lateral, vertical arm slide positions (m) and velocities (m/s), zero
     at the neutral point; `base_pose`: odometry x, y (m), yaw (rad); `base_speed_mps`: forward speed;
-    `base_yaw_rate_rps`: yaw rate.
+    `base_yaw_rate_rps`: yaw rate. The sequences are tuples of floats in rollouts (numpy arrays work too).
     """
 
     time_s: float
-    arm_q: np.ndarray
-    arm_qd: np.ndarray
-    base_pose: np.ndarray
+    arm_q: Sequence[float]
+    arm_qd: Sequence[float]
+    base_pose: Sequence[float]
     base_speed_mps: float
     base_yaw_rate_rps: float
 
 
-@dataclass(frozen=True)
-class BaseCommand:
+class BaseCommand(NamedTuple):
+    """Differential-drive command: forward speed (m/s) and yaw rate (rad/s)."""
+
     speed_mps: float
     yaw_rate_rps: float
 
 
 @dataclass(frozen=True)
 class RobotInfo:
-    """Robot constants available to controllers: arm reach (m), drive lag (s), control period (s)."""
+    """Robot constants available to controllers: arm reach (m), drive lag (s), control period (s),
+    command latency (s, part of the drive lag; a controller may model it separately)."""
 
     reach_m: float
     drive_tau_s: float
     dt_s: float
+    latency_s: float = 0.0
 
 
 class Controller(ABC):

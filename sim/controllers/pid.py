@@ -15,13 +15,14 @@ class PID(Controller):
     def reset(self) -> None:
         self.integral = (0.0, 0.0)
         self.t_prev: float | None = None
+        self.i_max = float(self.gains.get("i_max", 1.0))
 
     def step(self, s: RobotSensors) -> BaseCommand:
         g = self.gains
         dt = self.robot.dt_s if self.t_prev is None else s.time_s - self.t_prev
         self.t_prev = s.time_s
         ex, ey = float(s.arm_q[0]), float(s.arm_q[1])
-        i_max = g.get("i_max", 1.0)
+        i_max = self.i_max
         ix = min(max(self.integral[0] + ex * dt, -i_max), i_max)
         iy = min(max(self.integral[1] + ey * dt, -i_max), i_max)
         self.integral = (ix, iy)
