@@ -83,6 +83,12 @@ class HumanDriver(ABC):
     @abstractmethod
     def qpos_samples(self) -> np.ndarray: ...
 
+    def from_world_qpos(self, world_qpos: np.ndarray) -> None:
+        """Optional: take the per-sample state from the world qpos (n, nq_world) the rollout recorded
+        at the output samples. A driver that overrides this is not called through `record` (one
+        Python call per sample less)."""
+        return None
+
 
 def quat_to_zyx(q: np.ndarray) -> np.ndarray:
     """Intrinsic Z-Y-X angles (yaw, pitch, roll) of unit quaternions (n, 4) wxyz; yaw unwrapped."""
@@ -113,14 +119,6 @@ def quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def quat_conj(q: np.ndarray) -> np.ndarray:
     return q * np.array([1, -1, -1, -1])
-
-
-def _strided(arr: np.ndarray, idx: np.ndarray) -> np.ndarray | None:
-    """`arr[idx]` as a view when the indices are evenly spaced and increasing, else None."""
-    step = int(idx[1] - idx[0])
-    if step <= 0 or not np.all(np.diff(idx) == step):
-        return None
-    return arr[idx[0]:idx[-1] + 1:step]
 
 
 def interpolate_qpos(motion: Motion, times_s: np.ndarray, root_adr: int) -> np.ndarray:
@@ -269,28 +267,31 @@ class ReplayHuman(HumanDriver):
         data.qpos[self.qadr] = self.target[0]
         data.qvel[self.dadr] = self.rate[0]
         data.act[self.act_adr] = self.target[0]
-        # views of the servo states: the drive actuators come in (position, velocity) pairs per joint,
-        # so their controls are one contiguous block set from the rate repeated pairwise
-        act = _strided(data.act, self.act_adr)
+        # The position servos' targets are integrator states (act' = ctrl): with ctrl = the segment's
+        # rate they reach the next sample's target exactly, so only ctrl is written per sample. The
+        # drive actuators come in (position, velocity) pairs per joint, so their controls are one
+        # contiguous block set from the rate repeated pairwise.
+        if model.actuator_actlimited[self.pos_act].any():
+            raise SimulationError("replay", "replay servo targets must not be range-limited")
         pairs = np.column_stack([self.pos_act, self.vel_act]).ravel()
         ctrl = data.ctrl[pairs[0]:pairs[0] + 12] if np.array_equal(pairs, pairs[0] + np.arange(12)) else None
-        self._act_view, self._ctrl_view = act, ctrl
+        self._ctrl_view = ctrl
         self._rate2 = np.repeat(self.rate, 2, axis=1)
         self.drive_q = np.zeros((len(sample_times_s), 6))
-        self._q_view = _strided(data.qpos, self.qadr)
 
     def before_sample(self, model: mujoco.MjModel, data: mujoco.MjData, k: int) -> None:
         """Servo targets for the sample interval from k: position now, velocity of the linear segment."""
-        if self._act_view is not None and self._ctrl_view is not None:
-            self._act_view[:] = self.target[k]
+        if self._ctrl_view is not None:
             self._ctrl_view[:] = self._rate2[k]
             return
-        data.act[self.act_adr] = self.target[k]
         data.ctrl[self.pos_act] = self.rate[k]
         data.ctrl[self.vel_act] = self.rate[k]
 
     def record(self, model: mujoco.MjModel, data: mujoco.MjData, k: int) -> None:
-        self.drive_q[k] = self._q_view if self._q_view is not None else data.qpos[self.qadr]
+        self.drive_q[k] = data.qpos[self.qadr]
+
+    def from_world_qpos(self, world_qpos: np.ndarray) -> None:
+        self.drive_q = world_qpos[:, self.qadr]
 
     def qpos_samples(self) -> np.ndarray:
         """Reference joints at the sample times with the simulated pelvis pose as the free root."""

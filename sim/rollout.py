@@ -251,6 +251,7 @@ def rollout(world: mujoco.MjSpec, human: HumanDriver, controller: Controller | N
     mujoco.mj_forward(model, data)
     initial_state = np.zeros(mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_INTEGRATION))
     mujoco.mj_getState(model, data, initial_state, mujoco.mjtState.mjSTATE_INTEGRATION)
+    record_hook = type(human).from_world_qpos is HumanDriver.from_world_qpos
     locked = False
     cmd = BaseCommand(0.0, 0.0)
     bad_qacc = data.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)]
@@ -264,7 +265,8 @@ def rollout(world: mujoco.MjSpec, human: HumanDriver, controller: Controller | N
                 mujoco.mj_step(model, data, nstep=nstep)
             if k >= 0:
                 qpos_out[k] = qpos
-                human.record(model, data, k)
+                if record_hook:
+                    human.record(model, data, k)
                 if robot:
                     sens_out[k] = sens_view
                 if bad_qacc.number:
@@ -296,6 +298,8 @@ def rollout(world: mujoco.MjSpec, human: HumanDriver, controller: Controller | N
     finally:
         model.eq_data[:] = eq_saved
     wall = time.perf_counter() - start
+    if not record_hook:
+        human.from_world_qpos(qpos_out)
     keep = times >= p.discard_s - 1e-9
     human_qpos = human.qpos_samples()[keep]
     fall_time = None if fall_tick < 0 else fall_tick * dt_control - p.discard_s
