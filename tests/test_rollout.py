@@ -124,17 +124,28 @@ def test_rollout_rejects_a_motion_that_does_not_fit_the_model(setup):
                 dataclasses.replace(RolloutParams(robot=robot), with_robot=False), 0)
 
 
-CAMARGO_MODEL = Path(__file__).resolve().parent.parent / "data" / "processed" / "camargo" / "model"
+@pytest.fixture(scope="module")
+def camargo_model(tmp_path_factory) -> Path:
+    """Camargo's real tables, scaled human and reference motion, built by the stages themselves
+    into a temporary root (what `dvc repro ingest@camargo scale@camargo reference@camargo` makes)."""
+    from pipeline.ingest_stage import run_ingest
+    from pipeline.reference_stage import run_reference
+    from pipeline.scale_stage import run_scale
+
+    root, reports = tmp_path_factory.mktemp("processed"), tmp_path_factory.mktemp("reports")
+    params = load_params()
+    run_ingest("camargo", params, root, progress=False)
+    run_scale("camargo", params, root, reports)
+    run_reference("camargo", params, root, reports, progress=False)
+    return root / "camargo" / "model"
 
 
-@pytest.mark.skipif(not (CAMARGO_MODEL / "reference.npz").exists(),
-                    reason="needs `dvc repro scale@camargo reference@camargo` (data/processed/camargo/model)")
-def test_camargo_replay_bout_is_stable_and_followed(setup):
+def test_camargo_replay_bout_is_stable_and_followed(setup, camargo_model):
     """The real human replaying Camargo's first straight bout (with the lead-in): no NaN, no MuJoCo
     warning, no fall, and the tuned PID keeps mean |e_x| between 1 and 15 cm (issue 4)."""
     robot, replay, specs, _ = setup
-    ref = load_reference(CAMARGO_MODEL / "reference.npz")
-    strides = pd.read_parquet(CAMARGO_MODEL.parent / "real" / "strides.parquet")
+    ref = load_reference(camargo_model / "reference.npz")
+    strides = pd.read_parquet(camargo_model.parent / "real" / "strides.parquet")
     trial = sorted(set(ref.trial.tolist()))[0]
     (t0, t1), *_ = straight_bouts(strides, trial, 0.0)
     time_s, qpos = ref.motion(trial)
@@ -142,12 +153,12 @@ def test_camargo_replay_bout_is_stable_and_followed(setup):
     stride_s = float(strides.loc[strides["kept"], "stride_time_s"].median())
     motion = with_lead_in(Motion(time_s[rows] - time_s[rows][0], qpos[rows]), stride_s, 6.0, 3.0)
     p = RolloutParams(robot=robot, sample_rate_hz=200.0, discard_s=6.0, condition="pid")
-    result = rollout(mujoco.MjSpec.from_file(str(CAMARGO_MODEL / "human.xml")), ReplayHuman(motion, replay),
+    result = rollout(mujoco.MjSpec.from_file(str(camargo_model / "human.xml")), ReplayHuman(motion, replay),
                      make_controller(specs["pid"], robot_info(robot)), p, 0)
     assert result.stable and result.warnings == {}
     assert not result.robot.fall.any()
     assert 0.01 < result.robot.e_x_m.abs().mean() < 0.15
-    assert result.human_qpos.shape[1] == mujoco.MjModel.from_xml_path(str(CAMARGO_MODEL / "human.xml")).nq
+    assert result.human_qpos.shape[1] == mujoco.MjModel.from_xml_path(str(camargo_model / "human.xml")).nq
 
 
 def test_lead_in_starts_at_rest_and_joins_the_bout():
