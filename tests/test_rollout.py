@@ -5,7 +5,6 @@ held within 10 cm); a normal walk raises no fall."""
 from __future__ import annotations
 
 import dataclasses
-from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -122,22 +121,6 @@ def test_rollout_rejects_a_motion_that_does_not_fit_the_model(setup):
     with pytest.raises(SimulationError, match="9 qpos columns, the human model 7"):
         rollout(capsule_world(), ReplayHuman(bad, replay), None,
                 dataclasses.replace(RolloutParams(robot=robot), with_robot=False), 0)
-
-
-@pytest.fixture(scope="module")
-def camargo_model(tmp_path_factory) -> Path:
-    """Camargo's real tables, scaled human and reference motion, built by the stages themselves
-    into a temporary root (what `dvc repro ingest@camargo scale@camargo reference@camargo` makes)."""
-    from pipeline.ingest_stage import run_ingest
-    from pipeline.reference_stage import run_reference
-    from pipeline.scale_stage import run_scale
-
-    root, reports = tmp_path_factory.mktemp("processed"), tmp_path_factory.mktemp("reports")
-    params = load_params()
-    run_ingest("camargo", params, root, progress=False)
-    run_scale("camargo", params, root, reports)
-    run_reference("camargo", params, root, reports, progress=False)
-    return root / "camargo" / "model"
 
 
 def test_camargo_replay_bout_is_stable_and_followed(setup, camargo_model):

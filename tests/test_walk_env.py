@@ -22,24 +22,21 @@ from sim.rollout import RolloutParams, rollout
 from sim.train import load_body, load_policy, train
 from sim.walk_env import AMP_SIZE, OBS_SIZE, make_walk_env
 
-MODEL = REPO_ROOT / "data" / "processed" / "camargo" / "model"
 POLICY = REPO_ROOT / "data" / "policies" / "camargo"
-pytestmark = pytest.mark.skipif(not (MODEL / "reference.npz").exists(),
-                                reason="needs `dvc repro scale@camargo reference@camargo`")
 
 
 @pytest.fixture(scope="module")
-def setup():
+def setup(camargo_model):
     params = load_params()
     tp, ev = train_section(params, PARAMS_FILE)
-    cycle = load_reference(MODEL / "reference.npz").cycle
+    cycle = load_reference(camargo_model / "reference.npz").cycle
     return params, tp, ev, cycle
 
 
 @pytest.fixture
-def env(setup):
+def env(setup, camargo_model):
     _, tp, _, cycle = setup
-    return make_walk_env(MODEL / "human.xml", cycle, tp.env, seed=0)
+    return make_walk_env(camargo_model / "human.xml", cycle, tp.env, seed=0)
 
 
 def test_env_api_passes_gymnasium_checker(env):
@@ -86,11 +83,11 @@ def test_early_termination_on_a_fall(env):
     assert terminated and not truncated and reward == 0.0
 
 
-def test_random_pushes_act_on_the_pelvis(setup):
+def test_random_pushes_act_on_the_pelvis(setup, camargo_model):
     _, tp, _, cycle = setup
     p = replace(tp.env, push_probability=1.0, push_force_n=(100.0, 100.0), push_interval_s=(0.05, 0.05),
                 push_duration_s=0.1)
-    env = make_walk_env(MODEL / "human.xml", cycle, p, seed=3)
+    env = make_walk_env(camargo_model / "human.xml", cycle, p, seed=3)
     env.reset(seed=3)
     seen = []
     for _ in range(8):
@@ -115,15 +112,16 @@ def test_discriminator_separates_reference_from_other_motion(env, setup):
     assert float(style_reward(torch.tensor(1.0))) == 1.0 and float(style_reward(torch.tensor(-1.0))) == 0.0
 
 
-def test_short_training_run_checkpoints_and_resumes(tmp_path, setup):
+def test_short_training_run_checkpoints_and_resumes(tmp_path, setup, camargo_model):
     _, tp, _, cycle = setup
     p = replace(tp, n_steps=128, batch_size=256, n_epochs=1, net_arch=(32, 32),
                 amp=replace(tp.amp, hidden=(32, 32)))
-    rec = train(MODEL / "human.xml", cycle, p, tmp_path, n_envs=2, threads=1, total_steps=512, progress=False)
+    xml = camargo_model / "human.xml"
+    rec = train(xml, cycle, p, tmp_path, n_envs=2, threads=1, total_steps=512, progress=False)
     assert rec["steps"] >= 512
     for name in ("policy.zip", "vecnormalize.pkl", "amp.pt", "progress.json"):
         assert (tmp_path / name).exists()
-    rec2 = train(MODEL / "human.xml", cycle, p, tmp_path, n_envs=2, threads=1, total_steps=1024, resume=True,
+    rec2 = train(xml, cycle, p, tmp_path, n_envs=2, threads=1, total_steps=1024, resume=True,
                  progress=False)
     assert rec2["steps"] >= 1024 and len(rec2["runs"]) == 2
     logged = tmp_path / "dvclive" / "metrics.json"
