@@ -116,7 +116,7 @@ def cmd_train(args: argparse.Namespace) -> int:
 
     rec = run_train(args.subject, load_params(args.params), args.params, n_envs=args.n_envs,
                     threads=args.threads, steps=args.steps, resume=args.resume, max_wall_s=args.max_wall_s,
-                    subprocess=True if args.subprocess else None)
+                    subprocess=True if args.subprocess else None, init_from=args.init_from)
     print(f"{args.subject}: policy at {rec['steps']} steps, {rec['wall_s']:.0f} s of training in total",
           file=sys.stderr)
     return 0
@@ -215,6 +215,8 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--resume", action="store_true", help="continue from data/policies/<subject>/")
     train.add_argument("--max-wall-s", type=float, help="stop (with a checkpoint) after this long")
     train.add_argument("--subprocess", action="store_true", help="one process per environment")
+    train.add_argument("--init-from", metavar="SUBJECT",
+                       help="start from SUBJECT's trained policy (transfer) instead of from scratch")
     train.set_defaults(func=cmd_train)
 
     evaluate = commands.add_parser("evaluate-policy", help="issue-6 checks of the trained walking policy")

@@ -89,13 +89,21 @@ def _inputs(subject: str, root: Path) -> tuple[Path, Path]:
 
 def run_train(subject: str, params: dict, path, *, n_envs: int | None, threads: int | None, steps: int | None,
               resume: bool, root: Path = DEFAULT_ROOT, out_root: Path = POLICY_ROOT,
-              max_wall_s: float | None = None, subprocess: bool | None = None) -> dict:
+              max_wall_s: float | None = None, subprocess: bool | None = None,
+              init_from: str | None = None) -> dict:
+    """Train `subject`'s policy; `init_from`: another subject whose committed policy is the start."""
     p, _ = train_section(params, path)
+    start = None
+    if init_from is not None and not resume:
+        start = out_root / init_from
+        if not (start / "policy.zip").exists():
+            raise SimulationError(start, f"no trained policy of {init_from!r} to start {subject}'s from")
     xml, npz = _inputs(subject, root)
     cycle = load_reference(npz).cycle
     command = "python -m pipeline train " + " ".join(sys.argv[2:]) if sys.argv[1:2] == ["train"] else ""
     return train(xml, cycle, p, out_root / subject, n_envs=n_envs, threads=threads, total_steps=steps,
-                 resume=resume, max_wall_s=max_wall_s, subprocess=subprocess, command=command)
+                 resume=resume, max_wall_s=max_wall_s, subprocess=subprocess, command=command,
+                 init_from=start)
 
 
 # -- policy rollouts ----------------------------------------------------------------------------

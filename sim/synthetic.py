@@ -5,10 +5,12 @@ mass; the walk starts from rest, ramps to `speed_mps` and adds the intra-stride 
 of level walking: forward speed +-`surge_mps` at step frequency (two per stride) plus +-`asym_mps`
 at stride frequency (left/right step asymmetry, present in every real gait), lateral sway
 +-`sway_m` at stride frequency, vertical +-`bounce_m` at step frequency (Winter 2009: about 2-5 cm
-sway and bounce). Optionally the path curves gently (`turn_rate_rps`): real "straight" bouts drift
-in heading and end in turns, and a controller tuned on a perfectly straight line alone is never
-asked to correct a lateral offset. It is not the evaluation data: the controllers are tuned on it
-and evaluated on the subjects' replayed recordings.
+sway and bounce), and optionally a slow pace fluctuation (`drift_mps`: walkers change pace from
+stride to stride). Optionally the path curves gently (`turn_rate_rps`), from the start or from
+`turn_onset_s` on, the heading rate rising over `turn_ramp_s` (a walk that ends entering a turn):
+real "straight" bouts drift in heading and end in turns, and a controller tuned on a perfectly
+straight line alone is never asked to correct a lateral offset. It is not the evaluation data: the
+controllers are tuned on it and evaluated on the subjects' replayed recordings.
 """
 
 from __future__ import annotations
@@ -38,6 +40,10 @@ class WalkParams:
     mass_kg: float = 75.0
     rate_hz: float = 100.0
     turn_rate_rps: float = 0.0  # heading rate once at speed (scaled by the ramp): a gently curving path
+    drift_mps: float = 0.0      # slow pace fluctuation, +- this, one cycle per drift_period_s
+    drift_period_s: float = 3.0
+    turn_onset_s: float = 0.0   # > 0: the heading rate rises from 0 at this time ...
+    turn_ramp_s: float = 1.0    # ... to turn_rate_rps over this long (a bout that ends entering a turn)
 
 
 def capsule_world(mass_kg: float = 75.0, height_m: float = 0.95) -> mujoco.MjSpec:
@@ -60,7 +66,8 @@ def synthetic_walk(p: WalkParams, phase_rad: float = 0.0) -> Motion:
     f = 1.0 / p.stride_s
     # forward position: integral of envelope * (v + surge sin(2 w t)), integrated numerically
     vx = envelope * (p.speed_mps + p.surge_mps * np.sin(4 * np.pi * f * t + phase_rad)
-                     + p.asym_mps * np.sin(2 * np.pi * f * t + phase_rad))
+                     + p.asym_mps * np.sin(2 * np.pi * f * t + phase_rad)
+                     + p.drift_mps * np.sin(2 * np.pi * t / p.drift_period_s))
     x = np.concatenate([[0.0], np.cumsum((vx[1:] + vx[:-1]) / 2 * np.diff(t))])
     y = envelope * p.sway_m * np.sin(2 * np.pi * f * t + phase_rad)
     z = p.pelvis_height_m - envelope * p.bounce_m * (1 - np.cos(4 * np.pi * f * t + phase_rad)) / 2
@@ -68,8 +75,10 @@ def synthetic_walk(p: WalkParams, phase_rad: float = 0.0) -> Motion:
     if p.turn_rate_rps:
         # along a curving path: heading integrates turn_rate x envelope; progression and sway are
         # expressed in the path frame, the pelvis yaws with the path
-        heading = np.concatenate([[0.0], np.cumsum((envelope[1:] + envelope[:-1]) / 2 * np.diff(t))]) \
-            * p.turn_rate_rps
+        rate = envelope * p.turn_rate_rps
+        if p.turn_onset_s > 0:
+            rate = rate * np.clip((t - p.turn_onset_s) / p.turn_ramp_s, 0, 1)
+        heading = np.concatenate([[0.0], np.cumsum((rate[1:] + rate[:-1]) / 2 * np.diff(t))])
         c, s = np.cos(heading), np.sin(heading)
         dx = np.diff(x)
         px = np.concatenate([[0.0], np.cumsum(dx * (c[1:] + c[:-1]) / 2)]) - s * y

@@ -5,8 +5,11 @@
 PPO with the `AMPCallback` (sim/amp.py) adding the style reward. It writes, in `out_dir`:
 `policy.zip` (SB3 PPO incl. optimiser), `vecnormalize.pkl` (observation statistics), `amp.pt`
 (discriminator) and `progress.json` (steps, wall time, command); a run started with `resume=True`
-continues from them. Checkpoints are written every `checkpoint_steps` and when the wall-time
-budget ends the run.
+continues from them; a run started with `init_from` (another subject's policy folder) begins from
+that policy, its observation statistics and discriminator instead of from scratch (transfer: every
+subject's human has the same joints, observation and action layout; only the body and the reference
+cycle differ), and counts its own steps from zero. Checkpoints are written every `checkpoint_steps`
+and when the wall-time budget ends the run.
 
 PPO settings follow DeepMimic's (Peng et al. 2018: discount 0.95, GAE lambda 0.95, clip 0.2) with
 SB3's Adam; network sizes are params.
@@ -165,9 +168,9 @@ class MetricsLog:
 def train(model_path: str | Path, cycle: ReferenceCycle, p: TrainParams, out_dir: str | Path, *,
           n_envs: int | None = None, threads: int | None = None, total_steps: int | None = None,
           resume: bool = False, max_wall_s: float | None = None, subprocess: bool | None = None,
-          progress: bool = True, command: str = "") -> dict:
+          progress: bool = True, command: str = "", init_from: str | Path | None = None) -> dict:
     """Train (or continue training) the walking policy; returns the progress record (also written
-    to `out_dir/progress.json`)."""
+    to `out_dir/progress.json`). `init_from`: a policy folder to start from (module docstring)."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     n_envs = n_envs or p.n_envs
@@ -175,10 +178,16 @@ def train(model_path: str | Path, cycle: ReferenceCycle, p: TrainParams, out_dir
     total = total_steps or p.total_steps
     venv = make_vec_env(model_path, cycle, p, n_envs, p.subprocess if subprocess is None else subprocess)
     prior = json.loads((out / PROGRESS_FILE).read_text()) if resume and (out / PROGRESS_FILE).exists() else {}
-    if prior:
-        venv = VecNormalize.load(str(out / NORM_FILE), venv)
+    start_dir = out if prior else (Path(init_from) if init_from is not None else None)
+    if start_dir is not None:
+        for f in (POLICY_FILE, NORM_FILE):
+            if not (start_dir / f).exists():
+                raise FileNotFoundError(f"{start_dir / f}: no policy to start from")
+        venv = VecNormalize.load(str(start_dir / NORM_FILE), venv)
         venv.training = True
-        model = PPO.load(str(out / POLICY_FILE), env=venv, device="cpu")
+        model = PPO.load(str(start_dir / POLICY_FILE), env=venv, device="cpu")
+        if not prior:
+            model.num_timesteps = 0
     else:
         venv = VecNormalize(venv, norm_obs=True, norm_reward=False, clip_obs=10.0, gamma=p.gamma)
         model = PPO("MlpPolicy", venv, n_steps=p.n_steps, batch_size=p.batch_size, n_epochs=p.n_epochs,
@@ -191,13 +200,18 @@ def train(model_path: str | Path, cycle: ReferenceCycle, p: TrainParams, out_dir
     ref_env = make_walk_env(model_path, cycle, p.env)
     rng = np.random.default_rng(p.seed)
     amp = AMP(2 * AMP_SIZE, p.amp, lambda n: ref_env.ref.amp_pairs(rng, n, ref_env.step_phase), seed=p.seed)
-    if prior and (out / AMP_FILE).exists():
-        amp.load_state_dict(torch.load(out / AMP_FILE, weights_only=False))
+    if start_dir is not None and (start_dir / AMP_FILE).exists():
+        amp.load_state_dict(torch.load(start_dir / AMP_FILE, weights_only=False))
     log = MetricsLog(out, resume=bool(prior))
     start = time.perf_counter()
     steps0 = int(prior.get("steps", 0))
     wall0 = float(prior.get("wall_s", 0.0))
     runs = list(prior.get("runs", []))
+    origin = {}
+    if not prior and init_from is not None:
+        src_file = Path(init_from) / PROGRESS_FILE
+        src = json.loads(src_file.read_text()) if src_file.exists() else {}
+        origin = {"initialised_from": str(init_from), "initial_policy_steps": int(src.get("steps", 0))}
     model_sha = hashlib.sha256(Path(model_path).read_bytes()).hexdigest()[:16]
 
     def save() -> dict:
@@ -206,6 +220,7 @@ def train(model_path: str | Path, cycle: ReferenceCycle, p: TrainParams, out_dir
         venv.save(str(out / NORM_FILE))
         torch.save(amp.state_dict(), out / AMP_FILE)
         rec = {"steps": int(model.num_timesteps), "wall_s": round(wall0 + time.perf_counter() - start, 1),
+               **{k: v for k, v in prior.items() if k.startswith("initial")}, **origin,
                "runs": runs + [{"command": command, "human_xml_sha256_16": model_sha,
                                 "n_envs": n_envs, "threads": threads or p.threads,
                                 "steps": int(model.num_timesteps) - steps0,

@@ -161,3 +161,63 @@ def test_curving_tuning_walk_keeps_speed_and_yaws_with_its_path():
     yaw = 2 * np.arctan2(q[:, 6], q[:, 3])
     assert np.gradient(np.unwrap(yaw), t)[late].mean() == pytest.approx(walk.turn_rate_rps, rel=0.01)
     assert np.isfinite(v).all()
+
+
+class HeadingLog(Adaptive):
+    """Adaptive recording what its observer returns (speed, heading, heading rate) per tick."""
+
+    def reset(self) -> None:
+        super().reset()
+        self.log: list[tuple[float, float, float, float]] = []
+
+    def observe(self, s: RobotSensors) -> tuple[float, float, float]:
+        out = super().observe(s)
+        self.log.append((s.time_s, *out))
+        return out
+
+
+def test_turn_onset_walk_starts_turning_at_its_onset():
+    walk = WalkParams(speed_mps=1.5, duration_s=9.0, turn_rate_rps=0.4, turn_onset_s=6.0, turn_ramp_s=2.0)
+    m = synthetic_walk(walk)
+    yaw_rate = np.gradient(np.unwrap(2 * np.arctan2(m.qpos[:, 6], m.qpos[:, 3])), m.time_s)
+    assert np.abs(yaw_rate[m.time_s < 6.0]).max() < 1e-9
+    assert yaw_rate[m.time_s > 8.05].mean() == pytest.approx(0.4, rel=0.01)
+
+
+def test_comb_heading_follows_a_turn_onset_without_the_stride_lag(setup):
+    """Entering a turn, the stride average's heading lags about half a stride of turning; the comb
+    estimate (velocity now minus one stride ago) removes most of that lag, from robot sensors only."""
+    robot, replay, specs = setup
+    walk = WalkParams(speed_mps=1.5, stride_s=1.0, surge_mps=0.1, asym_mps=0.05, duration_s=9.0,
+                      turn_rate_rps=0.4, turn_onset_s=6.0, turn_ramp_s=2.0)
+    m = synthetic_walk(walk)
+    true = np.interp(np.arange(0, 9.0, 0.01), m.time_s, np.unwrap(2 * np.arctan2(m.qpos[:, 6], m.qpos[:, 3])))
+    errs = {}
+    for comb in (0.0, 1.0):
+        ctrl = HeadingLog({**specs["adaptive"]["gains"], "comb_compensation": comb}, robot_info(robot))
+        walk_rollout(ctrl, robot, replay, walk=walk)
+        t, _, heading, rate = np.array(ctrl.log).T
+        turning = (t > 7.0) & (t < 8.9)
+        truth = np.interp(t, np.arange(0, 9.0, 0.01), true)
+        errs[comb] = np.abs(np.angle(np.exp(1j * (heading - truth))))[turning].mean()
+        if comb:
+            assert rate[turning].mean() == pytest.approx(0.3, abs=0.12)  # the path's rate rises 0.25 -> 0.4
+    assert errs[0.0] > 0.1  # ~ half a stride x 0.3-0.4 rad/s
+    assert errs[1.0] < 0.5 * errs[0.0]
+
+
+def test_adaptive_speed_follows_the_start_of_walking(setup):
+    """Before a stride period is known, the fed-forward speed comes from a short window: during the
+    ramp from rest it lags the walk far less than the average over all that was seen."""
+    robot, replay, specs = setup
+    walk = TEST_WALK
+    lags = {}
+    for window in (0.5, 100.0):
+        gains = {**specs["adaptive"]["gains"], "startup_window_s": window}
+        ctrl = RecordingAdaptive(gains, robot_info(robot))
+        walk_rollout(ctrl, robot, replay, walk=walk)
+        t, v, _ = np.array(ctrl.log).T
+        ramp = (t > walk.rest_s + 0.5) & (t < walk.rest_s + walk.ramp_s)
+        u = np.clip((t - walk.rest_s) / walk.ramp_s, 0, 1)
+        lags[window] = np.mean((3 * u**2 - 2 * u**3)[ramp] * walk.speed_mps - v[ramp])
+    assert lags[0.5] < 0.6 * lags[100.0]

@@ -21,6 +21,19 @@ the robot's sensors and close the loop with LQR state feedback. Here, from robot
   tuning walks (never the evaluation data) full extrapolation overshoots at the end of accelerations
   (+0.3 m/s after a 1.5 s ramp to 1.2 m/s) and its heading rate is noisy (tuning objective 0.091
   with it vs 0.065 without, same gains); the LQR integral takes up the averaging lag instead.
+- Heading without the averaging lag (`comb_compensation`, default 1): the user's velocity now minus
+  their velocity one stride ago (each over the last 2 x `osc_half_window_s`) cancels the
+  stride-periodic part and leaves the change of the mean velocity over one stride, twice what the
+  stride average lags; half of it added to the average gives the heading now, and its angle to the
+  average's heading over half a stride the heading rate (fed forward). A comb filter, the core of
+  repetitive control. It acts once a stride period has been found. On the tuning set its effect is
+  on the walk that enters a turn (mean |e_y| 2.5 -> 1.4 cm, each design tuned); on the constant
+  curve it costs (1.4 -> 2.2 cm). The speed keeps the plain stride average (the comb's speed made
+  the tuning objective worse: 0.0761 vs 0.0735).
+- Starting to walk: until the first stride period is found, the speed fed forward is the user's
+  speed along the averaged heading over the last `startup_window_s` (0.5 s) instead of the average
+  over what there is, which lags an accelerating user by half the elapsed time (tuning objective
+  0.0838 -> 0.0743 at equal gains, peak e_x at the start 14 -> 7 cm).
 - Gait-periodic prediction: walking repeats every stride, so the user's velocity one stride ago,
   taken `drive_tau_s` later in the stride (central difference over +-`osc_half_window_s`), predicts
   the intra-stride oscillation about the mean that is about to come, ahead by the drive lag (the
@@ -82,9 +95,9 @@ def _wrap(a: float) -> float:
 
 OBSERVER_DEFAULTS = {"stride_init_s": 1.1, "stride_min_s": 0.6, "stride_max_s": 1.6, "stride_buffer_s": 4.0,
                      "stride_update_s": 1.0, "lag_compensation": 0.0, "heading_lag_compensation": 0.0,
-                     "oscillation_ff_lateral": 1.0,
+                     "oscillation_ff_lateral": 1.0, "comb_compensation": 1.0,
                      "oscillation_ff_forward": 0.0,
-                     "osc_half_window_s": 0.08}
+                     "osc_half_window_s": 0.08, "startup_window_s": 0.5}
 
 
 class Adaptive(Controller):
@@ -111,6 +124,10 @@ class Adaptive(Controller):
         n = max(int(round(o["stride_buffer_s"] / rb.dt_s)), int(1.5 * o["stride_max_s"] / rb.dt_s) + 2)
         self.xs, self.ys, self.ts = [0.0] * n, [0.0] * n, [0.0] * n
         self.n_seen = 0
+        # the stride search needs two of the longest strides and a margin; then it runs on what is there
+        self.min_fill = min(n, int(2 * o["stride_max_s"] / rb.dt_s) + 4)
+        self.stride_found = False
+        self.startup_n = max(int(round(o["startup_window_s"] / rb.dt_s)), 2)
         self.update_every = max(int(round(self.obs["stride_update_s"] / rb.dt_s)), 1)
         self.osc_h = max(int(round(self.obs["osc_half_window_s"] / rb.dt_s)), 1)
         self.osc_lead = int(round(rb.drive_tau_s / rb.dt_s))
@@ -121,7 +138,7 @@ class Adaptive(Controller):
         o, dt = self.obs, self.robot.dt_s
         n = len(self.xs)
         i = self.n_seen % n
-        p = np.array([self.xs[i:] + self.xs[:i], self.ys[i:] + self.ys[:i]]).T
+        p = np.array([self.xs[i:] + self.xs[:i], self.ys[i:] + self.ys[:i]]).T[-min(self.n_seen, n):]
         v = np.diff(p, axis=0) / dt
         mean = v.mean(axis=0)
         speed = float(np.hypot(*mean))
@@ -148,6 +165,19 @@ class Adaptive(Controller):
         shift = 0.5 * (y0 - y2) / (y0 - 2 * y1 + y2) if (y0 - 2 * y1 + y2) != 0 else 0.0
         return (j + shift) * dt
 
+    def _startup_speed(self, speed: float, heading: float, px: float, py: float, i: int, t: float) -> float:
+        """Until a stride period is found (the user is starting to walk), the speed along `heading`
+        over the last `startup_window_s` instead of the stride average, which lags an accelerating
+        user by half a window; later `speed` itself."""
+        if self.stride_found:
+            return speed
+        k = min(self.startup_n, self.n_seen - 1, len(self.xs) - 1)
+        if k < 2:
+            return speed
+        j = (i - k) % len(self.xs)
+        dt = t - self.ts[j]
+        return max(((px - self.xs[j]) * math.cos(heading) + (py - self.ys[j]) * math.sin(heading)) / dt, 0.0)
+
     def observe(self, s: RobotSensors) -> tuple[float, float, float]:
         """Estimated user speed (m/s), heading (rad) and heading rate (rad/s) now (module docstring);
         also sets `self.osc` to the predicted oscillation velocity (world x, y; m/s)."""
@@ -161,10 +191,10 @@ class Adaptive(Controller):
         self.xs[i], self.ys[i], self.ts[i] = px, py, s.time_s
         self.n_seen += 1
         seen = self.n_seen
-        if seen >= size and seen % self.update_every == 0:
+        if seen >= self.min_fill and seen % self.update_every == 0:
             stride = self.estimate_stride()
             if stride is not None:
-                self.stride_s = stride
+                self.stride_s, self.stride_found = stride, True
                 self.window_n = max(int(round(stride / self.robot.dt_s)), 2)
         n = self.window_n
         if seen <= n:  # less than a stride seen: average over what there is, or the base speed
@@ -174,12 +204,14 @@ class Adaptive(Controller):
             else:
                 vx, vy = (px - self.xs[0]) / dt, (py - self.ys[0]) / dt
             speed = math.hypot(vx, vy)
-            return speed, math.atan2(vy, vx) if speed > 0.1 else float(yaw), 0.0
+            heading = math.atan2(vy, vx) if speed > 0.1 else float(yaw)
+            return self._startup_speed(speed, heading, px, py, i, s.time_s), heading, 0.0
         ja = (i - n) % size
         dt = s.time_s - self.ts[ja]
         vx, vy = (px - self.xs[ja]) / dt, (py - self.ys[ja]) / dt
         speed = math.hypot(vx, vy)
         heading = math.atan2(vy, vx) if speed > 0.1 else float(yaw)
+        speed = self._startup_speed(speed, heading, px, py, i, s.time_s)
         half = n // 2
         if seen <= n + half or speed <= 0.1:
             return speed, heading, 0.0
@@ -188,6 +220,18 @@ class Adaptive(Controller):
             j1, j0 = (i - n + m + h) % size, (i - n + m - h) % size
             dto = self.ts[j1] - self.ts[j0]
             self.osc = ((self.xs[j1] - self.xs[j0]) / dto - vx, (self.ys[j1] - self.ys[j0]) / dto - vy)
+        comb = self.obs["comb_compensation"]
+        if comb > 0.0 and self.stride_found and seen > n + 2 * h:
+            # the user's velocity now minus one stride ago (both over the last 2h): the periodic part
+            # cancels, leaving the change of the mean over one stride, twice what the average lags
+            j2, j3 = (i - 2 * h) % size, (i - n - 2 * h) % size
+            ja2 = (i - n) % size
+            d1, d0 = s.time_s - self.ts[j2], self.ts[ja2] - self.ts[j3]
+            wx, wy = (self.xs[ja2] - self.xs[j3]) / d0, (self.ys[ja2] - self.ys[j3]) / d0
+            cx = (px - self.xs[j2]) / d1 - wx
+            cy = (py - self.ys[j2]) / d1 - wy
+            m_heading = math.atan2(vy + 0.5 * comb * cy, vx + 0.5 * comb * cx)
+            return speed, m_heading, _wrap(m_heading - heading) / (0.5 * n * self.robot.dt_s)
         jb, jc = (i - half) % size, (i - half - n) % size
         tb = self.ts[jb]
         dt0 = tb - self.ts[jc]
