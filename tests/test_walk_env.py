@@ -151,3 +151,50 @@ def test_committed_policy_walks_through_the_rollout_engine(setup):
     assert result.human_qpos.shape == (301, env.model.nq)
     speed = (result.human_qpos[-1, 0] - result.human_qpos[0, 0]) / 3.0
     assert speed == pytest.approx(cycle.speed_mps, rel=0.15)
+
+
+def test_training_can_start_from_another_subjects_policy(tmp_path, setup, camargo_model):
+    """`init_from`: the new run starts from the given policy, normaliser and discriminator (same
+    observation / action layout for every subject) and counts its own steps from zero."""
+    _, tp, _, cycle = setup
+    p = replace(tp, n_steps=128, batch_size=256, n_epochs=1, net_arch=(32, 32),
+                amp=replace(tp.amp, hidden=(32, 32)))
+    xml = camargo_model / "human.xml"
+    first = train(xml, cycle, p, tmp_path / "a", n_envs=2, threads=1, total_steps=512, progress=False)
+    rec = train(xml, cycle, p, tmp_path / "b", n_envs=2, threads=1, total_steps=256, progress=False,
+                init_from=tmp_path / "a")
+    assert rec["initialised_from"] == str(tmp_path / "a")
+    assert rec["initial_policy_steps"] == first["steps"]
+    assert 256 <= rec["steps"] < first["steps"] + 256 and len(rec["runs"]) == 1
+    (a, norm_a), (b, norm_b) = load_policy(tmp_path / "a"), load_policy(tmp_path / "b")
+    wa, wb = (m.policy.mlp_extractor.policy_net[0].weight.detach().numpy() for m in (a, b))
+    assert np.abs(wb - wa).mean() < 0.05 * np.abs(wa).mean()  # a few updates away from a
+    assert norm_b.obs_rms.count > norm_a.obs_rms.count  # the observation statistics carried over
+    with pytest.raises(FileNotFoundError, match="no policy to start from"):
+        train(xml, cycle, p, tmp_path / "c", n_envs=2, threads=1, total_steps=256, progress=False,
+              init_from=tmp_path / "missing")
+
+
+def test_real_gait_in_the_model_matches_the_dataset_curves(camargo_model):
+    """The SPM reference of evaluate-policy: camargo's free walking retargeted onto its model and
+    processed like a simulation gives about as many cycles as the real recording, close to the
+    dataset's own IK curves (the residual is the model's joint definitions and its virtual markers)."""
+    import pandas as pd
+
+    from pipeline.params import ingest_params
+    from pipeline.policy_stage import curves, real_in_model_cycles, spm_check
+
+    params = load_params()
+    model = mujoco.MjModel.from_xml_path(str(camargo_model / "human.xml"))
+    cycles = real_in_model_cycles(model, load_reference(camargo_model / "reference.npz"), "camargo",
+                                  ingest_params(params))
+    real = pd.read_parquet(camargo_model.parent / "real" / "cycles.parquet")
+    real = real[real["condition"] == "free"]
+    for joint in ("hip_flexion", "knee_flexion"):
+        a, b = curves(real, joint), curves(cycles, joint)
+        assert abs(len(b) - len(a)) <= 2
+        assert np.abs(a.mean(0) - b.mean(0)).mean() < 2.5
+        same = spm_check(b, b + np.random.default_rng(0).normal(0, 0.5, b.shape))
+        assert same["longest_cluster_pct"] < 20 and same["pass"]
+        shifted = spm_check(b, b + 15.0)  # a 15-degree offset is significant over the whole cycle
+        assert shifted["longest_cluster_pct"] > 90 and not shifted["pass"]
