@@ -7,7 +7,8 @@ at stride frequency (left/right step asymmetry, present in every real gait), lat
 +-`sway_m` at stride frequency, vertical +-`bounce_m` at step frequency (Winter 2009: about 2-5 cm
 sway and bounce), and optionally a slow pace fluctuation (`drift_mps`: walkers change pace from
 stride to stride). Optionally the path curves gently (`turn_rate_rps`), from the start or from
-`turn_onset_s` on, the heading rate rising over `turn_ramp_s` (a walk that ends entering a turn):
+`turn_onset_s` on, the heading rate rising over `turn_ramp_s` and the pace dropping by
+`turn_slowdown` (a walk that ends entering a turn):
 real "straight" bouts drift in heading and end in turns, and a controller tuned on a perfectly
 straight line alone is never asked to correct a lateral offset. It is not the evaluation data: the
 controllers are tuned on it and evaluated on the subjects' replayed recordings.
@@ -44,6 +45,7 @@ class WalkParams:
     drift_period_s: float = 3.0
     turn_onset_s: float = 0.0   # > 0: the heading rate rises from 0 at this time ...
     turn_ramp_s: float = 1.0    # ... to turn_rate_rps over this long (a bout that ends entering a turn)
+    turn_slowdown: float = 0.0  # ... while the pace drops by this fraction over the same ramp
 
 
 def capsule_world(mass_kg: float = 75.0, height_m: float = 0.95) -> mujoco.MjSpec:
@@ -64,6 +66,9 @@ def synthetic_walk(p: WalkParams, phase_rad: float = 0.0) -> Motion:
     u = np.clip((t - p.rest_s) / p.ramp_s, 0, 1)
     envelope = 3 * u**2 - 2 * u**3
     f = 1.0 / p.stride_s
+    if p.turn_onset_s > 0 and p.turn_slowdown:  # walkers slow down as they enter a turn
+        w = np.clip((t - p.turn_onset_s) / p.turn_ramp_s, 0, 1)
+        envelope = envelope * (1 - p.turn_slowdown * (3 * w**2 - 2 * w**3))
     # forward position: integral of envelope * (v + surge sin(2 w t)), integrated numerically
     vx = envelope * (p.speed_mps + p.surge_mps * np.sin(4 * np.pi * f * t + phase_rad)
                      + p.asym_mps * np.sin(2 * np.pi * f * t + phase_rad)

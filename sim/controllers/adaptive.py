@@ -26,16 +26,18 @@ the robot's sensors and close the loop with LQR state feedback. Here, from robot
   stride-periodic part and leaves the change of the mean velocity over one stride, twice what the
   stride average lags; half of it added to the average gives the heading now, and its angle to the
   average's heading over half a stride the heading rate (fed forward). A comb filter, the core of
-  repetitive control. It acts once a stride period has been found. On the tuning set its effect is
-  on the walk that enters a turn (mean |e_y| 2.5 -> 1.4 cm, each design tuned); on the constant
-  curve it costs (1.4 -> 2.2 cm). The speed keeps the plain stride average (the comb's speed made
-  the tuning objective worse: 0.0761 vs 0.0735).
+  repetitive control. It acts once a stride period has been found. On the tuning set (each design
+  tuned) it helps the walk that enters a turn (mean |e_y| 2.5 -> 1.4 cm) and costs on the constant
+  curve (1.4 -> 2.2 cm); kept for turn onsets, which end every real straight bout. The speed keeps
+  the plain stride average (the comb's speed tied on the tuning objective: 0.0613 vs 0.0607).
 - Starting to walk: until the first stride period is found, the speed fed forward is the user's
   speed along the averaged heading over the last `startup_window_s` (0.5 s) instead of the average
   over what there is, which lags an accelerating user by half the elapsed time (tuning objective
   0.0838 -> 0.0743 at equal gains, peak e_x at the start 14 -> 7 cm).
 - Gait-periodic prediction: walking repeats every stride, so the user's velocity one stride ago,
-  taken `drive_tau_s` later in the stride (central difference over +-`osc_half_window_s`), predicts
+  taken `drive_tau_s` later in the stride (central difference over +-`osc_half_window_s`, 0.15 s:
+  with 0.08 s, 4-12 % of the yaw commands changed faster than the drive's acceleration limit on the
+  tuning walks, 2-3 % with 0.15 s; tuning objective 0.0735 -> 0.0603, each tuned), predicts
   the intra-stride oscillation about the mean that is about to come, ahead by the drive lag (the
   idea behind adaptive-oscillator gait prediction, Ronsse et al. 2011, and repetitive control).
   Its deviation from the current stride average is fed forward across the base heading as yaw rate
@@ -97,7 +99,7 @@ OBSERVER_DEFAULTS = {"stride_init_s": 1.1, "stride_min_s": 0.6, "stride_max_s": 
                      "stride_update_s": 1.0, "lag_compensation": 0.0, "heading_lag_compensation": 0.0,
                      "oscillation_ff_lateral": 1.0, "comb_compensation": 1.0,
                      "oscillation_ff_forward": 0.0,
-                     "osc_half_window_s": 0.08, "startup_window_s": 0.5}
+                     "osc_half_window_s": 0.15, "startup_window_s": 0.5}
 
 
 class Adaptive(Controller):
