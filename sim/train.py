@@ -211,7 +211,9 @@ def train(model_path: str | Path, cycle: ReferenceCycle, p: TrainParams, out_dir
     if not prior and init_from is not None:
         src_file = Path(init_from) / PROGRESS_FILE
         src = json.loads(src_file.read_text()) if src_file.exists() else {}
-        origin = {"initialised_from": str(init_from), "initial_policy_steps": int(src.get("steps", 0))}
+        shown = Path(init_from).resolve()
+        shown = shown.relative_to(Path.cwd()) if shown.is_relative_to(Path.cwd()) else shown
+        origin = {"initialised_from": str(shown), "initial_policy_steps": int(src.get("steps", 0))}
     model_sha = hashlib.sha256(Path(model_path).read_bytes()).hexdigest()[:16]
 
     def save() -> dict:
