@@ -8,9 +8,9 @@ at stride frequency (left/right step asymmetry, present in every real gait), lat
 sway and bounce), and optionally a slow pace fluctuation (`drift_mps`: walkers change pace from
 stride to stride). Optionally the path curves gently (`turn_rate_rps`), from the start or from
 `turn_onset_s` on, the heading rate rising over `turn_ramp_s` and the pace dropping by
-`turn_slowdown` (a walk that ends entering a turn):
-real "straight" bouts drift in heading and end in turns, and a controller tuned on a perfectly
-straight line alone is never asked to correct a lateral offset. It is not the evaluation data: the
+`turn_slowdown` (a walk that ends entering a turn): real "straight" bouts drift in heading and end
+in turns, and a controller tuned on a perfectly straight line alone is never asked to correct a
+lateral offset. It is not the evaluation data: the
 controllers are tuned on it and evaluated on the subjects' replayed recordings.
 """
 
