@@ -83,6 +83,12 @@ class HumanDriver(ABC):
     @abstractmethod
     def qpos_samples(self) -> np.ndarray: ...
 
+    def sample_controls(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """Optional, after `reset`: (a view into `data.ctrl`, values (n_samples, width)) when all that
+        `before_sample(k)` does is write row k into that view; the rollout then writes it itself
+        and does not call `before_sample` (one Python call per sample less)."""
+        return None
+
     def from_world_qpos(self, world_qpos: np.ndarray) -> None:
         """Optional: take the per-sample state from the world qpos (n, nq_world) the rollout recorded
         at the output samples. A driver that overrides this is not called through `record` (one
@@ -286,6 +292,9 @@ class ReplayHuman(HumanDriver):
             return
         data.ctrl[self.pos_act] = self.rate[k]
         data.ctrl[self.vel_act] = self.rate[k]
+
+    def sample_controls(self) -> tuple[np.ndarray, np.ndarray] | None:
+        return None if self._ctrl_view is None else (self._ctrl_view, self._rate2)
 
     def record(self, model: mujoco.MjModel, data: mujoco.MjData, k: int) -> None:
         self.drive_q[k] = data.qpos[self.qadr]

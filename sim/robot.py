@@ -268,6 +268,9 @@ class BaseDrive:
         self.delay = deque([(0.0, 0.0)] * max(int(round(p.latency_s / dt_s)), 0))
         self.v = 0.0
         self.w = 0.0
+        # limits as plain floats (read every control tick)
+        self._vmax, self._wmax = p.max_speed_mps, p.max_yaw_rate_rps
+        self._dv, self._dw = p.max_accel_mps2 * dt_s, p.max_yaw_accel_rps2 * dt_s
 
     def reset(self, v: float = 0.0, w: float = 0.0) -> None:
         self.delay = deque([(v, w)] * len(self.delay))
@@ -275,14 +278,13 @@ class BaseDrive:
 
     def step(self, speed_mps: float, yaw_rate_rps: float, stop: bool = False) -> tuple[float, float]:
         """Apply one control sample's command; returns the (speed, yaw rate) reference now in force."""
-        p = self.p
         self.delay.append((0.0, 0.0) if stop else (speed_mps, yaw_rate_rps))
         v_cmd, w_cmd = self.delay.popleft()
         if stop:
             v_cmd = w_cmd = 0.0
-        v_cmd = min(max(v_cmd, -p.max_speed_mps), p.max_speed_mps)
-        w_cmd = min(max(w_cmd, -p.max_yaw_rate_rps), p.max_yaw_rate_rps)
-        dv, dw = p.max_accel_mps2 * self.dt_s, p.max_yaw_accel_rps2 * self.dt_s
+        vmax, wmax, dv, dw = self._vmax, self._wmax, self._dv, self._dw
+        v_cmd = min(max(v_cmd, -vmax), vmax)
+        w_cmd = min(max(w_cmd, -wmax), wmax)
         self.v += min(max(v_cmd - self.v, -dv), dv)
         self.w += min(max(w_cmd - self.w, -dw), dw)
         return self.v, self.w

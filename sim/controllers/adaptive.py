@@ -216,7 +216,8 @@ class Adaptive(Controller):
         vx, vy = (px - self.xs[ja]) / dt, (py - self.ys[ja]) / dt
         speed = math.hypot(vx, vy)
         heading = math.atan2(vy, vx) if speed > 0.1 else float(yaw)
-        speed = self._startup_speed(speed, heading, px, py, i, s.time_s)
+        if not self.stride_found:
+            speed = self._startup_speed(speed, heading, px, py, i, s.time_s)
         half = n // 2
         if seen <= n + half or speed <= 0.1:
             return speed, heading, 0.0
@@ -271,8 +272,9 @@ class Adaptive(Controller):
         u = min(max((speed - g0) / dg, 0.0), ng - 1.0)
         i0 = min(int(u), ng - 2)
         f = u - i0
-        k0, k1 = self.k_lat[i0], self.k_lat[i0 + 1]
-        kl = [a + f * (b - a) for a, b in zip(k0, k1, strict=True)]
+        a0, a1, a2, a3 = self.k_lat[i0]
+        b0, b1, b2, b3 = self.k_lat[i0 + 1]
         w_ff = heading_rate + w_osc
-        w = w_ff - (kl[0] * iy + kl[1] * ey + kl[2] * psi_rel + kl[3] * (s.base_yaw_rate_rps - w_ff))
+        w = w_ff - ((a0 + f * (b0 - a0)) * iy + (a1 + f * (b1 - a1)) * ey + (a2 + f * (b2 - a2)) * psi_rel
+                    + (a3 + f * (b3 - a3)) * (s.base_yaw_rate_rps - w_ff))
         return BaseCommand(float(v), float(w))
