@@ -133,11 +133,13 @@ def test_short_training_run_checkpoints_and_resumes(tmp_path, setup, camargo_mod
         assert {"disc_acc_reference", "style_reward", "r_pose"} <= set(metrics)
 
 
-@pytest.mark.skipif(not (POLICY / "policy.zip").exists(), reason="no committed camargo policy")
-def test_committed_policy_walks_through_the_rollout_engine(setup):
+@pytest.mark.parametrize("subject", ["camargo", "opencap4"])
+def test_committed_policy_walks_through_the_rollout_engine(setup, subject):
+    """Each example subject's committed policy walks 3 s on the body it was trained on."""
     params, tp, _, _ = setup
-    model, norm = load_policy(POLICY)
-    body, cycle = load_body(POLICY)  # the body the policy was trained on
+    folder = POLICY.parent / subject
+    model, norm = load_policy(folder)
+    body, cycle = load_body(folder)  # the body the policy was trained on
     env = make_walk_env(body, cycle, tp.env)
 
     def policy(obs):
