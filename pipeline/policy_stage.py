@@ -99,7 +99,7 @@ def run_train(subject: str, params: dict, path, *, n_envs: int | None, threads: 
     start = None
     if init_from is not None and not resume:
         start = out_root / init_from
-        if not (start / "policy.zip").exists():
+        if not (start / POLICY_FILE).exists():
             raise SimulationError(start, f"no trained policy of {init_from!r} to start {subject}'s from")
     xml, npz = _inputs(subject, root)
     cycle = load_reference(npz).cycle
@@ -268,20 +268,14 @@ def swing_knee_peaks(cycles: pd.DataFrame) -> np.ndarray:
     return k.groupby(["trial", "side", "stride"])["angle_deg"].max().to_numpy()
 
 
-def curves(cycles: pd.DataFrame, joint: str) -> np.ndarray:
-    """(n_cycles, n_points) of one joint, sides pooled."""
+def curves(cycles: pd.DataFrame, joint: str,
+           per: tuple[str, ...] = ("trial", "side", "stride")) -> np.ndarray:
+    """(n, n_points) of one joint, sides pooled: one curve per cycle, or with `per=("trial",)` one
+    mean curve per trial (a simulated rollout)."""
     c = cycles[cycles["joint"] == joint]
     if c.empty:
         return np.zeros((0, 0))
-    return c.pivot_table(index=["trial", "side", "stride"], columns="pct", values="angle_deg").to_numpy()
-
-
-def rollout_means(cycles: pd.DataFrame, joint: str) -> np.ndarray:
-    """(n_rollouts, n_points): one mean curve per simulated rollout (trial), sides pooled."""
-    c = cycles[cycles["joint"] == joint]
-    if c.empty:
-        return np.zeros((0, 0))
-    return c.pivot_table(index="trial", columns="pct", values="angle_deg").to_numpy()
+    return c.pivot_table(index=list(per), columns="pct", values="angle_deg").to_numpy()
 
 
 def real_in_model_cycles(model: mujoco.MjModel, reference, subject_id: str, ingest: IngestParams,
@@ -307,16 +301,17 @@ def spm_check(a: np.ndarray, b: np.ndarray, max_cluster_pct: float = 20.0, min_a
 
     if not (a.size and b.size) or a.shape[1] != b.shape[1]:
         return {"n_a": int(len(a)), "n_b": int(len(b)), "skipped": "no curves", "pass": False}
-    if len(a) < min_a:
-        out = spm_check(a, b, max_cluster_pct)
-        return {**out, "pass": None, "not_judged": f"{len(a)} real cycles < {min_a}"}
     res = spm_test(a, b, "anova1", 0.05, 2)
     spans = [(round(c.start_pct, 1), round(c.end_pct, 1)) for c in res.clusters]
     longest = round(float(max((e - s for s, e in spans), default=0.0)), 1)
-    return {"n_a": int(len(a)), "n_b": int(len(b)), "clusters_pct": spans, "longest_cluster_pct": longest,
-            "skipped": res.skipped, "pass": not res.skipped and longest <= max_cluster_pct,
-            "mean_abs_difference_deg": round(float(np.abs(a.mean(0) - b.mean(0)).mean()), 2),
-            "max_abs_difference_deg": round(float(np.abs(a.mean(0) - b.mean(0)).max()), 2)}
+    diff = np.abs(a.mean(0) - b.mean(0))
+    out = {"n_a": int(len(a)), "n_b": int(len(b)), "clusters_pct": spans, "longest_cluster_pct": longest,
+           "skipped": res.skipped, "pass": not res.skipped and longest <= max_cluster_pct,
+           "mean_abs_difference_deg": round(float(diff.mean()), 2),
+           "max_abs_difference_deg": round(float(diff.max()), 2)}
+    if len(a) < min_a:
+        out.update({"pass": None, "not_judged": f"{len(a)} real cycles < {min_a}"})
+    return out
 
 
 def spm_figure(path: Path, curves_by_joint: dict, results: dict, subject: str) -> None:
@@ -414,13 +409,13 @@ def evaluate_policy(subject: str, params: dict, path, root: Path = DEFAULT_ROOT,
     rec = sum(not _fell(r) for r in groups["push"])
     doc["push"] = {"force_n": ev.push_n, "duration_s": ev.push_duration_s, "at_s": ev.push_time_s,
                    "walk_s": push_s, "rollouts": len(groups["push"]), "recovered": rec, "pass": rec >= 7}
+    xml, npz = _inputs(subject, root)
     policy_model = mujoco.MjModel.from_xml_path(str(policy_root / subject / BODY_FILE))
-    in_model = real_in_model_cycles(policy_model, load_reference(_inputs(subject, root)[1]), subject,
-                                    ingest_params(params, path))
+    in_model = real_in_model_cycles(policy_model, load_reference(npz), subject, ingest_params(params, path))
     spm, shown = {}, {}
     for joint in ("hip_flexion", "knee_flexion"):
         dataset, model_real = curves(real_free_cycles, joint), curves(in_model, joint)
-        means = rollout_means(sim_cycles, joint) if len(sim_cycles) else np.zeros((0, 0))
+        means = curves(sim_cycles, joint, per=("trial",)) if len(sim_cycles) else np.zeros((0, 0))
         every = curves(sim_cycles, joint) if len(sim_cycles) else np.zeros((0, 0))
         spm[joint] = {"primary": spm_check(model_real, means, min_a=ev.spm_min_real_cycles),
                       "vs_dataset_rollout_means": spm_check(dataset, means),
@@ -438,7 +433,6 @@ def evaluate_policy(subject: str, params: dict, path, root: Path = DEFAULT_ROOT,
     with replacing(png) as (tmp,):
         spm_figure(tmp.with_suffix(".png"), shown, spm, subject)
         tmp.with_suffix(".png").replace(tmp)
-    xml, _ = _inputs(subject, root)
     doc["policy_body_is_current_model"] = (policy_root / subject / BODY_FILE).read_bytes() == xml.read_bytes()
     doc["figure"] = str(png.relative_to(REPO_ROOT)) if png.is_relative_to(REPO_ROOT) else str(png)
     doc["unstable_rollouts"] = sum(not r["stable"] for r in results)

@@ -10,8 +10,8 @@ stride to stride). Optionally the path curves gently (`turn_rate_rps`), from the
 `turn_onset_s` on, the heading rate rising over `turn_ramp_s` and the pace dropping by
 `turn_slowdown` (a walk that ends entering a turn): real "straight" bouts drift in heading and end
 in turns, and a controller tuned on a perfectly straight line alone is never asked to correct a
-lateral offset. It is not the evaluation data: the
-controllers are tuned on it and evaluated on the subjects' replayed recordings.
+lateral offset. It is not the evaluation data: the controllers are tuned on it and evaluated on the
+subjects' replayed recordings.
 """
 
 from __future__ import annotations
@@ -45,7 +45,8 @@ class WalkParams:
     drift_period_s: float = 3.0
     turn_onset_s: float = 0.0   # > 0: the heading rate rises from 0 at this time ...
     turn_ramp_s: float = 1.0    # ... to turn_rate_rps over this long (a bout that ends entering a turn)
-    turn_slowdown: float = 0.0  # ... while the pace drops by this fraction over the same ramp
+    turn_slowdown: float = 0.0  # ... while the walk's envelope (pace, sway, bounce and the turn rate
+                                # itself) shrinks by this fraction over the same ramp
 
 
 def capsule_world(mass_kg: float = 75.0, height_m: float = 0.95) -> mujoco.MjSpec:

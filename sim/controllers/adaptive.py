@@ -174,11 +174,9 @@ class Adaptive(Controller):
         return (j + shift) * dt
 
     def _startup_speed(self, speed: float, heading: float, px: float, py: float, i: int, t: float) -> float:
-        """Until a stride period is found (the user is starting to walk), the speed along `heading`
-        over the last `startup_window_s` instead of the stride average, which lags an accelerating
-        user by half a window; later `speed` itself."""
-        if self.stride_found:
-            return speed
+        """Until a stride period is found (the user is starting to walk; the callers check), the speed
+        along `heading` over the last `startup_window_s` instead of the stride average `speed`, which
+        lags an accelerating user by half a window."""
         k = min(self.startup_n, self.n_seen - 1, len(self.xs) - 1)
         if k < 2:
             return speed
@@ -213,7 +211,9 @@ class Adaptive(Controller):
                 vx, vy = (px - self.xs[0]) / dt, (py - self.ys[0]) / dt
             speed = math.hypot(vx, vy)
             heading = math.atan2(vy, vx) if speed > 0.1 else float(yaw)
-            return self._startup_speed(speed, heading, px, py, i, s.time_s), heading, 0.0
+            if not self.stride_found:
+                speed = self._startup_speed(speed, heading, px, py, i, s.time_s)
+            return speed, heading, 0.0
         ja = (i - n) % size
         dt = s.time_s - self.ts[ja]
         vx, vy = (px - self.xs[ja]) / dt, (py - self.ys[ja]) / dt
