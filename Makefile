@@ -15,7 +15,7 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install --quiet -e '.[dev]'
 	touch $(STAMP)
 
-# Headless MuJoCo rendering for `scale` (sim/render.py) needs EGL (Mesa, in the base image) or
+# Headless MuJoCo rendering for `scale` (sim/body/render.py) needs EGL (Mesa, in the base image) or
 # OSMesa; Debian's libosmesa6 is installed only when neither library is present.
 render-deps:
 	@ldconfig -p | grep -q -e libEGL_mesa -e libOSMesa || \

@@ -12,12 +12,12 @@ from pathlib import Path
 
 from ingest.errors import GaitloopError
 from ingest.process import process_trial
-from pipeline.bench import SECTIONS, run_bench
-from pipeline.ingest_stage import DEFAULT_OUT_ROOT, run_ingest
-from pipeline.outputs import json_text, write_json
+from pipeline.bench.suite import SECTIONS, run_bench
+from pipeline.commands.quicklook import file_trial, format_events, quicklook_subject
+from pipeline.commands.results import add_results_commands
 from pipeline.params import PARAMS_FILE, REPO_ROOT, ingest_params, load_params
-from pipeline.quicklook import file_trial, format_events, quicklook_subject
-from pipeline.results_cli import add_results_commands
+from pipeline.stages.ingest import DEFAULT_OUT_ROOT, run_ingest
+from pipeline.stages.outputs import json_text, write_json
 
 EXIT_ERROR = 2
 
@@ -60,7 +60,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
 
 def cmd_reference(args: argparse.Namespace) -> int:
-    from pipeline.reference_stage import DEFAULT_ROOT, REPORTS_ROOT, run_reference
+    from pipeline.stages.reference import DEFAULT_ROOT, REPORTS_ROOT, run_reference
 
     doc = run_reference(args.subject, load_params(args.params), args.root or DEFAULT_ROOT,
                         args.reports or REPORTS_ROOT)
@@ -71,7 +71,7 @@ def cmd_reference(args: argparse.Namespace) -> int:
 
 
 def cmd_tune_controllers(args: argparse.Namespace) -> int:
-    from pipeline.tune_stage import run_tuning, write_gains
+    from pipeline.commands.tune_controllers import run_tuning, write_gains
 
     doc = run_tuning(load_params(args.params), args.params, args.out)
     for name, res in doc["controllers"].items():
@@ -83,7 +83,7 @@ def cmd_tune_controllers(args: argparse.Namespace) -> int:
 
 
 def cmd_scale(args: argparse.Namespace) -> int:
-    from pipeline.scale_stage import DEFAULT_ROOT, REPORTS_ROOT, run_scale
+    from pipeline.stages.scale import DEFAULT_ROOT, REPORTS_ROOT, run_scale
 
     folder = run_scale(args.subject, load_params(args.params), args.root or DEFAULT_ROOT,
                        args.reports or REPORTS_ROOT)
@@ -92,10 +92,10 @@ def cmd_scale(args: argparse.Namespace) -> int:
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
-    from pipeline.simulate_stage import DEFAULT_ROOT, REPORTS_ROOT, run_simulate
+    from pipeline.stages.simulate import DEFAULT_ROOT, REPORTS_ROOT, run_simulate
 
     if getattr(args, "human", "replay") == "policy":
-        from pipeline.policy_stage import run_simulate_policy
+        from pipeline.stages.train import run_simulate_policy
 
         doc = run_simulate_policy(args.subject, load_params(args.params), args.params,
                                   args.root or DEFAULT_ROOT)
@@ -112,7 +112,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
 
 def cmd_train(args: argparse.Namespace) -> int:
-    from pipeline.policy_stage import run_train
+    from pipeline.stages.train import run_train
 
     rec = run_train(args.subject, load_params(args.params), args.params, n_envs=args.n_envs,
                     threads=args.threads, steps=args.steps, resume=args.resume, max_wall_s=args.max_wall_s,
@@ -123,7 +123,7 @@ def cmd_train(args: argparse.Namespace) -> int:
 
 
 def cmd_evaluate_policy(args: argparse.Namespace) -> int:
-    from pipeline.policy_stage import evaluate_policy
+    from pipeline.stages.train import evaluate_policy
 
     doc = evaluate_policy(args.subject, load_params(args.params), args.params, progress=not args.json)
     if args.out:
@@ -133,7 +133,7 @@ def cmd_evaluate_policy(args: argparse.Namespace) -> int:
 
 
 def cmd_render(args: argparse.Namespace) -> int:
-    from pipeline.render_stage import DEFAULT_ROOT, REPORTS_ROOT, run_render
+    from pipeline.commands.render import DEFAULT_ROOT, REPORTS_ROOT, run_render
 
     path = run_render(args.subject, args.condition, load_params(args.params), args.params,
                       args.root or DEFAULT_ROOT, args.reports or REPORTS_ROOT, args.seed, args.bout)

@@ -5,9 +5,9 @@ from __future__ import annotations
 from pathlib import Path
 
 from pipeline.params import PARAMS_FILE, ParamsError
-from sim.replay import ReplayParams
-from sim.robot import RobotParams
-from sim.tuning import TuningParams
+from sim.motion.replay import ReplayParams
+from sim.robot.mrba import RobotParams
+from sim.rollout.tuning import TuningParams
 
 
 def _section(params: dict, name: str, path: str | Path) -> dict:

@@ -12,10 +12,10 @@ import pytest
 def camargo_model(tmp_path_factory) -> Path:
     """Folder with camargo's scaled `human.xml` and `reference.npz` (its real tables beside it in
     `../real/`), as `dvc repro ingest@camargo scale@camargo reference@camargo` makes them."""
-    from pipeline.ingest_stage import run_ingest
     from pipeline.params import load_params
-    from pipeline.reference_stage import run_reference
-    from pipeline.scale_stage import run_scale
+    from pipeline.stages.ingest import run_ingest
+    from pipeline.stages.reference import run_reference
+    from pipeline.stages.scale import run_scale
 
     root, reports = tmp_path_factory.mktemp("processed"), tmp_path_factory.mktemp("reports")
     params = load_params()

@@ -11,8 +11,8 @@ from ingest.canonical import load_trial
 from ingest.errors import IngestError, SubjectError
 from ingest.manifest import Manifest
 from ingest.subject import load_subject
-from pipeline.add_subject import NewTrial, Registry, add_subject
 from pipeline.cli import main
+from pipeline.commands.add_subject import NewTrial, Registry, add_subject
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = Path(os.environ.get("GAITLOOP_MIRROR", ROOT.parent / "shared" / "data"))

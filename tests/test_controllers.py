@@ -8,7 +8,10 @@ import pytest
 
 from pipeline.params import load_params
 from pipeline.robot_config import controller_specs, replay_params, robot_params
-from sim.controllers import (
+from sim.errors import SimulationError
+from sim.motion.replay import ReplayHuman
+from sim.motion.synthetic import WalkParams, capsule_world, synthetic_walk
+from sim.robot.controllers import (
     PID,
     Adaptive,
     BaseCommand,
@@ -18,12 +21,9 @@ from sim.controllers import (
     register,
     resolve,
 )
-from sim.controllers.adaptive import SPEED_GRID_MPS, forward_gain, lateral_gain
-from sim.errors import SimulationError
-from sim.replay import ReplayHuman
-from sim.rollout import RolloutParams, robot_info, rollout
-from sim.synthetic import WalkParams, capsule_world, synthetic_walk
-from sim.tuning import score
+from sim.robot.controllers.adaptive import SPEED_GRID_MPS, forward_gain, lateral_gain
+from sim.rollout.loop import RolloutParams, robot_info, rollout
+from sim.rollout.tuning import score
 
 
 class FeedForwardP(Controller):
@@ -64,7 +64,7 @@ def walk_rollout(controller, robot, replay, seed=0, walk=TEST_WALK):
 
 def test_registry_by_name_and_import_path():
     assert resolve("pid") is PID and resolve("adaptive") is Adaptive
-    assert resolve("sim.controllers.pid:PID") is PID
+    assert resolve("sim.robot.controllers.pid:PID") is PID
     assert resolve(f"{FeedForwardP.__module__}:FeedForwardP") is FeedForwardP
     register("feedforward_p", FeedForwardP)
     assert resolve("feedforward_p") is FeedForwardP
@@ -74,7 +74,7 @@ def test_registry_errors_name_the_controller():
     with pytest.raises(SimulationError, match="controller 'nope': unknown"):
         resolve("nope")
     with pytest.raises(SimulationError, match="cannot import"):
-        resolve("sim.controllers.pid:Missing")
+        resolve("sim.robot.controllers.pid:Missing")
     with pytest.raises(SimulationError, match="not a Controller subclass"):
         resolve("numpy:ndarray")
     with pytest.raises(SimulationError, match="lacks 'class'"):

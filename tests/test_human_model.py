@@ -17,10 +17,9 @@ from ingest.process import landmarks, process_trial
 from ingest.readers import read_markers
 from ingest.subject import load_subject
 from pipeline.params import ingest_params, load_params
-from pipeline.reference_stage import RetargetSection
-from pipeline.scale_stage import human_params
-from sim.errors import ScalingError, SimulationError
-from sim.human import (
+from pipeline.stages.reference import RetargetSection
+from pipeline.stages.scale import human_params
+from sim.body.human import (
     FOOT_BIT,
     actuator_dofs,
     build_human,
@@ -29,10 +28,11 @@ from sim.human import (
     pose_hold_gains,
     standing_height,
 )
-from sim.human_params import BALL_JOINTS, HINGE_JOINTS
-from sim.retarget import retarget
-from sim.scaling import scale_subject, scaling_roles
-from sim.virtual_markers import marker_positions, marker_sites, trial_from_qpos
+from sim.body.human_params import BALL_JOINTS, HINGE_JOINTS
+from sim.body.markers import marker_positions, marker_sites, trial_from_qpos
+from sim.body.scaling import scale_subject, scaling_roles
+from sim.errors import ScalingError, SimulationError
+from sim.motion.retarget import retarget
 
 SUBJECTS = {"camargo": (74.8, 1.80), "opencap4": (62.6, 1.68)}
 
@@ -195,12 +195,12 @@ def test_upright_at_qpos0_feet_flat_in_the_static_pose(human):
 def test_static_pose_joint_angles_equal_the_static_ik(human, params):
     """Static calibration (`human.neutral: static_ik`): the model's joint angles in its static pose
     are the dataset's own IK angles of that pose (opencap4: static1_ik.mot; camargo: the median of
-    the walking IK over the quiet-standing window), read here independently of sim.scaling. The
+    the walking IK over the quiet-standing window), read here independently of sim.body.scaling. The
     ankle hinge carries the calcaneus: ankle angle + (subtalar axis . talocrural axis) x subtalar
     angle to first order."""
     from ingest.canonical import canonical_angles
     from ingest.readers import read_mot
-    from sim.retarget import joint_angles
+    from sim.motion.retarget import joint_angles
 
     subject, body, model = human
     assert body.neutral == "static_ik" and subject.static.angles is not None
@@ -281,7 +281,7 @@ def test_simulated_trial_is_a_canonical_trial(human):
 
 
 def test_calcaneus_angle_is_the_twist_about_the_talocrural_axis():
-    from sim.scaling import calcaneus_dorsiflexion_deg
+    from sim.body.scaling import calcaneus_dorsiflexion_deg
 
     h, n = np.array([-0.105, -0.174, 0.979]), np.array([0.787, 0.605, -0.121])
     h, n = h / np.linalg.norm(h), n / np.linalg.norm(n)

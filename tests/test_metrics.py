@@ -20,8 +20,8 @@ from metrics import (
     stability_table,
 )
 from metrics.tracking import tracking_table
-from pipeline.metrics_stage import MetricsParams, compute, headline, params_hash
 from pipeline.params import ingest_params, load_params
+from pipeline.stages.metrics import MetricsParams, compute, headline, params_hash
 
 ROOT = Path(__file__).resolve().parents[1]
 ID = {"subject": "s1", "source": "sim", "condition": "pid"}

@@ -3,7 +3,7 @@
 import pandas as pd
 import pytest
 
-from pipeline.outputs import replacing, write_outputs
+from pipeline.stages.outputs import replacing, write_outputs
 
 
 def test_outputs_replace_previous_ones(tmp_path):

@@ -17,12 +17,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pipeline.ingest_stage import run_ingest
-from pipeline.metrics_stage import run_metrics
 from pipeline.params import load_params
-from pipeline.report_stage import ReportParams, run_report
+from pipeline.stages.ingest import run_ingest
+from pipeline.stages.metrics import run_metrics
+from pipeline.stages.report import ReportParams, run_report
+from pipeline.stages.store import load_results
 from pipeline.store import StoreError, StoreParams, query, store_results
-from pipeline.store_stage import load_results
 
 ROBOT_FORCES = [
     "harness_fx_n",

@@ -1,4 +1,4 @@
-"""Marker IK (sim.retarget) and the reference motion (sim.reference).
+"""Marker IK (sim.motion.retarget) and the reference motion (sim.motion.reference).
 
 Solver tests run on a small MjSpec body (free root, ball hips, hinge knees) built here; the
 must-show tests retarget the real subjects onto their scaled models (camargo: a 2-s slice of the
@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from sim.retarget import MarkerIK, RetargetParams, joint_angles, retarget, site_positions
+from sim.motion.retarget import MarkerIK, RetargetParams, joint_angles, retarget, site_positions
 
 BALL, HINGE = mujoco.mjtJoint.mjJNT_BALL, mujoco.mjtJoint.mjJNT_HINGE
 
@@ -159,7 +159,7 @@ def test_marker_weights_select_and_drop_markers():
 
 
 def test_gait_phase_runs_from_heel_strike_to_heel_strike():
-    from sim.reference import gait_phase
+    from sim.motion.reference import gait_phase
 
     t = np.arange(0, 3, 0.01)
     ph = gait_phase(t, np.array([0.5, 1.5, 2.5]))
@@ -172,7 +172,7 @@ def test_gait_phase_runs_from_heel_strike_to_heel_strike():
 def test_periodic_cycle_of_walking_strides_in_two_directions():
     """Strides walked along +X and back along -X (after a turn) give one periodic cycle heading +X
     that advances by the mean stride length; a noisy mismatch at the ends is made periodic."""
-    from sim.reference import periodic_cycle
+    from sim.motion.reference import periodic_cycle
 
     model = toy_model()
     rng = np.random.default_rng(1)
@@ -223,11 +223,11 @@ def real_fit(request):
     from ingest.process import process_trial
     from ingest.subject import load_subject
     from pipeline.params import ingest_params, load_params
-    from pipeline.reference_stage import RetargetSection
-    from sim.human import build_human
-    from sim.human_params import HumanParams
-    from sim.reference import retarget_trial
-    from sim.scaling import scale_subject
+    from pipeline.stages.reference import RetargetSection
+    from sim.body.human import build_human
+    from sim.body.human_params import HumanParams
+    from sim.body.scaling import scale_subject
+    from sim.motion.reference import retarget_trial
 
     params = load_params()
     hp = HumanParams.from_dict(params.get("human", {}))
@@ -253,11 +253,11 @@ def test_real_walk_virtual_markers_match_real_markers(real_fit):
 
 def test_real_walk_sagittal_angles_match_the_mot_angles(real_fit):
     """Raw RMS <= 5 deg for hip, knee and ankle flexion: the model's joint zeros are calibrated to
-    the dataset's static IK (`human.neutral: static_ik`, sim/scaling.py), so the model and the
+    the dataset's static IK (`human.neutral: static_ik`, sim/body/scaling.py), so the model and the
     OpenSim model share their zeros (the model's ankle hinge carries the calcaneus, so its static
     angle includes the static subtalar angle's share; without that share opencap4's ankle, whose
     static subtalar angle is -13 to -15 deg, is off by about -7 deg when walking)."""
-    from pipeline.reference_stage import angle_errors, angle_summary
+    from pipeline.stages.reference import angle_errors, angle_summary
 
     subject, model, rt, processed, _ = real_fit
     real = processed.trial.angles
@@ -280,7 +280,7 @@ def test_real_walk_sagittal_angles_match_the_mot_angles(real_fit):
 
 
 def test_real_walk_periodic_cycle_matches_the_kept_strides(real_fit):
-    from sim.reference import cycle_from_trials, left_right_shift, lowest_foot_z
+    from sim.motion.reference import cycle_from_trials, left_right_shift, lowest_foot_z
 
     subject, model, rt, processed, p = real_fit
     if subject == "opencap4":  # one stride per walk: pool the second free walk too
@@ -289,8 +289,8 @@ def test_real_walk_periodic_cycle_matches_the_kept_strides(real_fit):
         from ingest.process import process_trial
         from ingest.subject import load_subject
         from pipeline.params import ingest_params, load_params
-        from pipeline.reference_stage import RetargetSection
-        from sim.reference import retarget_trial
+        from pipeline.stages.reference import RetargetSection
+        from sim.motion.reference import retarget_trial
 
         params = load_params()
         subj, manifest = load_subject(subject), Manifest.load()
@@ -331,10 +331,10 @@ def test_reference_stage_writes_npz_json_and_figure(tmp_path):
     from ingest.subject import load_subject
     from pipeline.cli import main
     from pipeline.params import load_params
-    from sim.human import build_human
-    from sim.human_params import HumanParams
-    from sim.reference import load_reference
-    from sim.scaling import scale_subject
+    from sim.body.human import build_human
+    from sim.body.human_params import HumanParams
+    from sim.body.scaling import scale_subject
+    from sim.motion.reference import load_reference
 
     hp = HumanParams.from_dict(load_params().get("human", {}))
     xml = build_human(scale_subject(load_subject("opencap4"), Manifest.load(), hp), hp).to_xml()
@@ -361,7 +361,7 @@ def test_reference_stage_writes_npz_json_and_figure(tmp_path):
 
 def test_retarget_params_reject_unknown_keys():
     from pipeline.params import ParamsError, load_params
-    from pipeline.reference_stage import RetargetSection
+    from pipeline.stages.reference import RetargetSection
 
     section = RetargetSection.from_params(load_params())
     assert section.reference.conditions == ("free",) and section.ik.iterations >= 1

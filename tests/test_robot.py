@@ -8,9 +8,9 @@ import pytest
 
 from pipeline.params import load_params
 from pipeline.robot_config import robot_params
-from sim.harness import AXES, HarnessIndex, harness_wrench, wrench_from_sensors
-from sim.robot import SENSOR_WIDTH, SENSORS, BaseDrive, RobotIndex, attach_robot, lock_arm
-from sim.synthetic import capsule_world
+from sim.motion.synthetic import capsule_world
+from sim.robot.harness import AXES, HarnessIndex, harness_wrench, wrench_from_sensors
+from sim.robot.mrba import SENSOR_WIDTH, SENSORS, BaseDrive, RobotIndex, attach_robot, lock_arm
 
 MASS_KG = 75.0
 

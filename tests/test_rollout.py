@@ -13,13 +13,13 @@ import pytest
 
 from pipeline.params import load_params
 from pipeline.robot_config import controller_specs, replay_params, robot_params
-from pipeline.simulate_stage import straight_bouts
-from sim.controllers import make_controller
+from pipeline.stages.simulate import straight_bouts
 from sim.errors import SimulationError
-from sim.reference import load_reference
-from sim.replay import Motion, ReplayHuman, interpolate_qpos, scripted_fall, with_lead_in
-from sim.rollout import ROBOT_COLUMNS, RolloutParams, physics_steps, robot_info, rollout, step_grid
-from sim.synthetic import WalkParams, capsule_world, synthetic_walk
+from sim.motion.reference import load_reference
+from sim.motion.replay import Motion, ReplayHuman, interpolate_qpos, scripted_fall, with_lead_in
+from sim.motion.synthetic import WalkParams, capsule_world, synthetic_walk
+from sim.robot.controllers import make_controller
+from sim.rollout.loop import ROBOT_COLUMNS, RolloutParams, physics_steps, robot_info, rollout, step_grid
 
 WALK = WalkParams(duration_s=6.0)
 
@@ -160,7 +160,7 @@ def test_camargo_simulate_reproduces_the_paper_table1_ordering(camargo_model, tm
     """`simulate camargo` (replay human, straight bouts, every seed): the adaptive controller has
     lower mean |e_x|, mean |e_y| and harness force RMS than the PID (ICRA 2025 Table I), both tuned
     by the same procedure on synthetic walks only; no rollout unstable or warned, no fall."""
-    from pipeline.simulate_stage import run_simulate
+    from pipeline.stages.simulate import run_simulate
 
     root = camargo_model.parent.parent
     doc = run_simulate("camargo", load_params(), "params.yaml", root, tmp_path, progress=False)

@@ -11,11 +11,11 @@ from pathlib import Path
 import pytest
 
 from pipeline.cli import main
-from pipeline.ingest_stage import run_ingest
-from pipeline.metrics_stage import run_metrics
 from pipeline.params import load_params
+from pipeline.stages.ingest import run_ingest
+from pipeline.stages.metrics import run_metrics
+from pipeline.stages.store import load_results
 from pipeline.store import StoreError, StoreParams, open_store, query, store_results
-from pipeline.store_stage import load_results
 
 ROOT = Path(__file__).resolve().parents[1]
 SUBJECTS = ("camargo", "opencap4")
@@ -138,7 +138,7 @@ CRASH = """
 import sys, time
 from pathlib import Path
 from pipeline.store import StoreParams, store_results
-from pipeline.store_stage import load_results
+from pipeline.stages.store import load_results
 root = Path(sys.argv[2])
 res = [load_results(s, root) for s in ("camargo", "opencap4")]
 def midway(step):

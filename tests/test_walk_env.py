@@ -14,14 +14,14 @@ import torch
 from gymnasium.utils.env_checker import check_env
 
 from pipeline.params import PARAMS_FILE, REPO_ROOT, load_params
-from pipeline.policy_stage import train_section
-from sim.amp import AMP, style_reward
-from sim.human_params import HumanParams, joint_kind
-from sim.policy_human import PolicyHuman
-from sim.reference import load_reference
-from sim.rollout import RolloutParams, rollout
-from sim.train import load_body, load_policy, train
-from sim.walk_env import AMP_SIZE, OBS_SIZE, make_walk_env
+from pipeline.stages.train import train_section
+from sim.body.human_params import HumanParams, joint_kind
+from sim.learn.amp import AMP, style_reward
+from sim.learn.policy_human import PolicyHuman
+from sim.learn.train import load_body, load_policy, train
+from sim.learn.walk_env import AMP_SIZE, OBS_SIZE, make_walk_env
+from sim.motion.reference import load_reference
+from sim.rollout.loop import RolloutParams, rollout
 
 POLICY = REPO_ROOT / "data" / "policies" / "camargo"
 
@@ -185,7 +185,7 @@ def test_real_gait_in_the_model_matches_the_dataset_curves(camargo_model):
     import pandas as pd
 
     from pipeline.params import ingest_params
-    from pipeline.policy_stage import curves, real_in_model_cycles, spm_check
+    from pipeline.stages.train import curves, real_in_model_cycles, spm_check
 
     params = load_params()
     model = mujoco.MjModel.from_xml_path(str(camargo_model / "human.xml"))

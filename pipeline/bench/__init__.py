@@ -1,0 +1,1 @@
+"""`python -m pipeline bench`: speed and memory targets as ratios measured in one run."""

@@ -1,0 +1,96 @@
+"""Benchmark of replay rollouts (part of `python -m pipeline bench`).
+
+- `ratio_to_mj_step`: raw `mj_step` time for the rollout's number of physics steps on the same
+  human+robot model (from the rollout's exact initial state, `RolloutResult.initial_state`, one
+  `mj_step(nstep)` call, no Python in between) divided by the rollout's loop time; 1.0 would mean
+  zero Python overhead. Rollout and raw run are timed in adjacent pairs and the median of the pair
+  ratios is reported (the CPU is shared, so far-apart timings would compare different loads).
+  Target >= 0.8 (issue 4). The controller runs at `robot.base.control_rate_hz`, the output at
+  `rate_hz` (sim/rollout/loop.py).
+- `realtime_factor`: simulated seconds per wall second of one rollout.
+- `parallel_speedup`: wall time of `n_parallel` rollouts (each with its world build) in sequence
+  over the same rollouts in a 2-process pool (both cores) whose workers have started (a warm-up
+  map first: process start and imports are paid once per `simulate` run, not per rollout).
+
+The world is the camargo human (data/processed/camargo/model/human.xml) when it exists, else the
+capsule world of sim.motion.synthetic; the human replays the synthetic tuning walk; controller `adaptive`.
+"""
+
+from __future__ import annotations
+
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from pipeline.params import REPO_ROOT
+from pipeline.robot_config import controller_specs, replay_params, robot_params, tuning_params
+from sim.motion.replay import Motion, ReplayHuman
+from sim.motion.synthetic import capsule_world, synthetic_walk
+from sim.robot.controllers import make_controller
+from sim.rollout.loop import RolloutParams, build_world, robot_info, rollout
+
+TARGETS = {"ratio_to_mj_step": 0.8}
+HUMAN_XML = REPO_ROOT / "data" / "processed" / "camargo" / "model" / "human.xml"
+
+
+def _setup(params: dict, path, rate_hz: float):
+    robot, replay = robot_params(params, path), replay_params(params, path)
+    walk = tuning_params(params, path).walk
+    if HUMAN_XML.exists():
+        spec = mujoco.MjSpec.from_file(str(HUMAN_XML))
+        m0 = spec.copy().compile()
+        w = synthetic_walk(walk)
+        qpos = np.tile(m0.qpos0, (len(w.time_s), 1))
+        qpos[:, :7] = w.qpos
+        qpos[:, 2] += m0.qpos0[2] - walk.pelvis_height_m
+        motion, world = Motion(w.time_s, qpos), "camargo human"
+    else:
+        spec, motion = capsule_world(walk.mass_kg, walk.pelvis_height_m), synthetic_walk(walk)
+        world = "capsule"
+    ctrl = make_controller(controller_specs(params, path)["adaptive"], robot_info(robot))
+    return spec, ReplayHuman(motion, replay), ctrl, RolloutParams(robot=robot, sample_rate_hz=rate_hz), world
+
+
+def _one(args: tuple) -> float:
+    params, path, rate_hz, seed = args
+    spec, human, ctrl, p, _ = _setup(params, path, rate_hz)
+    return rollout(spec, human, ctrl, p, seed).wall_s
+
+
+def run_rollout_bench(params: dict, path: str | Path, rate_hz: float = 200.0, repeat: int = 9,
+                      n_parallel: int = 8) -> dict:
+    spec, human, ctrl, p, world = _setup(params, path, rate_hz)
+    model = build_world(spec, human, p)
+    walls, raws = [], []
+    d = mujoco.MjData(model)
+    for seed in range(repeat):
+        result = rollout(spec, human, ctrl, p, seed, model=model)
+        mujoco.mj_setState(model, d, result.initial_state, mujoco.mjtState.mjSTATE_INTEGRATION)
+        start = time.perf_counter()
+        mujoco.mj_step(model, d, nstep=result.n_physics_steps)
+        raws.append(time.perf_counter() - start)
+        walls.append(result.wall_s)
+    walls_a, raws_a = np.array(walls), np.array(raws)
+    best, raw = float(walls_a.min()), float(raws_a.min())
+    jobs = [(params, path, rate_hz, s) for s in range(n_parallel)]
+    start = time.perf_counter()
+    for job in jobs:
+        _one(job)
+    sequential = time.perf_counter() - start
+    with ProcessPoolExecutor(max_workers=2) as pool:
+        list(pool.map(_one, jobs[:2]))  # workers started and imports done, as in a long simulate run
+        start = time.perf_counter()
+        list(pool.map(_one, jobs))
+        parallel = time.perf_counter() - start
+    out = {"world": world, "sample_rate_hz": rate_hz, "control_rate_hz": p.control_rate_hz,
+           "physics_dt_s": result.physics_dt_s,
+           "physics_steps": result.n_physics_steps, "rollout_loop_s": round(best, 4),
+           "raw_mj_step_s": round(raw, 4), "ratio_to_mj_step": round(float(np.median(raws_a / walls_a)), 3),
+           "ratio_of_best_times": round(raw / best, 3),
+           "realtime_factor": round(float(result.time_s[-1]) / best, 1),
+           "parallel_speedup": round(sequential / parallel, 2), "targets": TARGETS}
+    out["meets_targets"] = all(out[k] >= v for k, v in TARGETS.items())
+    return out

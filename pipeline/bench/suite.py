@@ -1,0 +1,172 @@
+"""Command `bench`: ingest throughput on the bundled real recordings.
+
+Each measured run is `load_trial` (sha256 check, read, canonical frame) + `process_trial` (gap
+fill, filter, events, strides, cycles) with a fresh manifest, so the file hash is paid as in a
+real run. One untimed warm-up, then the best of `repeat` runs (`time.perf_counter`).
+
+Retargeting (`time_retarget`): marker IK (`sim.motion.retarget.retarget`) of the whole Camargo trial and
+of opencap4's free walks on their scaled humans (built in memory from params), best of `repeat`
+runs for opencap4 and of two for the 15-s Camargo trial; ingest is not timed there.
+
+Human model (`time_human`): build + compile time of each subject's scaled human and the raw
+`mj_step` rate of that human standing (see the function).
+"""
+
+from __future__ import annotations
+
+import time
+
+from ingest.canonical import load_trial
+from ingest.manifest import Manifest
+from ingest.process import IngestParams, process_trial
+from ingest.subject import Subject, TrialSpec, load_subject
+
+TARGETS = {"camargo_trial_s": 0.2}
+RETARGET_TARGETS = {"retarget_camargo_trial_s": 10.0}  # ~3000 frames in seconds, not minutes
+
+
+def time_trials(subject: Subject, trials: tuple[TrialSpec, ...], manifest: Manifest, p: IngestParams,
+                repeat: int) -> tuple[float, int]:
+    """Best wall time (s) to ingest `trials` of `subject`, and their total number of frames."""
+
+    def once() -> int:
+        fresh = Manifest(manifest.sources, manifest.mirror, manifest.cache)
+        return sum(process_trial(load_trial(subject, spec, fresh), subject.markerset, p).trial.n_frames
+                   for spec in trials)
+
+    n_frames = once()
+    best = float("inf")
+    for _ in range(repeat):
+        start = time.perf_counter()
+        once()
+        best = min(best, time.perf_counter() - start)
+    return best, n_frames
+
+
+def time_retarget(params: dict, repeat: int) -> dict:
+    """IK frames per second on camargo's trial and opencap4's free walks (see module docstring)."""
+    from pipeline.params import ingest_params
+    from pipeline.stages.reference import RetargetSection
+    from sim.body.human import build_human
+    from sim.body.human_params import HumanParams
+    from sim.body.scaling import scale_subject
+    from sim.motion.retarget import retarget
+
+    manifest, p = Manifest.load(), ingest_params(params)
+    hp = HumanParams.from_dict(params.get("human", {}))
+    ik = RetargetSection.from_params(params).ik
+    out = {}
+    for sid, runs in (("camargo", min(repeat, 2)), ("opencap4", repeat)):
+        subject = load_subject(sid)
+        model = build_human(scale_subject(subject, manifest, hp), hp).compile()
+        markers = [process_trial(load_trial(subject, s, manifest), subject.markerset, p).trial.markers
+                   for s in subject.trials if s.condition == "free"]
+        best = float("inf")
+        for _ in range(max(runs, 1)):
+            start = time.perf_counter()
+            for m in markers:
+                retarget(model, m, ik)
+            best = min(best, time.perf_counter() - start)
+        n = sum(len(next(iter(m.values()))) for m in markers)
+        out |= {f"retarget_{sid}_trial_s": round(best, 3), f"retarget_{sid}_frames": n,
+                f"retarget_{sid}_frames_per_s": round(n / best)}
+    return out
+
+
+def time_human(params: dict, repeat: int, standing_s: float = 5.0) -> dict:
+    """Human model: `build_human` + `MjSpec.compile` time (best of `repeat`, after the static trial
+    is scaled once, untimed) and the raw `mj_step` rate of the human standing in its static pose
+    under the pose-hold PD: only the `mj_step` calls are timed (the PD runs between them), so
+    steps/s is the physics' own limit that rollout rates are compared to."""
+    import mujoco
+
+    from sim.body.human import build_human, pose_hold_ctrl, pose_hold_gains
+    from sim.body.human_params import HumanParams
+    from sim.body.scaling import scale_subject
+
+    manifest, hp = Manifest.load(), HumanParams.from_dict(params.get("human", {}))
+    out = {}
+    for sid in ("camargo", "opencap4"):
+        body = scale_subject(load_subject(sid), manifest, hp)
+        build = float("inf")
+        for _ in range(max(repeat, 1)):
+            start = time.perf_counter()
+            model = build_human(body, hp).compile()
+            build = min(build, time.perf_counter() - start)
+        data = mujoco.MjData(model)
+        mujoco.mj_resetDataKeyframe(model, data, model.key("static").id)
+        qref, (kp, kd) = data.qpos.copy(), pose_hold_gains(model, hp)
+        n, stepping = round(standing_s / model.opt.timestep), 0.0
+        for _ in range(n):
+            data.ctrl[:] = pose_hold_ctrl(model, data, qref, kp, kd)
+            start = time.perf_counter()
+            mujoco.mj_step(model, data)
+            stepping += time.perf_counter() - start
+        out[f"human_{sid}_build_compile_s"] = round(build, 4)
+        out[f"human_{sid}_mj_step_per_s"] = round(n / stepping)
+        out[f"human_{sid}_realtime_factor"] = round(n * model.opt.timestep / stepping, 1)
+    return out
+
+
+def meets(section: dict, targets: dict[str, float]) -> bool:
+    """Durations (keys ending in `_s`) are upper bounds; rates and ratios are lower bounds."""
+    return all(section[k] <= v if k.endswith("_s") else section[k] >= v for k, v in targets.items())
+
+
+SECTIONS = ("ingest", "retarget", "human", "store", "rollout", "train")
+
+
+def run_ingest_bench(p: IngestParams, repeat: int) -> dict:
+    """Ingest timings of the Camargo trial and of all OpenCap subject-4 trials."""
+    manifest = Manifest.load()
+    camargo, opencap = load_subject("camargo"), load_subject("opencap4")
+    cam_s, cam_frames = time_trials(camargo, camargo.trials[:1], manifest, p, repeat)
+    oc_s, oc_frames = time_trials(opencap, opencap.trials, manifest, p, repeat)
+    return {
+        "camargo_trial_s": round(cam_s, 4),
+        "camargo_frames": cam_frames,
+        "camargo_frames_per_s": round(cam_frames / cam_s),
+        "opencap4_trials": len(opencap.trials),
+        "opencap4_s": round(oc_s, 4),
+        "opencap4_frames": oc_frames,
+        "opencap4_frames_per_s": round(oc_frames / oc_s),
+    }
+
+
+def run_bench(p: IngestParams, repeat: int = 5, params: dict | None = None,
+              sections: tuple[str, ...] = SECTIONS, params_path=None) -> dict:
+    """The benchmark sections asked for, each with its own `targets` and `meets_targets`:
+    ingest (`TARGETS`), retarget (`RETARGET_TARGETS`), human (no target: the physical limit that
+    rollouts are compared to), store (`STORE_TARGETS`) and rollout (ratio to raw `mj_step`)."""
+    unknown = sorted(set(sections) - set(SECTIONS))
+    if unknown:
+        raise ValueError(f"unknown bench sections {unknown} (known: {', '.join(SECTIONS)})")
+    if params is None and set(sections) - {"ingest"}:
+        raise ValueError("bench sections other than ingest need the whole params")
+    result: dict = {"repeat": repeat}
+    for name in sections:
+        if name == "ingest":
+            section, targets = run_ingest_bench(p, repeat), TARGETS
+        elif name == "retarget":
+            section, targets = time_retarget(params, repeat), RETARGET_TARGETS
+        elif name == "human":
+            section, targets = time_human(params, repeat), {}
+        elif name == "store":
+            from pipeline.bench.store import STORE_TARGETS, time_store
+
+            section, targets = time_store(params, min(repeat, 3)), STORE_TARGETS
+        elif name == "train":
+            from pipeline.bench.train import TRAIN_TARGETS, time_training
+
+            section, targets = time_training(params), TRAIN_TARGETS
+        else:
+            from pipeline.bench.rollout import run_rollout_bench
+
+            section = run_rollout_bench(params, params_path)
+            targets = section.pop("targets", {})
+            section.pop("meets_targets", None)
+        section["targets"] = dict(targets)
+        section["meets_targets"] = meets(section, targets)
+        result[name] = section
+    result["meets_targets"] = all(result[n]["meets_targets"] for n in sections)
+    return result

@@ -1,0 +1,220 @@
+"""Command `add-subject`: register a new subject from its raw files.
+
+Writes `data/subjects/<id>.yaml` and appends `<id>` to `subjects` in params.yaml, so the next
+`dvc repro` runs that subject's foreach stages (plus store and report) and nothing else.
+
+Files are referenced through the data manifest (`data/sources.yaml`) like every other raw file:
+a file whose sha256 is already listed reuses that entry (e.g. a file from the shared mirror);
+any other file gets a new entry `local/<id>/<file name>` whose origin is a `file://` URL to where
+it lies now, with its sha256. The manifest copies it into `data/raw/` on first use and checks
+the hash on every use, so a file that moves or changes afterwards is refused rather than silently
+swapped.
+
+Everything is checked before anything is written: the id is new, every file exists, every file
+is read by the ingest readers and goes through the canonical frame (units, up axis, body scale)
+with the chosen marker set. params.yaml and the manifest are edited by appending lines, keeping
+their comments.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import yaml
+
+from ingest.canonical import load_trial
+from ingest.errors import GaitloopError, IngestError, SubjectError
+from ingest.manifest import DEFAULT_MANIFEST, Manifest, Source, sha256_of
+from ingest.readers import read_markers, read_mot
+from ingest.subject import (
+    MARKERSETS_DIR,
+    SUBJECTS_DIR,
+    FileFormat,
+    StaticSpec,
+    Subject,
+    TrialSpec,
+    load_markerset,
+)
+from pipeline.commands.quicklook import fitting_markerset
+from pipeline.params import PARAMS_FILE, load_params
+from pipeline.stages.outputs import replacing
+
+ID_PATTERN = re.compile(r"^[a-z0-9][a-z0-9_-]{0,63}$")
+MARKER_SUFFIXES = (".trc", ".c3d", ".csv")
+MOT_SUFFIXES = (".mot", ".sto")
+
+
+@dataclass(frozen=True)
+class NewTrial:
+    """One trial to register: its condition, marker file and optional angles / GRF `.mot` files."""
+
+    condition: str
+    markers: Path
+    angles: Path | None = None
+    grf: Path | None = None
+
+    @classmethod
+    def parse(cls, text: str) -> NewTrial:
+        """`COND=MARKERS[,ANGLES[,GRF]]`, e.g. `free=walk1.trc,walk1_ik.mot,walk1_grf.mot`."""
+        cond, sep, files = text.partition("=")
+        parts = [p.strip() for p in files.split(",")] if sep else []
+        if not cond.strip() or not parts or not parts[0] or len(parts) > 3:
+            raise SubjectError(text, "a trial is COND=MARKERS[,ANGLES.mot[,GRF.mot]]")
+        paths = [Path(p) if p else None for p in parts] + [None] * (3 - len(parts))
+        return cls(cond.strip(), paths[0], paths[1], paths[2])
+
+
+@dataclass(frozen=True)
+class Registry:
+    """Where subjects are registered: the subject files, params.yaml, the manifest, the mirror."""
+
+    subjects_dir: Path = SUBJECTS_DIR
+    params_path: Path = PARAMS_FILE
+    manifest_path: Path = DEFAULT_MANIFEST
+    markersets_dir: Path = MARKERSETS_DIR
+    mirror: Path | None = None
+
+
+def _check_file(path: Path, kind: str) -> Path:
+    path = Path(path)
+    if not path.is_file():
+        raise IngestError(path, f"{kind} file not found")
+    suffixes = MARKER_SUFFIXES if kind in ("markers", "static") else MOT_SUFFIXES
+    if path.suffix.lower() not in suffixes:
+        raise IngestError(path, f"{kind} file must be one of {', '.join(suffixes)}")
+    try:
+        read_markers(path) if kind in ("markers", "static") else read_mot(path)
+    except GaitloopError as exc:
+        raise IngestError(path, f"unreadable {kind} file: {getattr(exc, 'problem', exc)}") from None
+    except Exception as exc:  # a reader tripping over garbage is still an unreadable file
+        raise IngestError(path, f"unreadable {kind} file ({type(exc).__name__}: {exc})") from None
+    return path.resolve()
+
+
+def _manifest_key(path: Path, manifest: Manifest, by_sha: dict[str, str], subject_id: str,
+                  new: dict[str, Source]) -> str:
+    sha = sha256_of(path)
+    if sha in by_sha:
+        return by_sha[sha]
+    key = f"local/{subject_id}/{path.name}"
+    n = 1
+    while key in manifest.sources or key in new:
+        n += 1
+        key = f"local/{subject_id}/{path.stem}_{n}{path.suffix}"
+    new[key] = Source(key, path.as_uri(), sha)
+    by_sha[sha] = key
+    return key
+
+
+def _append_subject_to_params(text: str, subject_id: str, path: Path) -> str:
+    lines = text.splitlines(keepends=True)
+    try:
+        start = next(i for i, line in enumerate(lines) if re.match(r"^subjects:\s*(#.*)?$", line))
+    except StopIteration:
+        raise SubjectError(path, "no block list 'subjects:' at the top level to add the subject to") from None
+    end = start + 1
+    while end < len(lines) and re.match(r"^\s+(-.*)?(#.*)?$", lines[end]):
+        end += 1
+    while end > start + 1 and not lines[end - 1].strip().startswith("-"):
+        end -= 1
+    indent = re.match(r"^(\s*)-", lines[end - 1]).group(1) if end > start + 1 else "  "
+    if lines[end - 1] and not lines[end - 1].endswith("\n"):
+        lines[end - 1] += "\n"
+    lines.insert(end, f"{indent}- {subject_id}\n")
+    return "".join(lines)
+
+
+def add_subject(subject_id: str, height_m: float, mass_kg: float, static: Path, trials: list[NewTrial], *,
+                markerset: str | None = None, up_axis: str = "z", knee_flexion_sign: int = 1,
+                dataset: str | None = None, registry: Registry = Registry()) -> Path:
+    """Check and register a subject; returns the new subject file. Raises `SubjectError` or
+    `IngestError` naming the id or file at fault, having written nothing."""
+    subj_file = registry.subjects_dir / f"{subject_id}.yaml"
+    if not ID_PATTERN.match(subject_id):
+        raise SubjectError(subject_id, "subject id must be lower case letters, digits, '_' or '-'")
+    params = load_params(registry.params_path)
+    if subj_file.exists() or subject_id in [str(s) for s in params.get("subjects") or []]:
+        raise SubjectError(subj_file, f"subject {subject_id!r} is already registered")
+    if not trials:
+        raise SubjectError(subject_id, "no trials given (--trial COND=FILE)")
+    needed = [str(c) for c in (params.get("retarget") or {}).get("conditions") or []]
+    if needed and not any(t.condition in needed for t in trials):
+        raise SubjectError(subject_id, f"no trial with condition in {needed} (params retarget.conditions): "
+                           "the reference motion of the simulated human is built from those")
+    if not 0.5 <= height_m <= 2.5 or not 10 <= mass_kg <= 300:
+        raise SubjectError(subject_id, f"height {height_m} m / mass {mass_kg} kg are not a human's")
+    if up_axis not in ("y", "z") or knee_flexion_sign not in (1, -1):
+        raise SubjectError(subject_id, "up axis must be y or z and knee flexion sign 1 or -1")
+    static = _check_file(static, "static")
+    checked = [NewTrial(t.condition, _check_file(t.markers, "markers"),
+                        t.angles and _check_file(t.angles, "angles"), t.grf and _check_file(t.grf, "grf"))
+               for t in trials]
+    markerset = markerset or fitting_markerset(read_markers(static).names, static, registry.markersets_dir)
+    roles = load_markerset(markerset, registry.markersets_dir)
+
+    manifest = Manifest.load(registry.manifest_path, mirror=registry.mirror)
+    by_sha = {s.sha256: k for k, s in manifest.sources.items()}
+    new: dict[str, Source] = {}
+    key = lambda p: p and _manifest_key(p, manifest, by_sha, subject_id, new)  # noqa: E731
+    static_key = key(static)
+    specs, ids = [], set()
+    for t in checked:
+        trial_id, n = t.markers.stem, 1
+        while trial_id in ids:
+            n += 1
+            trial_id = f"{t.markers.stem}_{n}"
+        ids.add(trial_id)
+        specs.append(TrialSpec(trial_id, t.condition, key(t.markers), key(t.angles), key(t.grf)))
+
+    # Read every trial exactly as the pipeline will (files mapped to where they lie now).
+    fmt = FileFormat(up_axis=up_axis, knee_flexion_sign=knee_flexion_sign)
+    subject = Subject(subject_id, float(height_m), float(mass_kg), dataset or f"added:{subject_id}", roles,
+                      fmt, StaticSpec(static_key), tuple(specs))
+    paths = [static, *(p for t in checked for p in (t.markers, t.angles, t.grf) if p)]
+    files = {key(p): p for p in paths}
+    here = _FilesAsTheyLie({k: Source(k, p.as_uri(), sha256_of(p)) for k, p in files.items()}, files)
+    for spec in specs:
+        try:
+            load_trial(subject, spec, here)
+        except GaitloopError as exc:
+            raise IngestError(files.get(spec.markers, spec.markers), f"cannot be ingested as subject "
+                              f"{subject_id!r}: {getattr(exc, 'problem', exc)}") from None
+
+    doc = {
+        "id": subject_id, "height_m": float(height_m), "mass_kg": float(mass_kg),
+        "dataset": subject.dataset, "markerset": markerset,
+        "format": {"up_axis": up_axis, "knee_flexion_sign": knee_flexion_sign},
+        "static": {"markers": static_key},
+        "trials": [{k: v for k, v in dataclasses.asdict(s).items() if v is not None} for s in specs],
+    }
+    params_text = _append_subject_to_params(registry.params_path.read_text(), subject_id,
+                                            registry.params_path)
+    if subject_id not in (yaml.safe_load(params_text).get("subjects") or []):
+        raise SubjectError(registry.params_path, "could not add the subject to the 'subjects' list")
+    targets = [subj_file, registry.params_path]
+    if new:
+        targets.append(registry.manifest_path)
+    with replacing(*targets) as temps:
+        temps[0].write_text(f"# Registered by `python -m pipeline add-subject {subject_id}`.\n"
+                            + yaml.safe_dump(doc, sort_keys=False))
+        temps[1].write_text(params_text)
+        if new:
+            entries = "".join(f"  {k}:\n    url: {s.url}\n    sha256: {s.sha256}\n"
+                              f"    bytes: {files[k].stat().st_size}\n" for k, s in new.items())
+            text = registry.manifest_path.read_text()
+            temps[2].write_text(text + ("" if text.endswith("\n") else "\n") + entries)
+    return subj_file
+
+
+@dataclass(frozen=True)
+class _FilesAsTheyLie:
+    """A manifest stand-in resolving keys to the files where they lie now (pre-registration check)."""
+
+    sources: dict[str, Source]
+    files: dict[str, Path]
+
+    def resolve(self, key: str) -> Path:
+        return self.files[key]

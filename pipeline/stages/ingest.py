@@ -1,0 +1,45 @@
+"""Stage `ingest <subject>`: a subject's raw trials -> events, strides and cycles tables.
+
+Outputs in `<out_root>/<subject>/real/`: `events.parquet`, `strides.parquet`, `cycles.parquet`
+(columns in README.md) and `summary.json`, a small DVC metrics file.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pandas as pd
+
+from ingest.manifest import Manifest
+from ingest.process import SubjectTables, process_subject
+from ingest.subject import load_subject
+from ingest.trial import SIDES
+from pipeline.params import REPO_ROOT, ingest_params
+from pipeline.stages.outputs import write_outputs
+
+DEFAULT_OUT_ROOT = REPO_ROOT / "data" / "processed"
+TABLES = ("events", "strides", "cycles")
+
+
+def summary(strides: pd.DataFrame, n_trials: int) -> dict:
+    """Counts, and mean stride length and gait speed of the kept strides."""
+    kept = strides[strides["kept"]]
+    return {
+        "n_trials": n_trials,
+        "n_strides": len(strides),
+        "n_kept": {side: int((kept["side"] == side).sum()) for side in SIDES},
+        "mean_stride_length_m": round(float(kept["stride_length_m"].mean()), 4),
+        "mean_gait_speed_mps": round(float(kept["gait_speed_mps"].mean()), 4),
+    }
+
+
+def run_ingest(subject_id: str, params: dict, out_root: Path = DEFAULT_OUT_ROOT,
+               progress: bool = True) -> Path:
+    """Process every trial of `subject_id` and write the stage outputs; returns their folder."""
+    subject = load_subject(subject_id)
+    tables: SubjectTables = process_subject(subject, Manifest.load(), ingest_params(params),
+                                            progress=progress)
+    folder = Path(out_root) / subject_id / "real"
+    write_outputs(folder, {name: getattr(tables, name) for name in TABLES},
+                  {"summary": summary(tables.strides, len(subject.trials))})
+    return folder

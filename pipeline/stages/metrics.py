@@ -1,0 +1,167 @@
+"""Stage `metrics <subject>`: a subject's real and simulated tables -> metric tables.
+
+Inputs: `<root>/<subject>/real/{strides,cycles}.parquet` and, once simulated,
+`<root>/<subject>/sim/{strides,cycles,robot}.parquet` (root: data/processed). Outputs in
+`<out_root>/<subject>/` (data/metrics): one parquet per metric table (`TABLES`), `metrics.json`
+(headline numbers, a DVC metrics file) and `provenance.json` (params hash and input hashes, read
+by the store stage). They live outside data/processed so that the store stage can depend on
+`data/metrics` alone rather than on every stage's outputs under data/processed.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pandas as pd
+
+from ingest.manifest import sha256_of
+from metrics import (
+    JOINTS,
+    SpmParams,
+    bands_table,
+    compliance,
+    compliance_table,
+    gait_table,
+    harness,
+    harness_table,
+    rom_table,
+    spm_tables,
+    stability_table,
+)
+from metrics.errors import MetricsError
+from metrics.tracking import TRACKING_COLUMNS, tracking_table
+from pipeline.params import REPO_ROOT, ParamsError
+from pipeline.stages.outputs import write_outputs
+
+DEFAULT_ROOT = REPO_ROOT / "data" / "processed"
+DEFAULT_OUT_ROOT = REPO_ROOT / "data" / "metrics"
+TABLES = ("gait", "stability", "rom", "kinematics", "compliance", "harness", "tracking", "spm_tests",
+          "spm_curves", "spm_clusters")
+SOURCES = ("real", "sim")
+# Sections that do not shape the results; the hash of all others identifies a params version
+# (so a section added later, e.g. for a new controller, counts without editing this list).
+NON_RESULT_SECTIONS = ("subjects", "store", "report")
+
+
+@dataclass(frozen=True)
+class MetricsParams:
+    """The `metrics` section of params.yaml."""
+
+    pool_sides: bool = True
+    exclude_locked: bool = True
+    joints: tuple[str, ...] = JOINTS
+    tracking_rate_hz: float = 20.0
+    spm: SpmParams = field(default_factory=SpmParams)
+
+    @classmethod
+    def from_params(cls, params: dict, path: str | Path = "params.yaml") -> MetricsParams:
+        section = params.get("metrics")
+        if not isinstance(section, dict):
+            raise ParamsError(path, "no 'metrics' section")
+        try:
+            joints = tuple(section["joints"])
+            spm = dict(section["spm"])
+            return cls(bool(section["pool_sides"]), bool(section["exclude_locked"]), joints,
+                       float(section["tracking_rate_hz"]),
+                       SpmParams(alpha=float(spm["alpha"]), test=str(spm["test"]),
+                                 min_cycles=int(spm["min_cycles"]),
+                                 reference_condition=str(spm["reference_condition"]),
+                                 pool_sides=bool(section["pool_sides"]), joints=joints))
+        except KeyError as exc:
+            raise ParamsError(path, f"metrics section lacks key {exc.args[0]!r}") from None
+        except (TypeError, ValueError, MetricsError) as exc:
+            raise ParamsError(path, f"invalid metrics section ({exc})") from None
+
+
+def params_hash(params: dict) -> str:
+    """sha256 (16 hex) of the result-shaping params sections, in a canonical JSON form."""
+    doc = {k: params[k] for k in sorted(params) if k not in NON_RESULT_SECTIONS}
+    return hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()[:16]
+
+
+def read_inputs(subject: str, root: Path) -> dict[str, pd.DataFrame]:
+    """strides, cycles and robot tables of both sources, concatenated (robot may be empty)."""
+    found = {name: [] for name in ("strides", "cycles", "robot")}
+    for source in SOURCES:
+        for name in found:
+            path = root / subject / source / f"{name}.parquet"
+            if path.is_file():
+                found[name].append(pd.read_parquet(path))
+    if not found["cycles"]:
+        raise MetricsError(str(root / subject), "no real/ or sim/ cycles.parquet: run ingest first")
+    return {name: pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
+            for name, frames in found.items()}
+
+
+def compute(inputs: dict[str, pd.DataFrame], p: MetricsParams) -> dict[str, pd.DataFrame]:
+    """Every metric table of one subject."""
+    cycles, strides, robot = inputs["cycles"], inputs["strides"], inputs["robot"]
+    spm = spm_tables(cycles, p.spm)
+    has_robot = not robot.empty
+    return {
+        "gait": gait_table(strides),
+        "stability": stability_table(cycles, p.pool_sides, p.joints),
+        "rom": rom_table(cycles, p.pool_sides, p.joints),
+        "kinematics": bands_table(cycles, p.pool_sides),
+        "compliance": compliance_table(robot, p.exclude_locked) if has_robot else _empty("compliance"),
+        "harness": harness_table(robot, p.exclude_locked) if has_robot else _empty("harness"),
+        "tracking": tracking_table(robot, p.tracking_rate_hz) if has_robot else _empty("tracking"),
+        "spm_tests": spm.tests,
+        "spm_curves": spm.curves,
+        "spm_clusters": spm.clusters,
+    }
+
+
+def _empty(name: str) -> pd.DataFrame:
+    columns = {"compliance": compliance.COLUMNS, "harness": harness.COLUMNS, "tracking": TRACKING_COLUMNS}
+    return pd.DataFrame(columns=columns[name])
+
+
+def headline(tables: dict[str, pd.DataFrame]) -> dict:
+    """Small nested dict for `dvc metrics show`: per source/human mode/condition."""
+    out: dict = {}
+
+    def put(row, *keys_values):
+        node = out.setdefault(f"{row['source']}_{row['human_mode']}", {}).setdefault(row["condition"], {})
+        for k, v in keys_values:
+            v = float(v)
+            node[k] = None if math.isnan(v) else (int(v) if k.startswith("n_") else round(v, 4))
+
+    for _, r in tables["gait"].iterrows():
+        put(r, ("n_strides", r["n_strides"]), ("stride_length_m", r["stride_length_m_mean"]),
+            ("gait_speed_mps", r["gait_speed_mps_mean"]))
+    for _, r in tables["stability"].iterrows():
+        side = "" if r["side"] == "both" else f"_{r['side']}"
+        put(r, (f"sd_{r['joint']}{side}_deg", r["intercycle_sd_deg"]))
+    for _, r in tables["compliance"].iterrows():
+        put(r, ("mean_abs_ex_cm", r["mean_abs_ex_cm"]), ("mean_abs_ey_cm", r["mean_abs_ey_cm"]))
+    tests = tables["spm_tests"]
+    ok = tests["status"] == "ok"
+    out["spm"] = {"n_tests": int(ok.sum()), "n_skipped": int((~ok).sum()),
+                  "n_significant": int(tests["h0_rejected"].astype(bool).sum())}
+    return out
+
+
+def input_hashes(subject: str, root: Path) -> dict[str, str]:
+    return {str(p.relative_to(root)): sha256_of(p) for source in SOURCES
+            for p in sorted((root / subject / source).glob("*.parquet"))}
+
+
+def run_metrics(subject: str, params: dict, root: Path = DEFAULT_ROOT, out_root: Path = DEFAULT_OUT_ROOT,
+                params_path: str | Path = "params.yaml") -> Path:
+    """Compute and write a subject's metric tables; returns the output folder."""
+    p = MetricsParams.from_params(params, params_path)
+    root = Path(root)
+    try:
+        tables = compute(read_inputs(subject, root), p)
+    except (KeyError, ValueError) as exc:
+        raise MetricsError(str(root / subject), f"cannot compute metrics ({exc})") from None
+    folder = Path(out_root) / subject
+    provenance = {"subject": subject, "params_hash": params_hash(params),
+                  "inputs": input_hashes(subject, root)}
+    write_outputs(folder, tables, {"metrics": headline(tables), "provenance": provenance})
+    return folder

@@ -1,0 +1,80 @@
+"""Stage `scale <subject>`: the subject's static trial -> the scaled 27-DoF human.
+
+Outputs, written all-or-nothing: `<root>/<subject>/model/human.xml` (MJCF from `MjSpec.to_xml`,
+keyframe `static` = the static pose), `<root>/<subject>/model/model.json` (segment lengths and
+masses, joint-centre sources, static hinge angles, checks: DoF counts, total mass, standing height,
+thigh and shank lengths; a DVC metrics file) and `reports/<subject>/model.png` (the model in the
+static pose with the real static markers; `render` in model.json says how it was drawn).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from ingest.manifest import Manifest
+from ingest.subject import load_subject
+from pipeline.params import REPO_ROOT, ParamsError
+from pipeline.stages.outputs import json_text, replacing
+from sim.body.human import build_human, model_checks
+from sim.body.human_params import HumanParams
+from sim.body.render import render_model_png
+from sim.body.scaling import scale_subject
+
+DEFAULT_ROOT = REPO_ROOT / "data" / "processed"
+REPORTS_ROOT = REPO_ROOT / "reports"
+
+
+def human_params(params: dict, path: str | Path = "params.yaml") -> HumanParams:
+    """`HumanParams` from the `human` section of params.yaml."""
+    section = params.get("human")
+    if not isinstance(section, dict):
+        raise ParamsError(path, "no 'human' section")
+    try:
+        return HumanParams.from_dict(section)
+    except KeyError as exc:
+        raise ParamsError(path, f"human section has unknown key {exc.args[0]!r}") from None
+    except (TypeError, ValueError) as exc:
+        raise ParamsError(path, f"invalid human section ({exc})") from None
+
+
+def _rounded(d: dict, digits: int = 4) -> dict:
+    return {k: round(float(v), digits) for k, v in d.items()}
+
+
+def run_scale(subject_id: str, params: dict, root: Path = DEFAULT_ROOT,
+              reports_root: Path = REPORTS_ROOT) -> Path:
+    """Scale, build, check and render `subject_id`'s human; returns the model folder."""
+    subject = load_subject(subject_id)
+    p = human_params(params)
+    body = scale_subject(subject, Manifest.load(), p)
+    spec = build_human(body, p)
+    model = spec.compile()
+    xml = spec.to_xml()
+    checks = model_checks(model, body)
+    folder = Path(root) / subject_id / "model"
+    png = Path(reports_root) / subject_id / "model.png"
+    summary = {
+        "subject": subject_id, "height_m": body.height_m, "mass_kg": body.mass_kg,
+        "anthropometry": body.anthropometry,
+        "segment_lengths_m": _rounded(body.segment_lengths_m),
+        "segment_masses_kg": _rounded(body.segment_masses_kg),
+        "joint_centre_sources": body.length_sources,
+        "static_hinge_angles_deg": _rounded({k: np.degrees(v) for k, v in body.static_angles_rad.items()}, 2),
+        "neutral": body.neutral,  # joint zeros (human.neutral after any fallback)
+        "static_ik_deg": _rounded(body.static_ik_deg, 2),  # the static IK the zeros are calibrated to
+        "markers": len(body.marker_bodies),
+        "checks": checks,
+    }
+    xml_out, json_out, png_out = folder / "human.xml", folder / "model.json", png
+    with replacing(xml_out, json_out, png_out) as (xml_tmp, json_tmp, png_tmp):
+        xml_tmp.write_text(xml)
+        if mujoco.MjModel.from_xml_path(str(xml_tmp)).nv != model.nv:
+            raise ParamsError(xml_out, "saved MJCF does not reload to the same model")
+        summary["render"] = render_model_png(
+            xml_tmp, model.key_qpos[0], body.markers, body.height_m, png_tmp,
+            title=f"{subject_id}: {body.height_m:.2f} m, {body.mass_kg:.1f} kg, static pose")
+        json_tmp.write_text(json_text(summary))
+    return folder

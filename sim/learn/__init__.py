@@ -1,0 +1,1 @@
+"""The learned human: walk environment, AMP discriminator, training, the policy human."""

@@ -1,0 +1,278 @@
+"""PPO + adversarial motion prior training of the walking human (stable-baselines3, torch).
+
+`train` builds `n_envs` `WalkEnv`s (one process with `DummyVecEnv`, or one process per env with
+`SubprocVecEnv` on machines with many cores), normalises observations (`VecNormalize`), and runs
+PPO with the `AMPCallback` (sim/learn/amp.py) adding the style reward. It writes, in `out_dir`:
+`policy.zip` (SB3 PPO incl. optimiser), `vecnormalize.pkl` (observation statistics), `amp.pt`
+(discriminator) and `progress.json` (steps, wall time, command); a run started with `resume=True`
+continues from them; a run started with `init_from` (another subject's policy folder) begins from
+that policy, its observation statistics and discriminator instead of from scratch (transfer: every
+subject's human has the same joints, observation and action layout; only the body and the reference
+cycle differ), and counts its own steps from zero. Checkpoints are written every `checkpoint_steps`
+and when the wall-time budget ends the run.
+
+PPO settings follow DeepMimic's (Peng et al. 2018: discount 0.95, GAE lambda 0.95, clip 0.2) with
+SB3's Adam; network sizes are params.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import json
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field, fields
+from functools import partial
+from pathlib import Path
+
+import numpy as np
+import torch
+from stable_baselines3 import PPO
+from stable_baselines3.common.callbacks import BaseCallback, CallbackList
+from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor, VecNormalize
+
+from sim.learn.amp import AMP, AMPCallback, AMPParams
+from sim.learn.walk_env import AMP_SIZE, WalkEnv, WalkEnvParams, make_walk_env
+from sim.motion.reference import ReferenceCycle
+
+POLICY_FILE, NORM_FILE, AMP_FILE, PROGRESS_FILE = "policy.zip", "vecnormalize.pkl", "amp.pt", "progress.json"
+BODY_FILE, CYCLE_FILE = "human.xml", "cycle.npz"  # the body and reference cycle the policy was trained on
+
+
+@dataclass(frozen=True)
+class TrainParams:
+    """The `train` section of params.yaml."""
+
+    total_steps: int = 2_000_000
+    n_envs: int = 8
+    threads: int = 1
+    subprocess: bool = False
+    n_steps: int = 256              # per env per rollout
+    batch_size: int = 1024
+    n_epochs: int = 5
+    learning_rate: float = 2e-4
+    gamma: float = 0.95             # DeepMimic
+    gae_lambda: float = 0.95        # DeepMimic
+    clip_range: float = 0.2         # DeepMimic
+    ent_coef: float = 0.0
+    max_grad_norm: float = 0.5
+    target_kl: float = 0.05
+    log_std_init: float = -1.0
+    net_arch: tuple[int, ...] = (256, 256)
+    checkpoint_steps: int = 500_000
+    seed: int = 0
+    env: WalkEnvParams = field(default_factory=WalkEnvParams)
+    amp: AMPParams = field(default_factory=AMPParams)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> TrainParams:
+        d = dict(d)
+        out: dict = {}
+        if "env" in d:
+            out["env"] = WalkEnvParams.from_dict(d.pop("env"))
+        if "amp" in d:
+            out["amp"] = AMPParams.from_dict(d.pop("amp"))
+        types = {f.name: f.type for f in fields(cls)}
+        for k, v in d.items():
+            if k not in types:
+                raise KeyError(f"train: unknown key {k!r}")
+            if k == "net_arch":
+                out[k] = tuple(int(x) for x in v)
+            elif types[k] in ("int", int):
+                out[k] = int(v)
+            elif types[k] in ("bool", bool):
+                out[k] = bool(v)
+            else:
+                out[k] = float(v)
+        return cls(**out)
+
+
+def _make_env(model_path: str, cycle: ReferenceCycle, p: WalkEnvParams, seed: int) -> WalkEnv:
+    torch.set_num_threads(1)
+    return make_walk_env(model_path, cycle, p, seed=seed)
+
+
+def make_vec_env(model_path: str | Path, cycle: ReferenceCycle, p: TrainParams, n_envs: int,
+                 subprocess: bool) -> VecMonitor:
+    fns = [partial(_make_env, str(model_path), cycle, p.env, p.seed * 1000 + i) for i in range(n_envs)]
+    venv = SubprocVecEnv(fns, start_method="fork") if subprocess and n_envs > 1 else DummyVecEnv(fns)
+    return VecMonitor(venv)
+
+
+class _Budget(BaseCallback):
+    """Progress bar, periodic checkpoints and a wall-time limit."""
+
+    def __init__(self, total: int, checkpoint_steps: int, save: Callable[[], None], max_wall_s: float | None,
+                 progress: bool) -> None:
+        super().__init__()
+        self.total, self.every, self.save, self.max_wall_s = total, checkpoint_steps, save, max_wall_s
+        self.progress = progress
+        self.start = time.perf_counter()
+        self.next_ckpt = checkpoint_steps
+        self.bar = None
+
+    def _on_training_start(self) -> None:
+        self.start_steps = self.num_timesteps
+        self.next_ckpt = self.num_timesteps + self.every
+        if self.progress:
+            from tqdm import tqdm
+            self.bar = tqdm(total=self.total, initial=self.num_timesteps, unit="step", dynamic_ncols=True)
+
+    def _on_step(self) -> bool:
+        if self.bar is not None:
+            self.bar.n = self.num_timesteps
+            if self.n_calls % 50 == 0:
+                self.bar.refresh()
+        if self.num_timesteps >= self.next_ckpt:
+            self.save()
+            self.next_ckpt += self.every
+        return self.max_wall_s is None or time.perf_counter() - self.start < self.max_wall_s
+
+    def _on_training_end(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+class MetricsLog:
+    """Per-rollout metrics to dvclive (`Live(dir)`) when installed, else to `metrics.csv`."""
+
+    def __init__(self, folder: Path, resume: bool) -> None:
+        self.folder = folder
+        try:
+            from dvclive import Live
+            self.live = Live(str(folder / "dvclive"), resume=resume, save_dvc_exp=False, dvcyaml=None)
+        except ImportError:
+            self.live = None
+        self.csv_path = folder / "metrics.csv"
+
+    def __call__(self, step: int, metrics: dict) -> None:
+        if self.live is not None:
+            self.live.step = int(step)
+            for k, v in metrics.items():
+                self.live.log_metric(f"train/{k}", float(v))
+            self.live.next_step()
+            return
+        new = not self.csv_path.exists()
+        with self.csv_path.open("a", newline="") as f:
+            w = csv.writer(f)
+            if new:
+                w.writerow(["step", *metrics])
+            w.writerow([step, *(f"{v:.6g}" for v in metrics.values())])
+
+    def close(self) -> None:
+        if self.live is not None:
+            self.live.end()
+
+
+def train(model_path: str | Path, cycle: ReferenceCycle, p: TrainParams, out_dir: str | Path, *,
+          n_envs: int | None = None, threads: int | None = None, total_steps: int | None = None,
+          resume: bool = False, max_wall_s: float | None = None, subprocess: bool | None = None,
+          progress: bool = True, command: str = "", init_from: str | Path | None = None) -> dict:
+    """Train (or continue training) the walking policy; returns the progress record (also written
+    to `out_dir/progress.json`). `init_from`: a policy folder to start from (module docstring)."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    n_envs = n_envs or p.n_envs
+    torch.set_num_threads(threads or p.threads)
+    total = total_steps or p.total_steps
+    venv = make_vec_env(model_path, cycle, p, n_envs, p.subprocess if subprocess is None else subprocess)
+    prior = json.loads((out / PROGRESS_FILE).read_text()) if resume and (out / PROGRESS_FILE).exists() else {}
+    start_dir = out if prior else (Path(init_from) if init_from is not None else None)
+    if start_dir is not None:
+        for f in (POLICY_FILE, NORM_FILE):
+            if not (start_dir / f).exists():
+                raise FileNotFoundError(f"{start_dir / f}: no policy to start from")
+        venv = VecNormalize.load(str(start_dir / NORM_FILE), venv)
+        venv.training = True
+        model = PPO.load(str(start_dir / POLICY_FILE), env=venv, device="cpu")
+        if not prior:
+            model.num_timesteps = 0
+    else:
+        venv = VecNormalize(venv, norm_obs=True, norm_reward=False, clip_obs=10.0, gamma=p.gamma)
+        model = PPO("MlpPolicy", venv, n_steps=p.n_steps, batch_size=p.batch_size, n_epochs=p.n_epochs,
+                    learning_rate=p.learning_rate, gamma=p.gamma, gae_lambda=p.gae_lambda,
+                    clip_range=p.clip_range,
+                    ent_coef=p.ent_coef, max_grad_norm=p.max_grad_norm, target_kl=p.target_kl, seed=p.seed,
+                    device="cpu", verbose=0,
+                    policy_kwargs={"net_arch": {"pi": list(p.net_arch), "vf": list(p.net_arch)},
+                                   "activation_fn": torch.nn.ReLU, "log_std_init": p.log_std_init})
+    ref_env = make_walk_env(model_path, cycle, p.env)
+    rng = np.random.default_rng(p.seed)
+    amp = AMP(2 * AMP_SIZE, p.amp, lambda n: ref_env.ref.amp_pairs(rng, n, ref_env.step_phase), seed=p.seed)
+    if start_dir is not None and (start_dir / AMP_FILE).exists():
+        amp.load_state_dict(torch.load(start_dir / AMP_FILE, weights_only=False))
+    log = MetricsLog(out, resume=bool(prior))
+    start = time.perf_counter()
+    steps0 = int(prior.get("steps", 0))
+    wall0 = float(prior.get("wall_s", 0.0))
+    runs = list(prior.get("runs", []))
+    origin = {}
+    if not prior and init_from is not None:
+        src_file = Path(init_from) / PROGRESS_FILE
+        src = json.loads(src_file.read_text()) if src_file.exists() else {}
+        shown = Path(init_from).resolve()
+        shown = shown.relative_to(Path.cwd()) if shown.is_relative_to(Path.cwd()) else shown
+        origin = {"initialised_from": str(shown), "initial_policy_steps": int(src.get("steps", 0))}
+    model_sha = hashlib.sha256(Path(model_path).read_bytes()).hexdigest()[:16]
+
+    def save() -> dict:
+        save_body(out, model_path, cycle)
+        model.save(str(out / POLICY_FILE))
+        venv.save(str(out / NORM_FILE))
+        torch.save(amp.state_dict(), out / AMP_FILE)
+        rec = {"steps": int(model.num_timesteps), "wall_s": round(wall0 + time.perf_counter() - start, 1),
+               **{k: v for k, v in prior.items() if k.startswith("initial")}, **origin,
+               "runs": runs + [{"command": command, "human_xml_sha256_16": model_sha,
+                                "n_envs": n_envs, "threads": threads or p.threads,
+                                "steps": int(model.num_timesteps) - steps0,
+                                "wall_s": round(time.perf_counter() - start, 1)}]}
+        last = rec["runs"][-1]
+        rec["steps_per_s_last_run"] = round(last["steps"] / max(last["wall_s"], 1e-9), 1)
+        (out / PROGRESS_FILE).write_text(json.dumps(rec, indent=2) + "\n")
+        return rec
+
+    callbacks = CallbackList([AMPCallback(amp, p.env.w_style, 6, log),
+                              _Budget(total, p.checkpoint_steps, save, max_wall_s, progress)])
+    remaining = max(total - steps0, 0)
+    if remaining:
+        model.learn(total_timesteps=remaining, callback=callbacks, reset_num_timesteps=not prior,
+                    progress_bar=False)
+    rec = save()
+    log.close()
+    venv.close()
+    return rec
+
+
+def save_body(out_dir: str | Path, model_path: str | Path, cycle: ReferenceCycle) -> None:
+    """Keep the human model and reference cycle a policy was trained on beside it: a policy is bound
+    to that body (joint frames, segment lengths) and is evaluated on it."""
+    out = Path(out_dir)
+    src = Path(model_path).read_bytes()
+    if not (out / BODY_FILE).exists() or (out / BODY_FILE).read_bytes() != src:
+        (out / BODY_FILE).write_bytes(src)
+    np.savez(out / CYCLE_FILE, **{f.name: np.asarray(getattr(cycle, f.name)) for f in fields(ReferenceCycle)})
+
+
+def load_body(out_dir: str | Path) -> tuple[Path, ReferenceCycle]:
+    """(human.xml path, reference cycle) a policy was trained on (`save_body`)."""
+    out = Path(out_dir)
+    with np.load(out / CYCLE_FILE, allow_pickle=False) as z:
+        kw = {k: (z[k].item() if z[k].ndim == 0 else z[k]) for k in z.files}
+    return out / BODY_FILE, ReferenceCycle(**kw)
+
+
+def load_policy(out_dir: str | Path) -> tuple[PPO, VecNormalize | None]:
+    """The trained PPO policy and its observation normaliser (for `PolicyHuman`)."""
+    out = Path(out_dir)
+    model = PPO.load(str(out / POLICY_FILE), device="cpu")
+    norm = None
+    if (out / NORM_FILE).exists():
+        import pickle
+        with (out / NORM_FILE).open("rb") as f:
+            norm = pickle.load(f)
+    return model, norm
+
+
+__all__ = ["AMP_FILE", "BODY_FILE", "CYCLE_FILE", "NORM_FILE", "POLICY_FILE", "PROGRESS_FILE", "TrainParams",
+           "load_body", "load_policy", "make_vec_env", "save_body", "train"]

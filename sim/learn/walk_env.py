@@ -1,0 +1,390 @@
+"""Gymnasium environment: the subject-scaled 27-DoF human learning to walk like the subject.
+
+Actions are residual PD targets on the phase-indexed reference pose (DeepMimic, Peng et al. 2018
+ACM TOG 37:143; residual targets as in Park et al. 2019): each of the 21 joint motors becomes a
+torque-limited PD servo (the motor's gear, i.e. the literature torque limit of `human`, is the force
+range), so the PD law runs in MuJoCo's C step and implicit integration handles its damping. A ball
+joint's three servos act on the components of its exponential-map (axis-angle) coordinates, which is
+MuJoCo's ball-joint actuator length. Target = reference(phase) + `action_scale_rad` x action.
+
+Observation (the human's own state only, heading-relative): pelvis height, pelvis orientation without
+yaw (two rotation-matrix columns), yaw (sin, cos) relative to the walking direction, pelvis linear and
+angular velocity, the 21 joint coordinates and 21 joint velocities, feet relative to the pelvis,
+gait phase (sin, cos), target speed and a 6-slot harness wrench (zeros when no robot is attached).
+
+Reward = w_imit x imitation (DeepMimic exponentials of pose, joint velocity, feet, pelvis height
+and velocity errors) + w_task x task (speed along the walking direction, no lateral drift). The
+adversarial style reward (sim/learn/amp.py) is added to the rollout buffer by the training callback; the
+env returns the AMP transition features in `info["amp"]`.
+
+Reference-state initialisation at a random phase, early termination when the pelvis drops or the
+trunk tilts, and random horizontal pushes on the pelvis (magnitude, duration and interval in params)
+for robustness. Everything in a step is preallocated numpy on MuJoCo's arrays; the physics runs
+`n_substeps` steps in one `mj_step` call.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+
+from sim.body.human_params import joint_kind
+from sim.errors import SimulationError
+from sim.motion.reference import ReferenceCycle
+
+SIDES = ("l", "r")
+HUMAN_ACTUATORS = ("lumbar_x", "lumbar_y", "lumbar_z", "hip_l_x", "hip_l_y", "hip_l_z", "hip_r_x", "hip_r_y",
+                   "hip_r_z", "shoulder_l_x", "shoulder_l_y", "shoulder_l_z", "shoulder_r_x", "shoulder_r_y",
+                   "shoulder_r_z", "knee_l", "knee_r", "ankle_l", "ankle_r", "elbow_l", "elbow_r")
+OBS_SIZE = 72
+AMP_SIZE = 61
+
+
+@dataclass(frozen=True)
+class WalkEnvParams:
+    """Numbers of the walking environment (params `train.env`); units in names."""
+
+    control_dt_s: float = 0.03             # 33 Hz policy (DeepMimic uses 30 Hz)
+    action_scale_rad: float = 0.25          # residual PD target range around the reference
+    pd_kp_nm_per_rad: dict[str, float] = field(default_factory=lambda: {
+        "lumbar": 1000.0, "hip": 800.0, "knee": 800.0, "ankle": 600.0, "shoulder": 200.0, "elbow": 100.0})
+    pd_kd_ratio_s: float = 0.1              # kd = ratio x kp (DeepMimic's humanoid gains: kd = kp / 10)
+    episode_s: float = 10.0
+    min_pelvis_height_fraction: float = 0.7  # terminate below this x the reference mean pelvis height
+    max_tilt_deg: float = 60.0              # terminate when the trunk tilts further from vertical
+    w_imitation: float = 0.6
+    w_task: float = 0.2
+    w_style: float = 0.2                    # applied by the AMP callback
+    imitation_weights: dict[str, float] = field(default_factory=lambda: {
+        "pose": 0.5, "velocity": 0.1, "feet": 0.15, "height": 0.1, "root_velocity": 0.15})
+    imitation_scales: dict[str, float] = field(default_factory=lambda: {
+        "pose": 2.0, "velocity": 0.02, "feet": 40.0, "height": 40.0, "root_velocity": 2.0})
+    task_scale: float = 2.0                 # exp(-scale (dv_forward^2 + v_lateral^2))
+    push_force_n: tuple[float, float] = (0.0, 150.0)
+    push_duration_s: float = 0.2
+    push_interval_s: tuple[float, float] = (1.0, 3.0)
+    push_probability: float = 0.5           # share of episodes with pushes
+
+    @classmethod
+    def from_dict(cls, d: dict) -> WalkEnvParams:
+        known = {f.name for f in fields(cls)}
+        unknown = set(d) - known
+        if unknown:
+            raise KeyError(f"train.env: unknown key {sorted(unknown)[0]!r}")
+        out = {}
+        for k, v in d.items():
+            if isinstance(v, dict):
+                out[k] = {str(a): float(b) for a, b in v.items()}
+            elif isinstance(v, list | tuple):
+                out[k] = tuple(float(x) for x in v)
+            else:
+                out[k] = float(v)
+        return cls(**out)
+
+
+def pd_servo_spec(spec: mujoco.MjSpec, p: WalkEnvParams) -> None:
+    """Turn the human's joint motors into torque-limited PD servos (in place): gear -> unit axis,
+    force range -> +-the motor's torque limit, gain kp and bias (-kp, -kd) by joint kind."""
+    for act in spec.actuators:
+        gear = np.array(act.gear[:3], dtype=float)
+        limit = float(np.linalg.norm(gear))
+        if limit <= 0:
+            raise SimulationError(spec.modelname or "human", f"actuator {act.name!r} has no gear")
+        kind = joint_kind(act.target)
+        kp = p.pd_kp_nm_per_rad[kind]
+        act.gear = [*(gear / limit), 0.0, 0.0, 0.0]
+        act.gaintype = mujoco.mjtGain.mjGAIN_FIXED
+        act.biastype = mujoco.mjtBias.mjBIAS_AFFINE
+        act.gainprm = [kp] + [0.0] * 9
+        act.biasprm = [0.0, -kp, -p.pd_kd_ratio_s * kp] + [0.0] * 7
+        act.ctrllimited = False
+        act.forcelimited = True
+        act.forcerange = [-limit, limit]
+
+
+class ReferenceTable:
+    """The periodic reference cycle turned into lookup tables on the model: actuator coordinates
+    (`ctrl`), joint velocities, feet relative to the pelvis, pelvis height and velocity, and AMP
+    features, each (N, .) at phase k/N."""
+
+    def __init__(self, model: mujoco.MjModel, cycle: ReferenceCycle) -> None:
+        data = mujoco.MjData(model)
+        n = len(cycle.phase)
+        self.n, self.period_s, self.speed_mps = n, float(cycle.period_s), float(cycle.speed_mps)
+        self.qpos, self.qvel = cycle.qpos.copy(), cycle.qvel.copy()
+        self.ctrl = np.empty((n, model.nu))
+        self.feet = np.empty((n, 6))
+        self.amp = np.empty((n, AMP_SIZE))
+        idx = BodyIndex(model)
+        for k in range(n):
+            data.qpos[:], data.qvel[:] = cycle.qpos[k], cycle.qvel[k]
+            mujoco.mj_forward(model, data)
+            self.ctrl[k] = data.actuator_length
+            self.feet[k] = feet_in_heading(data, idx)
+            amp_features(data, idx, self.amp[k])
+        # actuator-coordinate velocity of the cycle (periodic central differences)
+        diff = np.roll(self.ctrl, -1, axis=0) - np.roll(self.ctrl, 1, axis=0)
+        self.ctrl_vel = diff / (2 * self.period_s / n)
+        self.height = cycle.qpos[:, 2].copy()
+        self.root_vel = cycle.qvel[:, :3].copy()
+        self.joint_vel = cycle.qvel[:, 6:].copy()
+
+    def index(self, phase: float) -> tuple[int, int, float]:
+        """(k, k + 1 mod N, fraction) for linear interpolation at `phase` in [0, 1)."""
+        x = (phase % 1.0) * self.n
+        k = int(x)
+        return k % self.n, (k + 1) % self.n, x - k
+
+    def amp_pairs(self, rng: np.random.Generator, size: int, step_phase: float) -> np.ndarray:
+        """`size` reference transitions (features at phase and phase + `step_phase`), (size, 2 x AMP)."""
+        ph = rng.random(size)
+        return np.hstack([self._interp(self.amp, ph), self._interp(self.amp, ph + step_phase)])
+
+    def _interp(self, table: np.ndarray, phase: np.ndarray) -> np.ndarray:
+        x = (phase % 1.0) * self.n
+        k = x.astype(int) % self.n
+        f = (x - np.floor(x))[:, None]
+        return table[k] * (1 - f) + table[(k + 1) % self.n] * f
+
+
+class BodyIndex:
+    """Ids the env reads every step: bodies, the human's root qpos / dof address, its 21 servos and
+    its 21 joint dofs (a world with the robot attached has more of each)."""
+
+    def __init__(self, model: mujoco.MjModel, root: str = "root") -> None:
+        def body(name: str) -> int:
+            i = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
+            if i < 0:
+                raise SimulationError("human model", f"no body {name!r}")
+            return i
+        self.pelvis = body("pelvis")
+        self.torso = body("torso")
+        self.feet = np.array([body(f"foot_{s}") for s in SIDES])
+        j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, root)
+        if j < 0:
+            raise SimulationError("human model", f"no free joint {root!r}")
+        self.root_q, self.root_d = int(model.jnt_qposadr[j]), int(model.jnt_dofadr[j])
+        act = mujoco.mjtObj.mjOBJ_ACTUATOR
+        self.act = np.array([mujoco.mj_name2id(model, act, n) for n in HUMAN_ACTUATORS])
+        if (self.act < 0).any():
+            raise SimulationError("human model", f"missing motors {np.array(HUMAN_ACTUATORS)[self.act < 0]}")
+        human_joints = [model.actuator_trnid[a, 0] for a in self.act]
+        dofs = sorted({int(model.jnt_dofadr[jj]) + k for jj in human_joints
+                       for k in range(3 if model.jnt_type[jj] == mujoco.mjtJoint.mjJNT_BALL else 1)})
+        self.jdof = np.array(dofs)
+        ball = mujoco.mjtJoint.mjJNT_BALL
+        self.nq = 7 + sum(4 if model.jnt_type[jj] == ball else 1 for jj in set(human_joints))
+
+
+def _heading(xmat_row: np.ndarray) -> tuple[float, float]:
+    """(cos, sin) of the pelvis yaw from its rotation matrix (row-major 9)."""
+    c, s = xmat_row[0], xmat_row[3]
+    norm = np.hypot(c, s) + 1e-9
+    return c / norm, s / norm
+
+
+def feet_in_heading(data: mujoco.MjData, idx: BodyIndex) -> np.ndarray:
+    """Both feet relative to the pelvis in the pelvis heading frame, (6,)."""
+    c, s = _heading(data.xmat[idx.pelvis])
+    d = data.xpos[idx.feet] - data.xpos[idx.pelvis]
+    out = np.empty(6)
+    out[0::3] = c * d[:, 0] + s * d[:, 1]
+    out[1::3] = -s * d[:, 0] + c * d[:, 1]
+    out[2::3] = d[:, 2]
+    return out
+
+
+def amp_features(data: mujoco.MjData, idx: BodyIndex, out: np.ndarray) -> None:
+    """AMP state features (Peng et al. 2021 Sec. 6: root height, root rotation and velocities in the
+    heading frame, joint coordinates and velocities, end effectors relative to the root) into `out`."""
+    c, s = _heading(data.xmat[idx.pelvis])
+    r = data.xmat[idx.pelvis].reshape(3, 3)
+    q, d = idx.root_q, idx.root_d
+    out[0] = data.qpos[q + 2]
+    # rotation without yaw: Rz(-yaw) R, first two columns
+    out[1] = c * r[0, 0] + s * r[1, 0]
+    out[2] = -s * r[0, 0] + c * r[1, 0]
+    out[3] = r[2, 0]
+    out[4] = c * r[0, 1] + s * r[1, 1]
+    out[5] = -s * r[0, 1] + c * r[1, 1]
+    out[6] = r[2, 1]
+    v = data.qvel
+    out[7] = c * v[d] + s * v[d + 1]
+    out[8] = -s * v[d] + c * v[d + 1]
+    out[9] = v[d + 2]
+    out[10:13] = v[d + 3:d + 6]  # free-joint angular velocity is in the pelvis frame
+    nu = len(idx.act)
+    out[13:13 + nu] = data.actuator_length[idx.act]
+    out[13 + nu:13 + 2 * nu] = v[idx.jdof]
+    out[13 + 2 * nu:] = feet_in_heading(data, idx)
+
+
+class WalkEnv(gym.Env):
+    """The walking task on one subject (module docstring). `model` must already carry the PD servos
+    (`pd_servo_spec`); `cycle` is the subject's periodic reference cycle."""
+
+    metadata = {"render_modes": []}
+
+    def __init__(self, model: mujoco.MjModel, cycle: ReferenceCycle, p: WalkEnvParams,
+                 target_speed_mps: float | None = None, seed: int | None = None) -> None:
+        if model.nu != 21 or model.nv != 27:
+            raise SimulationError("human model", f"expected 27 DoF / 21 motors, got {model.nv} / {model.nu}")
+        self.model, self.p = model, p
+        self.data = mujoco.MjData(model)
+        self.n_sub = max(1, int(round(p.control_dt_s / model.opt.timestep)))
+        self.dt = self.n_sub * model.opt.timestep
+        self.ref = ReferenceTable(model, cycle)
+        self.idx = BodyIndex(model)
+        self.target_speed = float(self.ref.speed_mps if target_speed_mps is None else target_speed_mps)
+        self.step_phase = self.dt / self.ref.period_s
+        self.max_steps = int(round(p.episode_s / self.dt))
+        self.min_height = p.min_pelvis_height_fraction * float(self.ref.height.mean())
+        self.min_up = float(np.cos(np.radians(p.max_tilt_deg)))
+        self.observation_space = gym.spaces.Box(-np.inf, np.inf, (OBS_SIZE,), np.float32)
+        self.action_space = gym.spaces.Box(-1.0, 1.0, (model.nu,), np.float32)
+        self.ctrl_lo = model.jnt_range[model.actuator_trnid[:, 0], 0].copy()
+        self.ctrl_hi = model.jnt_range[model.actuator_trnid[:, 0], 1].copy()
+        hinge = model.jnt_type[model.actuator_trnid[:, 0]] == mujoco.mjtJoint.mjJNT_HINGE
+        self.ctrl_lo[~hinge], self.ctrl_hi[~hinge] = -np.pi, np.pi
+        self.wrench = np.zeros(6)
+        self._obs = np.zeros(OBS_SIZE, np.float32)
+        self._amp_prev = np.zeros(AMP_SIZE)
+        self._amp_cur = np.zeros(AMP_SIZE)
+        self.phase = 0.0
+        self.steps = 0
+        self.push_force = np.zeros(3)
+        self.push_until = -1.0
+        self.next_push = np.inf
+        self.pushes = False
+        self.np_random, _ = gym.utils.seeding.np_random(seed)
+
+    # -- state ---------------------------------------------------------------------------------
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        rng = self.np_random
+        d = self.data
+        mujoco.mj_resetData(self.model, d)
+        phase = float(options["phase"]) if options and "phase" in options else float(rng.random())
+        k = int(phase * self.ref.n) % self.ref.n
+        self.phase = k / self.ref.n
+        d.qpos[:] = self.ref.qpos[k]
+        d.qpos[:2] = 0.0
+        d.qvel[:] = self.ref.qvel[k]
+        d.ctrl[:] = self.ref.ctrl[k]
+        self.steps = 0
+        self.pushes = bool(options.get("pushes", True) if options else True) and \
+            rng.random() < self.p.push_probability
+        self.next_push = self._draw_interval() if self.pushes else np.inf
+        self.push_until = -1.0
+        self.wrench[:] = 0.0
+        mujoco.mj_forward(self.model, d)
+        amp_features(d, self.idx, self._amp_cur)
+        return self._observe(), {}
+
+    def _draw_interval(self) -> float:
+        lo, hi = self.p.push_interval_s
+        return self.data.time + float(self.np_random.uniform(lo, hi))
+
+    def _push(self) -> None:
+        d = self.data
+        if d.time >= self.next_push:
+            lo, hi = self.p.push_force_n
+            mag = float(self.np_random.uniform(lo, hi))
+            ang = float(self.np_random.uniform(0, 2 * np.pi))
+            self.push_force[:] = mag * np.cos(ang), mag * np.sin(ang), 0.0
+            self.push_until = d.time + self.p.push_duration_s
+            self.next_push = self._draw_interval() + self.p.push_duration_s
+        if d.time < self.push_until:
+            d.xfrc_applied[self.idx.pelvis, :3] = self.push_force
+        else:
+            d.xfrc_applied[self.idx.pelvis, :3] = 0.0
+
+    def targets(self, action: np.ndarray, phase: float) -> np.ndarray:
+        """Servo inputs for the step that ends at `phase`: the reference's actuator coordinates there
+        plus the scaled residual (clipped to the joint ranges), plus kd/kp x the reference joint
+        velocity, so the affine servo acts as kp (q* - q) + kd (q*' - q')."""
+        k0, k1, f = self.ref.index(phase)
+        g = 1 - f
+        ref = self.ref.ctrl[k0] * g + self.ref.ctrl[k1] * f
+        target = np.clip(ref + self.p.action_scale_rad * np.asarray(action, dtype=float),
+                         self.ctrl_lo, self.ctrl_hi)
+        return target + self.p.pd_kd_ratio_s * (self.ref.ctrl_vel[k0] * g + self.ref.ctrl_vel[k1] * f)
+
+    def step(self, action):
+        d = self.data
+        d.ctrl[:] = self.targets(action, self.phase + self.step_phase)
+        if self.pushes:
+            self._push()
+        self._amp_prev[:] = self._amp_cur
+        mujoco.mj_step(self.model, d, nstep=self.n_sub)
+        self.steps += 1
+        self.phase = (self.phase + self.step_phase) % 1.0
+        amp_features(d, self.idx, self._amp_cur)
+        reward, terms = self._reward()
+        fallen = self.fallen()
+        truncated = self.steps >= self.max_steps
+        info = {"amp": np.concatenate([self._amp_prev, self._amp_cur]), "terms": terms}
+        return self._observe(), (0.0 if fallen else reward), fallen, truncated and not fallen, info
+
+    def fallen(self) -> bool:
+        d = self.data
+        return bool(d.qpos[2] < self.min_height or d.xmat[self.idx.torso, 8] < self.min_up
+                    or not np.isfinite(d.qacc).all())
+
+    def _reward(self) -> tuple[float, np.ndarray]:
+        d, ref, p = self.data, self.ref, self.p
+        k0, k1, f = ref.index(self.phase)
+        g = 1 - f
+        e_pose = float(np.sum((d.actuator_length - (ref.ctrl[k0] * g + ref.ctrl[k1] * f)) ** 2))
+        e_vel = float(np.sum((d.qvel[6:] - (ref.joint_vel[k0] * g + ref.joint_vel[k1] * f)) ** 2))
+        e_feet = float(np.sum((self._amp_cur[-6:] - (ref.feet[k0] * g + ref.feet[k1] * f)) ** 2))
+        e_h = float((d.qpos[2] - (ref.height[k0] * g + ref.height[k1] * f)) ** 2)
+        rv = ref.root_vel[k0] * g + ref.root_vel[k1] * f
+        e_rv = float((d.qvel[0] - rv[0]) ** 2 + (d.qvel[1] - rv[1]) ** 2)
+        s, w = p.imitation_scales, p.imitation_weights
+        terms = np.array([np.exp(-s["pose"] * e_pose), np.exp(-s["velocity"] * e_vel),
+                          np.exp(-s["feet"] * e_feet), np.exp(-s["height"] * e_h),
+                          np.exp(-s["root_velocity"] * e_rv),
+                          np.exp(-p.task_scale * ((d.qvel[0] - self.target_speed) ** 2 + d.qvel[1] ** 2))])
+        imitation = (w["pose"] * terms[0] + w["velocity"] * terms[1] + w["feet"] * terms[2]
+                     + w["height"] * terms[3] + w["root_velocity"] * terms[4])
+        return float(p.w_imitation * imitation + p.w_task * terms[5]), terms
+
+    def _observe(self) -> np.ndarray:
+        observe(self.data, self.idx, self._amp_cur, self.phase, self.target_speed, self.wrench, self._obs)
+        return self._obs.copy()
+
+
+def observe(data: mujoco.MjData, idx: BodyIndex, amp: np.ndarray, phase: float, target_speed_mps: float,
+            wrench: np.ndarray, out: np.ndarray) -> None:
+    """The policy observation (module docstring) into `out` (OBS_SIZE,), from the current AMP
+    features `amp` of the state in `data`."""
+    c, s = _heading(data.xmat[idx.pelvis])
+    out[0:7] = amp[0:7]
+    out[7], out[8] = s, c
+    out[9:15] = amp[7:13]
+    nu = len(idx.act)
+    out[15:15 + 2 * nu] = amp[13:13 + 2 * nu]
+    out[15 + nu:15 + 2 * nu] *= 0.1  # joint velocities to O(1)
+    out[57:63] = amp[-6:]
+    out[63], out[64] = np.sin(2 * np.pi * phase), np.cos(2 * np.pi * phase)
+    out[65] = target_speed_mps
+    out[66:72] = wrench * 0.01
+
+
+def make_walk_env(model_path: str | Path, cycle: ReferenceCycle, p: WalkEnvParams, seed: int | None = None,
+                  target_speed_mps: float | None = None) -> WalkEnv:
+    """Compile the human at `model_path` with PD servos and wrap it in a `WalkEnv`."""
+    spec = mujoco.MjSpec.from_file(str(model_path))
+    pd_servo_spec(spec, p)
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    model = spec.compile()
+    return WalkEnv(model, cycle, p, target_speed_mps=target_speed_mps, seed=seed)
+
+
+__all__ = ["AMP_SIZE", "HUMAN_ACTUATORS", "OBS_SIZE", "BodyIndex", "ReferenceTable", "WalkEnv",
+           "WalkEnvParams", "amp_features", "feet_in_heading", "make_walk_env", "observe", "pd_servo_spec"]

@@ -1,0 +1,1 @@
+"""Motion of the human: retargeting, the reference motion, kinematic replay, synthetic walks."""

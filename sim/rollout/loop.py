@@ -1,0 +1,347 @@
+"""Closed-loop rollouts: a human driver, the MRBA (optional) and a follow-me controller, one seed.
+
+`rollout` is a pure function of (world, human driver, controller, params, seed): it builds its own
+model, so it can be called many times and in parallel processes.
+
+Timing: the controller, the fall rule and the drive act once per control tick (`control_rate_hz`,
+100 Hz as on a real mobile base: the command path of a differential drive); the human driver acts
+once per output sample (the real capture rate, 100-200 Hz); physics runs at the largest step <=
+`max_physics_dt_s` dividing both periods, and the `mj_step(..., nstep)` calls in between run in C.
+Per control tick the Python work is a handful of float operations: sensors are read from contiguous
+`qpos` / `qvel` views as floats into one reused `RobotSensors`, the controller answers a `BaseCommand`
+tuple, the drive writes three servo targets into a `ctrl` view. Per output sample the rollout copies
+`qpos` and the robot's sensor block (sim.robot.mrba `SENSORS`) into preallocated arrays; the robot table
+(e_x, e_y, base state, harness wrench, commands, fall flags) is computed from them with numpy after
+the loop. Recorded sensors are MuJoCo's values of the last physics step (evaluated at its start, one
+step before the sample instant; at t = 0, the initial state).
+
+The seed sets the robot's start offset (arm deflection uniform in +-`start_offset_m`, x and y) and
+the sensor noise of the arm and odometry.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from fractions import Fraction
+
+import mujoco
+import numpy as np
+import pandas as pd
+
+from sim.errors import SimulationError
+from sim.motion.replay import HumanDriver, quat_conj, quat_mul, quat_to_zyx
+from sim.robot.controllers.base import BaseCommand, Controller, RobotInfo, RobotSensors
+from sim.robot.fall import FallDetector
+from sim.robot.harness import HarnessIndex, wrench_from_sensors
+from sim.robot.mrba import SENSOR_WIDTH, SENSORS, BaseDrive, RobotIndex, RobotParams, attach_robot, lock_arm
+
+ROBOT_COLUMNS = ["subject", "source", "human_mode", "condition", "trial", "seed", "time_s", "e_x_m", "e_y_m",
+                 "base_x_m", "base_y_m", "base_yaw_rad", "base_speed_mps", "base_yaw_rate_rps",
+                 "cmd_speed_mps", "cmd_yaw_rate_rps", "harness_fx_n", "harness_fy_n", "harness_fz_n",
+                 "harness_tx_nm", "harness_ty_nm", "harness_tz_nm", "fall", "locked"]
+
+
+@dataclass(frozen=True)
+class RolloutParams:
+    """Everything a rollout needs besides the world, human driver, controller and seed."""
+
+    robot: RobotParams
+    sample_rate_hz: float = 100.0
+    max_physics_dt_s: float = 0.002
+    start_offset_m: float = 0.03
+    with_robot: bool = True
+    harness_body: str = "pelvis"
+    subject: str = ""
+    condition: str = ""
+    trial: str = ""
+    discard_s: float = 0.0  # lead-in simulated but not returned; returned time 0 is this instant
+
+    @property
+    def control_rate_hz(self) -> float:
+        """The robot's control rate (params `robot.base.control_rate_hz`)."""
+        return self.robot.base.control_rate_hz
+
+
+@dataclass(frozen=True)
+class RolloutResult:
+    """Samples of one rollout: human qpos (human model layout), robot table, full world qpos."""
+
+    time_s: np.ndarray
+    human_qpos: np.ndarray
+    robot: pd.DataFrame
+    world_qpos: np.ndarray
+    fall_time_s: float | None
+    physics_dt_s: float
+    n_physics_steps: int
+    wall_s: float
+    warnings: dict[str, int]
+    initial_state: np.ndarray  # mj_getState(mjSTATE_INTEGRATION) when the loop starts (for benchmarks)
+
+    @property
+    def stable(self) -> bool:
+        return not self.warnings and bool(np.isfinite(self.world_qpos).all())
+
+
+def _period(rate_hz: float) -> Fraction:
+    return 1 / Fraction(rate_hz).limit_denominator(1000)
+
+
+def step_grid(sample_rate_hz: float, max_dt_s: float, control_rate_hz: float | None = None
+              ) -> tuple[float, int, int]:
+    """(physics dt, steps per output sample, steps per control tick): the largest dt <= `max_dt_s`
+    dividing both periods (control rate default: the sample rate)."""
+    ps = _period(sample_rate_hz)
+    pc = ps if control_rate_hz is None else _period(control_rate_hz)
+    g = Fraction(math.gcd(ps.numerator * pc.denominator, pc.numerator * ps.denominator),
+                 ps.denominator * pc.denominator)
+    n = int(math.ceil(float(g) / max_dt_s - 1e-9))
+    dt = g / n
+    return float(dt), int(ps / dt), int(pc / dt)
+
+
+def physics_steps(sample_rate_hz: float, max_dt_s: float, control_rate_hz: float | None = None
+                  ) -> tuple[float, int]:
+    """(physics dt, steps per output sample); see `step_grid`."""
+    dt, n_sample, _ = step_grid(sample_rate_hz, max_dt_s, control_rate_hz)
+    return dt, n_sample
+
+
+def build_world(world: mujoco.MjSpec, human: HumanDriver, p: RolloutParams) -> mujoco.MjModel:
+    """Compile the rollout world: a copy of `world` prepared by the human driver, plus the robot."""
+    spec = world.copy()
+    human.prepare(spec)
+    if p.with_robot:
+        attach_robot(spec, p.robot, p.harness_body, neutral_height_m=float(human.start_pose()[0][2]))
+    dt, _ = physics_steps(p.sample_rate_hz, p.max_physics_dt_s, p.control_rate_hz)
+    spec.option.timestep = dt
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    try:
+        return spec.compile()
+    except ValueError as exc:
+        raise SimulationError(world.modelname or "world", f"rollout world does not compile ({exc})") from None
+
+
+def robot_info(p: RobotParams, control_rate_hz: float | None = None) -> RobotInfo:
+    """Constants a controller may model: reach, drive lag (latency + servo time constant), control
+    period (default the robot's `control_rate_hz`), latency."""
+    b = p.base
+    control_rate_hz = b.control_rate_hz if control_rate_hz is None else control_rate_hz
+    tau = b.latency_s + (b.mass_kg + 3 * p.arm.link_mass_kg) / b.drive_gain_n_per_mps
+    return RobotInfo(reach_m=b.reach_m, drive_tau_s=tau, dt_s=1.0 / control_rate_hz, latency_s=b.latency_s)
+
+
+def _rot2(yaw: float) -> np.ndarray:
+    c, s = np.cos(yaw), np.sin(yaw)
+    return np.array([[c, -s], [s, c]])
+
+
+def _place_robot(model, data, idx: RobotIndex, hidx: HarnessIndex, human: HumanDriver, p: RolloutParams,
+                 offset: np.ndarray) -> None:
+    """Robot at rest-relative start: arm deflected by `offset`, neutral point under the pelvis."""
+    pelvis, yaw = human.start_pose()
+    b = p.robot.base
+    base_spec = model.body_pos[idx.base_body]
+    rot = _rot2(yaw)
+    neutral = pelvis[:2] - rot @ offset
+    base_world = neutral - rot @ np.array([b.reach_m, 0.0])
+    data.qpos[idx.base_qpos] = (*(base_world - base_spec[:2]), yaw)
+    z_neutral = model.body_pos[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "mrba_arm_x")][2]
+    data.qpos[idx.arm_qpos] = (offset[0], offset[1], pelvis[2] - z_neutral)
+    # harness hinges: pelvis orientation relative to the arm end, relative to the reference pose
+    mujoco.mj_kinematics(model, data)
+    pid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, p.harness_body)
+    q_pelvis = data.xquat[pid].copy()
+    q_ref = model.eq_data[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_EQUALITY, "mrba_harness_weld"), 6:10]
+    q_yaw = np.array([np.cos(yaw / 2), 0, 0, np.sin(yaw / 2)])
+    rel = quat_mul(quat_conj(q_yaw), quat_mul(q_pelvis, quat_conj(q_ref)))
+    ypr = quat_to_zyx(rel)[0]
+    data.qpos[hidx.qpos[3:]] = ypr[::-1]  # AXES order: roll, pitch, yaw
+
+
+def _initial_speed(human: HumanDriver, times_s: np.ndarray) -> float:
+    """Pelvis speed over the first 0.2 s of the motion, along its heading (0 when it starts at rest)."""
+    if not hasattr(human, "target"):
+        return 0.0
+    k = min(max(int(round(0.2 / (times_s[1] - times_s[0]))), 1), len(times_s) - 1)
+    d = human.target[k, :2] - human.target[0, :2]
+    _, yaw = human.start_pose()
+    return float(d @ np.array([np.cos(yaw), np.sin(yaw)]) / (times_s[k] - times_s[0]))
+
+
+def _schedule(n_samples: int, n_sample: int, n_control: int) -> list[tuple[int, int, int]]:
+    """Events of a rollout as (physics steps to run first, output sample or -1, control tick or -1)."""
+    total = (n_samples - 1) * n_sample
+    events = sorted(set(range(0, total + 1, n_sample)) | set(range(0, total, n_control)))
+    out, prev = [], 0
+    for s in events:
+        out.append((s - prev, s // n_sample if s % n_sample == 0 else -1,
+                    s // n_control if s % n_control == 0 and s < total else -1))
+        prev = s
+    return out
+
+
+def _view(arr: np.ndarray, idx: np.ndarray) -> np.ndarray | None:
+    """A strided view of `arr[idx]` when the indices are evenly spaced, else None."""
+    idx = np.asarray(idx)
+    if len(idx) == 1:
+        return arr[idx[0]:idx[0] + 1]
+    step = int(idx[1] - idx[0])
+    if step <= 0 or not np.all(np.diff(idx) == step):
+        return None
+    return arr[idx[0]:idx[-1] + 1:step]
+
+
+def rollout(world: mujoco.MjSpec, human: HumanDriver, controller: Controller | None, p: RolloutParams,
+            seed: int, model: mujoco.MjModel | None = None, duration_s: float | None = None) -> RolloutResult:
+    """Run one closed-loop rollout. `model`: a world already built by `build_world` for this `human`
+    and `p` (saves compiling in loops); `duration_s`: default the human's motion length. The
+    controller's `RobotInfo.dt_s` must be the control period."""
+    rng = np.random.default_rng(seed)
+    model = build_world(world, human, p) if model is None else model
+    dt, n_sample, n_control = step_grid(p.sample_rate_hz, p.max_physics_dt_s, p.control_rate_hz)
+    if abs(model.opt.timestep - dt) > 1e-12:
+        raise SimulationError(p.trial or "rollout", f"model timestep {model.opt.timestep} is not {dt}")
+    dt_control = n_control * dt
+    if controller is not None and abs(controller.robot.dt_s - dt_control) > 1e-9:
+        raise SimulationError(p.trial or "rollout", f"controller period {controller.robot.dt_s} s differs "
+                              f"from the control period {dt_control} s (robot_info(..., control_rate_hz))")
+    duration = human.duration_s if duration_s is None else min(duration_s, human.duration_s)
+    times = np.arange(int(np.floor(duration * p.sample_rate_hz + 1e-9)) + 1) / p.sample_rate_hz
+    n = len(times)
+    if n < 2:
+        raise SimulationError(p.trial or "rollout", f"motion of {duration:.3f} s is shorter than one sample")
+    plan = _schedule(n, n_sample, n_control)
+    n_ticks = (n - 1) * n_sample // n_control + (1 if (n - 1) * n_sample % n_control else 0)
+    data = mujoco.MjData(model)
+    human.reset(model, data, times)
+    robot = p.with_robot
+    eq_saved = model.eq_data.copy()
+    qpos_out = np.zeros((n, model.nq))
+    sens_out = np.zeros((n, SENSOR_WIDTH if robot else 0))
+    cmd_log: list[BaseCommand] = []
+    fall_tick = -1
+    if robot:
+        rp = p.robot
+        idx, hidx = RobotIndex.of(model), HarnessIndex.of(model)
+        offset = rng.uniform(-p.start_offset_m, p.start_offset_m, 2)
+        _place_robot(model, data, idx, hidx, human, p, offset)
+        v0 = _initial_speed(human, times)
+        yaw0 = data.qpos[idx.base_qpos[2]]
+        data.qvel[idx.base_dof[:2]] = v0 * np.cos(yaw0), v0 * np.sin(yaw0)
+        drive = BaseDrive(rp.base, dt_control)
+        drive.reset(v0, 0.0)
+        drive.apply(data, idx)
+        detector = FallDetector(rp.fall)
+        if controller is not None:
+            controller.reset()
+        sd = np.array([rp.sensors.arm_noise_m] * 3 + [rp.sensors.velocity_noise_mps] * 5)
+        noise = (rng.normal(0.0, 1.0, (n_ticks, 8)) * sd).tolist()
+        # contiguous views: base x, y, yaw then arm x, y, z (attach_robot adds them in this order)
+        qb, vb = idx.base_qpos[0], idx.base_dof[0]
+        if not (np.array_equal(np.r_[idx.base_qpos, idx.arm_qpos], qb + np.arange(6))
+                and np.array_equal(np.r_[idx.base_dof, idx.arm_dof], vb + np.arange(6))):
+            raise SimulationError(p.trial or "rollout", "robot joints are not contiguous in qpos / qvel")
+        q_view, v_view = data.qpos[qb:qb + 6], data.qvel[vb:vb + 6]
+        ctrl_view = _view(data.ctrl, idx.drive_act)
+        sens_view = data.sensordata[idx.sensor_adr:idx.sensor_adr + SENSOR_WIDTH]
+        sensors = RobotSensors(0.0, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0.0, 0.0)
+        stop_cmd = BaseCommand(0.0, 0.0)
+    mujoco.mj_forward(model, data)
+    initial_state = np.zeros(mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_INTEGRATION))
+    mujoco.mj_getState(model, data, initial_state, mujoco.mjtState.mjSTATE_INTEGRATION)
+    record_hook = type(human).from_world_qpos is HumanDriver.from_world_qpos
+    fast = human.sample_controls()
+    h_view, h_rows = fast if fast is not None else (None, None)
+    locked = False
+    cmd = BaseCommand(0.0, 0.0)
+    bad_qacc = data.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)]
+    qpos = data.qpos
+    last = n - 1
+    cos, sin = math.cos, math.sin
+    start = time.perf_counter()
+    try:
+        for nstep, k, j in plan:
+            if nstep:
+                mujoco.mj_step(model, data, nstep=nstep)
+            if k >= 0:
+                qpos_out[k] = qpos
+                if record_hook:
+                    human.record(model, data, k)
+                if robot:
+                    sens_out[k] = sens_view
+                if bad_qacc.number:
+                    break
+            if j >= 0 and robot:
+                q = q_view.tolist()
+                v = v_view.tolist()
+                z = noise[j]
+                yaw = q[2]
+                c, s = cos(yaw), sin(yaw)
+                sensors.time_s = j * dt_control
+                sensors.arm_q = (q[3] + z[0], q[4] + z[1], q[5] + z[2])
+                sensors.arm_qd = (v[3] + z[3], v[4] + z[4], v[5] + z[5])
+                sensors.base_pose = (q[0], q[1], yaw)
+                sensors.base_speed_mps = v[0] * c + v[1] * s + z[6]
+                sensors.base_yaw_rate_rps = v[2] + z[7]
+                if not locked and detector.update(sensors):
+                    lock_arm(model, data, idx)
+                    locked, fall_tick = True, j
+                cmd = controller.step(sensors) if controller is not None and not locked else stop_cmd
+                cmd_log.append(cmd)
+                vd, wd = drive.step(cmd[0], cmd[1], stop=locked)
+                if ctrl_view is not None:  # three scalar writes: cheaper than one from a tuple
+                    ctrl_view[0] = vd * c
+                    ctrl_view[1] = vd * s
+                    ctrl_view[2] = wd
+                else:
+                    drive.apply(data, idx)
+            if 0 <= k < last:
+                if h_view is not None:
+                    h_view[:] = h_rows[k]
+                else:
+                    human.before_sample(model, data, k)
+    finally:
+        model.eq_data[:] = eq_saved
+    wall = time.perf_counter() - start
+    if not record_hook:
+        human.from_world_qpos(qpos_out)
+    keep = times >= p.discard_s - 1e-9
+    human_qpos = human.qpos_samples()[keep]
+    fall_time = None if fall_tick < 0 else fall_tick * dt_control - p.discard_s
+    warnings = {mujoco.mjtWarning(i).name: int(w.number) for i, w in enumerate(data.warning) if w.number}
+    table = pd.DataFrame()
+    if robot:
+        step_of = np.arange(n) * n_sample
+        tick_of = -(-step_of // n_control) - 1  # last control tick strictly before each sample
+        cmds = np.vstack([np.zeros((1, 2)), np.array(cmd_log, dtype=float).reshape(-1, 2)])
+        cmd_col = cmds[np.clip(tick_of + 1, 0, len(cmds) - 1)]
+        fall_col = (step_of > fall_tick * n_control) if fall_tick >= 0 else np.zeros(n, bool)
+
+        def block(name: str) -> np.ndarray:
+            a, w = SENSORS[name]
+            return sens_out[:, a:a + w]
+
+        yaw = block("base_pos")[:, 2]
+        bv = block("base_vel")
+        speed = bv[:, 0] * np.cos(yaw) + bv[:, 1] * np.sin(yaw)
+        rec = np.column_stack([block("e")[:, :2], block("base_pos"), speed, bv[:, 2], cmd_col,
+                               wrench_from_sensors(model, hidx, block("harness_pos"), block("harness_vel"),
+                                                   block("harness_limit"))])[keep]
+        table = pd.DataFrame(rec, columns=ROBOT_COLUMNS[7:22])
+        table.insert(0, "time_s", times[keep] - p.discard_s)
+        for col, val in reversed(list({"subject": p.subject, "source": "sim", "human_mode": human.mode,
+                                       "condition": p.condition, "trial": p.trial, "seed": seed}.items())):
+            table.insert(0, col, val)
+        table["seed"] = table["seed"].astype("int64")
+        table["fall"], table["locked"] = fall_col[keep], fall_col[keep]
+        table = table[ROBOT_COLUMNS]
+    return RolloutResult(
+        time_s=times[keep] - p.discard_s, human_qpos=human_qpos, robot=table, world_qpos=qpos_out[keep],
+        fall_time_s=fall_time, physics_dt_s=dt, n_physics_steps=(n - 1) * n_sample,
+        wall_s=wall, warnings=warnings, initial_state=initial_state)
+
+
+__all__ = ["ROBOT_COLUMNS", "RolloutParams", "RolloutResult", "build_world", "physics_steps", "robot_info",
+           "rollout", "step_grid"]
