@@ -3,7 +3,8 @@
 It implements the rollout's `HumanDriver` (sim/motion/replay.py), so `sim.rollout.loop.rollout`
 runs it with or without the robot exactly as it runs the replay human. `prepare` turns the human's
 motors into the same torque-limited PD servos as in training (`sim.learn.walk_env.pd_servo_spec`);
-the human keeps its free root, its contacts and all its joints, so the harness and the robot act on it physically.
+the human keeps its free root, its contacts and all its joints, so the harness and the robot act on
+it physically.
 The policy acts every `control_dt_s` (a multiple of the output sample period); between its
 decisions the PD servos run inside MuJoCo's step.
 
