@@ -4,6 +4,7 @@ from ingest.canonical import load_trial
 from ingest.errors import GaitloopError, IngestError, ManifestError, SubjectError
 from ingest.manifest import Manifest
 from ingest.process import IngestParams, ProcessedTrial, SubjectTables, process_subject, process_trial
+from ingest.static import StaticTrial, read_static_trial
 from ingest.subject import Subject, load_subject
 from ingest.trial import Trial
 
@@ -14,6 +15,7 @@ __all__ = [
     "Manifest",
     "ManifestError",
     "ProcessedTrial",
+    "StaticTrial",
     "Subject",
     "SubjectError",
     "SubjectTables",
@@ -22,4 +24,5 @@ __all__ = [
     "load_trial",
     "process_subject",
     "process_trial",
+    "read_static_trial",
 ]

@@ -13,8 +13,7 @@ import numpy as np
 
 from ingest.errors import IngestError
 from ingest.manifest import Manifest
-from ingest.readers import MotTable, read_c3d, read_csv, read_markers, read_mot
-from ingest.readers.trc import MarkerTable
+from ingest.readers import MarkerTable, MotTable, read_c3d, read_csv, read_markers, read_mot
 from ingest.subject import FileFormat, Subject, TrialSpec
 from ingest.trial import ForcePlates, Provenance, Trial
 

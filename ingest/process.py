@@ -35,7 +35,7 @@ class IngestParams:
     max_gap_s: float = 0.1
     smooth_hz: float = 0.8
     min_walk_speed_mps: float = 0.3
-    max_yaw_rate_deg_s: float = 45.0
+    max_yaw_rate_deg_s: float = 60.0
     max_facing_angle_deg: float = 45.0
     min_bout_s: float = 1.0
     n_points: int = 101

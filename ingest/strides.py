@@ -28,8 +28,8 @@ class StrideParams:
     max_stride_time_s: float = 2.0
     min_speed_mps: float = 0.3
     min_stride_length_m: float = 0.3
-    max_heading_change_deg: float = 15.0
-    max_speed_change: float = 0.2
+    max_heading_change_deg: float = 20.0
+    max_speed_change: float = 0.15
     speed_tolerance: float = 0.15
 
 

@@ -15,8 +15,9 @@ from ingest.process import process_trial
 from pipeline.bench.suite import SECTIONS, run_bench
 from pipeline.commands.quicklook import file_trial, format_events, quicklook_subject
 from pipeline.commands.results import add_results_commands
-from pipeline.params import PARAMS_FILE, REPO_ROOT, ingest_params, load_params
-from pipeline.stages.ingest import DEFAULT_OUT_ROOT, run_ingest
+from pipeline.params import load_params
+from pipeline.paths import BENCH_REPORT, PARAMS_FILE, PROCESSED_ROOT, REPORTS_ROOT, TUNING_REPORT
+from pipeline.stages.ingest import run_ingest
 from pipeline.stages.outputs import json_text, write_json
 
 EXIT_ERROR = 2
@@ -29,7 +30,7 @@ def cmd_ingest(args: argparse.Namespace) -> int:
 
 
 def cmd_events(args: argparse.Namespace) -> int:
-    p = ingest_params(load_params(args.params), args.params)
+    p = load_params(args.params).ingest.build()
     if args.method:
         p = dataclasses.replace(p, events=dataclasses.replace(p.events, method=args.method))
     subject = quicklook_subject(args.file, args.subject, args.up_axis, args.markerset)
@@ -48,9 +49,7 @@ def _sections(text: str) -> tuple[str, ...]:
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
-    params = load_params(args.params)
-    sections = args.only or SECTIONS
-    result = run_bench(ingest_params(params, args.params), args.repeat, params, sections, args.params)
+    result = run_bench(load_params(args.params), args.repeat, args.only or SECTIONS)
     if args.only and args.out.exists():  # refresh those sections, keep the others' last numbers
         result = {**json.loads(args.out.read_text()), **result}
         result["meets_targets"] = all(v["meets_targets"] for v in result.values() if isinstance(v, dict))
@@ -60,9 +59,9 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
 
 def cmd_reference(args: argparse.Namespace) -> int:
-    from pipeline.stages.reference import DEFAULT_ROOT, REPORTS_ROOT, run_reference
+    from pipeline.stages.reference import run_reference
 
-    doc = run_reference(args.subject, load_params(args.params), args.root or DEFAULT_ROOT,
+    doc = run_reference(args.subject, load_params(args.params), args.root or PROCESSED_ROOT,
                         args.reports or REPORTS_ROOT)
     print(f"{args.subject}: marker RMS {doc['marker_rms_m'] * 100:.2f} cm, "
           f"{doc['ik_frames_per_s']:.0f} IK frames/s, cycle {doc['cycle']['stride_length_m']:.3f} m at "
@@ -73,7 +72,7 @@ def cmd_reference(args: argparse.Namespace) -> int:
 def cmd_tune_controllers(args: argparse.Namespace) -> int:
     from pipeline.commands.tune_controllers import run_tuning, write_gains
 
-    doc = run_tuning(load_params(args.params), args.params, args.out)
+    doc = run_tuning(load_params(args.params), args.out)
     for name, res in doc["controllers"].items():
         print(f"{name}: J {res['initial_objective']:.4f} -> {res['objective']:.4f} in {res['n_evaluations']} "
               f"rollouts ({res['wall_s']:.0f} s): {res['gains']}", file=sys.stderr)
@@ -83,27 +82,26 @@ def cmd_tune_controllers(args: argparse.Namespace) -> int:
 
 
 def cmd_scale(args: argparse.Namespace) -> int:
-    from pipeline.stages.scale import DEFAULT_ROOT, REPORTS_ROOT, run_scale
+    from pipeline.stages.scale import run_scale
 
-    folder = run_scale(args.subject, load_params(args.params), args.root or DEFAULT_ROOT,
+    folder = run_scale(args.subject, load_params(args.params), args.root or PROCESSED_ROOT,
                        args.reports or REPORTS_ROOT)
     print(f"wrote {folder}", file=sys.stderr)
     return 0
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
-    from pipeline.stages.simulate import DEFAULT_ROOT, REPORTS_ROOT, run_simulate
+    from pipeline.stages.simulate import run_simulate
 
+    params = load_params(args.params)
     if getattr(args, "human", "replay") == "policy":
         from pipeline.stages.train import run_simulate_policy
 
-        doc = run_simulate_policy(args.subject, load_params(args.params), args.params,
-                                  args.root or DEFAULT_ROOT)
+        doc = run_simulate_policy(args.subject, params, args.root or PROCESSED_ROOT)
         print(f"{args.subject} policy: falls {doc['falls']}, {doc['conditions']}", file=sys.stderr)
         return 0
 
-    doc = run_simulate(args.subject, load_params(args.params), args.params, args.root or DEFAULT_ROOT,
-                       args.reports or REPORTS_ROOT)
+    doc = run_simulate(args.subject, params, args.root or PROCESSED_ROOT, args.reports or REPORTS_ROOT)
     for cond, m in doc["conditions"].items():
         print(f"{args.subject} {cond}: mean |e_x| {m['mean_abs_e_x_cm']:.2f} cm, mean |e_y| "
               f"{m['mean_abs_e_y_cm']:.2f} cm, harness force RMS {m['harness_force_rms_n']:.1f} N, "
@@ -114,7 +112,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 def cmd_train(args: argparse.Namespace) -> int:
     from pipeline.stages.train import run_train
 
-    rec = run_train(args.subject, load_params(args.params), args.params, n_envs=args.n_envs,
+    rec = run_train(args.subject, load_params(args.params), n_envs=args.n_envs,
                     threads=args.threads, steps=args.steps, resume=args.resume, max_wall_s=args.max_wall_s,
                     subprocess=True if args.subprocess else None, init_from=args.init_from)
     print(f"{args.subject}: policy at {rec['steps']} steps, {rec['wall_s']:.0f} s of training in total",
@@ -125,7 +123,7 @@ def cmd_train(args: argparse.Namespace) -> int:
 def cmd_evaluate_policy(args: argparse.Namespace) -> int:
     from pipeline.stages.train import evaluate_policy
 
-    doc = evaluate_policy(args.subject, load_params(args.params), args.params, progress=not args.json)
+    doc = evaluate_policy(args.subject, load_params(args.params), progress=not args.json)
     if args.out:
         write_json(args.out, doc)
     print(json_text(doc), end="")
@@ -133,10 +131,10 @@ def cmd_evaluate_policy(args: argparse.Namespace) -> int:
 
 
 def cmd_render(args: argparse.Namespace) -> int:
-    from pipeline.commands.render import DEFAULT_ROOT, REPORTS_ROOT, run_render
+    from pipeline.commands.render import run_render
 
-    path = run_render(args.subject, args.condition, load_params(args.params), args.params,
-                      args.root or DEFAULT_ROOT, args.reports or REPORTS_ROOT, args.seed, args.bout)
+    path = run_render(args.subject, args.condition, load_params(args.params), args.root or PROCESSED_ROOT,
+                      args.reports or REPORTS_ROOT, args.seed, args.bout)
     print(f"wrote {path}", file=sys.stderr)
     return 0
 
@@ -148,7 +146,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     ingest = commands.add_parser("ingest", help="process a subject's trials into events/strides/cycles")
     ingest.add_argument("subject", help="subject id (data/subjects/<id>.yaml)")
-    ingest.add_argument("--out-root", type=Path, default=DEFAULT_OUT_ROOT,
+    ingest.add_argument("--out-root", type=Path, default=PROCESSED_ROOT,
                         help="outputs go to <out-root>/<subject>/real/ (default: %(default)s)")
     ingest.set_defaults(func=cmd_ingest)
 
@@ -166,7 +164,7 @@ def build_parser() -> argparse.ArgumentParser:
     events.set_defaults(func=cmd_events)
 
     bench = commands.add_parser("bench", help="time ingest, IK, human, store and rollouts on the real data")
-    bench.add_argument("--out", type=Path, default=REPO_ROOT / "reports" / "bench.json")
+    bench.add_argument("--out", type=Path, default=BENCH_REPORT)
     bench.add_argument("--repeat", type=int, default=5, help="timed runs, best kept (default: 5)")
     bench.add_argument("--only", type=_sections, help=f"comma-separated sections to run (default: all of "
                        f"{', '.join(SECTIONS)})")
@@ -190,7 +188,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     tune_c = commands.add_parser("tune-controllers", help="tune every follow-me controller the same way "
                                  "on a synthetic walk (robot.tuning)")
-    tune_c.add_argument("--out", type=Path, default=REPO_ROOT / "reports" / "controller_tuning.json")
+    tune_c.add_argument("--out", type=Path, default=TUNING_REPORT)
     tune_c.add_argument("--write-params", action="store_true",
                         help="store the tuned gains in the params file")
     tune_c.set_defaults(func=cmd_tune_controllers)

@@ -1,28 +1,599 @@
-"""params.yaml: every tunable number of gaitloop, read once per command here and passed down."""
+"""params.yaml: every tunable number of gaitloop, read once per command and passed down typed.
+
+`load_params` reads the file once and validates it against `Params`, a pydantic schema that mirrors
+params.yaml key for key: every key of the file is required (the optional keys of a synthetic tuning
+walk excepted, which default to `sim.motion.synthetic.WalkParams`), an unknown key is an error, and
+every value is checked against its type. Any problem raises `ParamsError` naming the file and the
+key path, e.g. `params.yaml: robot.base.mass_kg: Input should be a valid number`.
+
+Each section model turns itself into the dataclass the library code takes with `build()`, the one
+place where that happens: `ingest` -> `IngestParams`, `metrics` -> `MetricsParams`, `store` ->
+`StoreParams`, `report` -> `ReportParams`, `retarget` -> `RetargetSection` (IK and reference
+settings), `robot` -> `RobotParams` (and `controller_specs()`), `robot.tuning` -> `TuningParams`,
+`rollout.replay` -> `ReplayParams`, `human` -> `HumanParams`, `train` -> `TrainParams`,
+`evaluate_policy` -> `EvalParams`; `Params.simulate_section()` -> `SimulateSection` (rollout, robot
+and controllers together). The library dataclasses keep defaults equal to params.yaml
+(tests/pipeline/test_params.py checks it).
+"""
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 import yaml
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError, model_validator
 
 from ingest.errors import GaitloopError
 from ingest.process import IngestParams
+from metrics import JOINTS, SpmParams
+from pipeline.paths import PARAMS_FILE, repo_path
+from pipeline.store import StoreParams
+from sim.body.human_params import HumanParams
+from sim.motion.reference import ReferenceParams
+from sim.motion.replay import ReplayParams
+from sim.motion.retarget import RetargetParams
+from sim.motion.synthetic import WalkParams
+from sim.robot.mrba import RobotParams
+from sim.rollout.tuning import TuningParams
 
-REPO_ROOT = Path(__file__).resolve().parent.parent
-PARAMS_FILE = REPO_ROOT / "params.yaml"
+if TYPE_CHECKING:
+    from sim.learn.train import TrainParams
+
+__all__ = ["PARAMS_FILE", "EvalParams", "MetricsParams", "Params", "ParamsError", "ReportParams",
+           "RetargetSection", "SimulateSection", "load_params", "parse_params"]
+
+MAX_REPORTED_ERRORS = 5
 
 
 class ParamsError(GaitloopError):
-    """A params file that is missing, not YAML, or lacks a section a stage needs."""
+    """A params file that is missing, not YAML, or does not match the schema."""
 
     def __init__(self, path: str | Path, problem: str) -> None:
         self.path = str(path)
+        self.problem = problem
         super().__init__(f"{self.path}: {problem}")
 
 
-def load_params(path: str | Path = PARAMS_FILE) -> dict:
-    """The whole params file as a dict; raises `ParamsError` naming the file when unusable."""
+# -- pipeline-side parameter sets (the library ones live beside the code that takes them) ----------
+
+@dataclass(frozen=True)
+class MetricsParams:
+    """The `metrics` section of params.yaml."""
+
+    pool_sides: bool = True
+    exclude_locked: bool = True
+    joints: tuple[str, ...] = JOINTS
+    tracking_rate_hz: float = 20.0
+    spm: SpmParams = field(default_factory=SpmParams)
+
+
+@dataclass(frozen=True)
+class ReportParams:
+    """The `report` section of params.yaml."""
+
+    dpi: int = 110
+
+
+@dataclass(frozen=True)
+class RetargetSection:
+    """The `retarget` section of params.yaml: IK settings and reference-motion settings."""
+
+    ik: RetargetParams
+    reference: ReferenceParams
+
+
+@dataclass(frozen=True)
+class EvalParams:
+    """`evaluate_policy` of params.yaml."""
+
+    n_seeds: int = 10
+    free_s: float = 20.0
+    robot_s: float = 15.0
+    push_n: float = 200.0
+    push_duration_s: float = 0.2
+    push_time_s: float = 5.0
+    fall_height_fraction: float = 0.7
+    spm_min_real_cycles: int = 5  # fewer real cycles: SPM reported but not judged (too few to test)
+
+
+@dataclass(frozen=True)
+class SimulateSection:
+    """params `rollout` (besides `replay`) with the robot and controllers it uses."""
+
+    conditions: tuple[str, ...]
+    n_seeds: int
+    max_physics_dt_s: float
+    start_offset_m: float
+    bout_margin_s: float
+    lead_in_s: float
+    lead_in_ramp_s: float
+    workers: int
+    robot: RobotParams
+    controllers: dict
+
+
+# -- the schema -----------------------------------------------------------------------------------
+
+class Schema(BaseModel):
+    """A block of params.yaml: every key required, no other key allowed, values type-checked."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, coerce_numbers_to_str=True)
+
+
+Pair = tuple[float, float]
+Vec3 = tuple[float, float, float]
+Vec6 = tuple[float, float, float, float, float, float]
+
+
+# ingest
+
+class FilterSchema(Schema):
+    order: int
+    cutoff_hz: float
+
+
+class GapsSchema(Schema):
+    max_gap_s: float
+
+
+class BoutsSchema(Schema):
+    smooth_hz: float
+    min_walk_speed_mps: float
+    max_facing_angle_deg: float
+    min_bout_s: float
+    max_yaw_rate_deg_s: float
+
+
+class EventsSchema(Schema):
+    method: Literal["auto", "force", "kinematic"]
+    force_threshold_n: float
+    min_contact_s: float
+    force_window_s: float
+    min_event_interval_s: float
+    min_prominence_m: float
+    heel_settle_mps: float
+    settle_window_s: float
+
+
+class StridesSchema(Schema):
+    max_stride_time_s: float
+    min_speed_mps: float
+    min_stride_length_m: float
+    max_heading_change_deg: float
+    max_speed_change: float
+    speed_tolerance: float
+
+
+class CyclesSchema(Schema):
+    n_points: int
+
+
+class IngestSchema(Schema):
+    filter: FilterSchema
+    gaps: GapsSchema
+    bouts: BoutsSchema
+    events: EventsSchema
+    strides: StridesSchema
+    cycles: CyclesSchema
+
+    def build(self) -> IngestParams:
+        return IngestParams.from_dict(self.model_dump())
+
+
+# metrics, store, report
+
+class SpmSchema(Schema):
+    alpha: Annotated[float, Field(gt=0.0, lt=1.0)]
+    test: Literal["anova1", "ttest2"]
+    min_cycles: Annotated[int, Field(ge=2)]
+    reference_condition: str
+
+
+class MetricsSchema(Schema):
+    pool_sides: bool
+    exclude_locked: bool
+    joints: tuple[str, ...]
+    tracking_rate_hz: float
+    spm: SpmSchema
+
+    def build(self) -> MetricsParams:
+        s = self.spm
+        spm = SpmParams(alpha=s.alpha, test=s.test, min_cycles=s.min_cycles,
+                        reference_condition=s.reference_condition, pool_sides=self.pool_sides,
+                        joints=self.joints)
+        return MetricsParams(self.pool_sides, self.exclude_locked, self.joints, self.tracking_rate_hz, spm)
+
+
+class StoreSchema(Schema):
+    path: str  # relative paths are taken from the repository root
+    busy_timeout_s: float
+    retry_interval_s: float
+
+    def build(self) -> StoreParams:
+        return StoreParams(repo_path(self.path), self.busy_timeout_s, self.retry_interval_s)
+
+
+class ReportSchema(Schema):
+    dpi: int
+
+    def build(self) -> ReportParams:
+        return ReportParams(self.dpi)
+
+
+# retarget
+
+class IkSchema(Schema):
+    iterations: int
+    first_frame_iterations: int
+    step_tolerance: float
+    damping: float
+    posture_weight: float
+    default_marker_weight: float
+    min_markers: int
+    marker_weights: dict[str, float]  # fnmatch pattern -> weight
+
+    def build(self) -> RetargetParams:
+        return RetargetParams.from_dict(self.model_dump())
+
+
+class RetargetSchema(Schema):
+    conditions: tuple[str, ...]
+    qvel_cutoff_hz: float
+    cycle_samples: int
+    cycle_side: Literal["left", "right"]
+    floor_align: bool
+    ik: IkSchema
+
+    def build(self) -> RetargetSection:
+        return RetargetSection(self.ik.build(), ReferenceParams.from_dict(self.model_dump(exclude={"ik"})))
+
+
+# robot
+
+class BaseSchema(Schema):
+    mass_kg: float
+    length_m: float
+    width_m: float
+    height_m: float
+    reach_m: float
+    drive_gain_n_per_mps: float
+    yaw_gain_nm_per_radps: float
+    max_force_n: float
+    max_torque_nm: float
+    max_speed_mps: float
+    max_yaw_rate_rps: float
+    max_accel_mps2: float
+    max_yaw_accel_rps2: float
+    latency_s: float
+    control_rate_hz: float
+
+
+class ArmSchema(Schema):
+    link_mass_kg: float
+    damping_ns_per_m: Vec3
+    frictionloss_n: Vec3
+    range_m: Vec3
+    lock_timeconst_s: float
+
+
+class HarnessSchema(Schema):
+    stiffness: Vec6
+    damping: Vec6
+    range: Vec6
+    mass_kg: float
+    weld_timeconst_s: float
+    limit_timeconst_s: float
+
+
+class FallSchema(Schema):
+    drop_speed_mps: float
+    drop_m: float
+    deflection_m: float
+
+
+class SensorsSchema(Schema):
+    arm_noise_m: float
+    velocity_noise_mps: float
+
+
+class WalkSchema(Schema):
+    """One synthetic tuning walk; the keys after `rate_hz` are optional (a plain, straight walk)."""
+
+    speed_mps: float
+    stride_s: float
+    surge_mps: float
+    asym_mps: float
+    sway_m: float
+    bounce_m: float
+    ramp_s: float
+    rest_s: float
+    duration_s: float
+    pelvis_height_m: float
+    mass_kg: float
+    rate_hz: float
+    turn_rate_rps: float = WalkParams.turn_rate_rps
+    drift_mps: float = WalkParams.drift_mps
+    drift_period_s: float = WalkParams.drift_period_s
+    turn_onset_s: float = WalkParams.turn_onset_s
+    turn_ramp_s: float = WalkParams.turn_ramp_s
+    turn_slowdown: float = WalkParams.turn_slowdown
+
+
+class TuningSchema(Schema):
+    method: str
+    max_evaluations: int
+    seed: int
+    force_weight_m_per_n: float
+    limit_weight_m: float
+    sample_rate_hz: float
+    walks: Annotated[tuple[WalkSchema, ...], Field(min_length=1)]
+    initial: dict[str, dict[str, float]]  # controller name -> starting gains of the search
+
+    def build(self) -> TuningParams:
+        return TuningParams.from_dict(self.model_dump(exclude={"initial"}))
+
+
+class ControllerSchema(Schema):
+    class_: str = Field(alias="class")  # registry name or package.module:Class
+    gains: dict[str, float]
+
+    def spec(self) -> dict:
+        """The {class, gains} dict `sim.robot.controllers.make_controller` takes."""
+        return {"class": self.class_, "gains": dict(self.gains)}
+
+
+class RobotSchema(Schema):
+    base: BaseSchema
+    arm: ArmSchema
+    harness: HarnessSchema
+    fall: FallSchema
+    sensors: SensorsSchema
+    tuning: TuningSchema
+    controllers: dict[str, ControllerSchema]
+
+    def build(self) -> RobotParams:
+        return RobotParams.from_dict(self.model_dump(include={"base", "arm", "harness", "fall", "sensors"}))
+
+    def controller_specs(self) -> dict[str, dict]:
+        """`robot.controllers`: name -> {class, gains}."""
+        return {name: c.spec() for name, c in self.controllers.items()}
+
+
+# rollout
+
+class ReplaySchema(Schema):
+    kp_n_per_m: float
+    kd_ns_per_m: float
+    kp_nm_per_rad: float
+    kd_nms_per_rad: float
+    max_force_n: float
+    max_torque_nm: float
+    max_vertical_bodyweights: float
+
+    def build(self) -> ReplayParams:
+        return ReplayParams(**self.model_dump())
+
+
+class FallTestSchema(Schema):
+    drop_m: float
+    duration_s: float
+
+
+class RolloutSchema(Schema):
+    max_physics_dt_s: float
+    start_offset_m: float
+    n_seeds: int
+    conditions: tuple[str, ...]
+    bout_margin_s: float
+    workers: int
+    lead_in_s: float
+    lead_in_ramp_s: float
+    replay: ReplaySchema
+    fall_test: FallTestSchema
+
+
+# human
+
+class JointValues(Schema):
+    """One value per joint kind (`sim.body.human_params.joint_kind`)."""
+
+    lumbar: float
+    hip: float
+    knee: float
+    ankle: float
+    shoulder: float
+    elbow: float
+
+
+class RangeDegSchema(Schema):
+    """Ball joints: total rotation from upright; hinges: [min, max] in canonical signs."""
+
+    lumbar: float
+    hip: float
+    shoulder: float
+    knee: Pair
+    ankle: Pair
+    elbow: Pair
+
+
+class GeomRadiusSchema(Schema):
+    pelvis: float
+    torso: float
+    thigh: float
+    shank: float
+    foot: float
+    upper_arm: float
+    forearm: float
+    hand: float
+
+
+class HumanSchema(Schema):
+    anthropometry: Literal["de_leva_male", "de_leva_female"]
+    timestep_s: float
+    neutral: Literal["static_ik", "static_upright", "asis_psis"]
+    ankle_axis: Literal["knee", "malleoli"]
+    talocrural_axis: Vec3
+    subtalar_axis: Vec3
+    knee_width_per_height: float
+    ankle_width_per_height: float
+    sjc_below_acromion_fraction: float
+    head_radius_per_height: float
+    floor_tolerance_m: float
+    contact_radius_m: float
+    friction: float
+    contact_solref: Pair
+    joint_damping_nms_per_rad: float
+    armature_kg_m2: float
+    range_deg: RangeDegSchema
+    torque_limit_nm_per_kg: JointValues
+    pd_kp_nm_per_rad: JointValues
+    pd_kd_nms_per_rad: JointValues
+    geom_radius_per_height: GeomRadiusSchema
+
+    def build(self) -> HumanParams:
+        return HumanParams.from_dict(self.model_dump())
+
+
+# train, evaluate_policy
+
+class TrainSubjectSchema(Schema):
+    args: str  # extra `python -m pipeline train` arguments of the dvc train stage
+
+
+class ImitationSchema(Schema):
+    pose: float
+    velocity: float
+    feet: float
+    height: float
+    root_velocity: float
+
+
+class EnvSchema(Schema):
+    control_dt_s: float
+    action_scale_rad: float
+    pd_kp_nm_per_rad: JointValues
+    pd_kd_ratio_s: float
+    episode_s: float
+    min_pelvis_height_fraction: float
+    max_tilt_deg: float
+    w_imitation: float
+    w_task: float
+    w_style: float
+    imitation_weights: ImitationSchema
+    imitation_scales: ImitationSchema
+    task_scale: float
+    push_force_n: Pair
+    push_duration_s: float
+    push_interval_s: Pair
+    push_probability: float
+
+
+class AmpSchema(Schema):
+    hidden: tuple[int, ...]
+    learning_rate: float
+    grad_penalty: float
+    weight_decay: float
+    epochs: int
+    batch_size: int
+    replay_size: int
+    reward_scale: float
+
+
+class TrainSchema(Schema):
+    subjects: dict[str, TrainSubjectSchema]
+    total_steps: int
+    n_envs: int
+    threads: int
+    subprocess: bool
+    n_steps: int
+    batch_size: int
+    n_epochs: int
+    learning_rate: float
+    gamma: float
+    gae_lambda: float
+    clip_range: float
+    ent_coef: float
+    max_grad_norm: float
+    target_kl: float
+    log_std_init: float
+    net_arch: tuple[int, ...]
+    checkpoint_steps: int
+    seed: int
+    env: EnvSchema
+    amp: AmpSchema
+
+    def build(self) -> TrainParams:
+        from sim.learn.train import TrainParams  # torch: imported by the commands that train only
+
+        return TrainParams.from_dict(self.model_dump(exclude={"subjects"}))
+
+
+class EvaluatePolicySchema(Schema):
+    n_seeds: int
+    free_s: float
+    robot_s: float
+    push_n: float
+    push_duration_s: float
+    push_time_s: float
+    fall_height_fraction: float
+    spm_min_real_cycles: int
+
+    def build(self) -> EvalParams:
+        return EvalParams(**self.model_dump())
+
+
+class Params(Schema):
+    """The whole params.yaml."""
+
+    subjects: tuple[str, ...]
+    ingest: IngestSchema
+    metrics: MetricsSchema
+    store: StoreSchema
+    report: ReportSchema
+    retarget: RetargetSchema
+    robot: RobotSchema
+    rollout: RolloutSchema
+    human: HumanSchema
+    train: TrainSchema
+    evaluate_policy: EvaluatePolicySchema
+
+    _path: Path = PrivateAttr(default=PARAMS_FILE)
+
+    @model_validator(mode="after")
+    def _controllers_exist(self) -> Params:
+        controllers = self.robot.controllers
+        for name in self.robot.tuning.initial:
+            if name not in controllers:
+                raise ValueError(f"robot.tuning.initial.{name}: no controller {name!r} in robot.controllers")
+        for cond in self.rollout.conditions:
+            if cond != "free" and cond not in controllers:
+                raise ValueError(f"rollout.conditions: {cond!r} is neither free nor a controller in "
+                                 "robot.controllers")
+        return self
+
+    @property
+    def path(self) -> Path:
+        """The file these params were read from."""
+        return self._path
+
+    def simulate_section(self) -> SimulateSection:
+        r = self.rollout
+        return SimulateSection(r.conditions, r.n_seeds, r.max_physics_dt_s, r.start_offset_m, r.bout_margin_s,
+                               r.lead_in_s, r.lead_in_ramp_s, r.workers, self.robot.build(),
+                               self.robot.controller_specs())
+
+    def document(self) -> dict[str, Any]:
+        """The params as the YAML document they came from: plain JSON types, keys as in params.yaml,
+        optional keys the file leaves out left out."""
+        return self.model_dump(mode="json", by_alias=True, exclude_unset=True)
+
+
+# -- loading --------------------------------------------------------------------------------------
+
+def load_params(path: str | Path = PARAMS_FILE) -> Params:
+    """Read and validate the params file; raises `ParamsError` naming the file (and the key path)."""
     path = Path(path)
     try:
         doc = yaml.safe_load(path.read_text())
@@ -30,19 +601,47 @@ def load_params(path: str | Path = PARAMS_FILE) -> dict:
         raise ParamsError(path, f"cannot read params file ({exc.strerror})") from None
     except yaml.YAMLError as exc:
         raise ParamsError(path, f"not valid YAML ({exc})") from None
+    return parse_params(doc, path)
+
+
+def parse_params(doc: Any, path: str | Path = PARAMS_FILE) -> Params:
+    """`Params` from a parsed params document (`path` names it in errors)."""
     if not isinstance(doc, dict):
         raise ParamsError(path, "expected a mapping of sections (subjects, ingest, ...)")
-    return doc
-
-
-def ingest_params(params: dict, path: str | Path = PARAMS_FILE) -> IngestParams:
-    """`IngestParams` from the `ingest` section of `params` (read from `path`, named in errors)."""
-    section = params.get("ingest")
-    if not isinstance(section, dict):
-        raise ParamsError(path, "no 'ingest' section")
     try:
-        return IngestParams.from_dict(section)
-    except KeyError as exc:
-        raise ParamsError(path, f"ingest section lacks key {exc.args[0]!r}") from None
-    except (TypeError, ValueError) as exc:
-        raise ParamsError(path, f"invalid ingest section ({exc})") from None
+        params = Params.model_validate(doc)
+    except ValidationError as exc:
+        raise ParamsError(path, describe(exc)) from None
+    params._path = Path(path)
+    return params
+
+
+def key_path(loc: tuple[int | str, ...]) -> str:
+    """`('robot', 'tuning', 'walks', 2, 'speed_mps')` -> `robot.tuning.walks[2].speed_mps`."""
+    out = ""
+    for part in loc:
+        out += f"[{part}]" if isinstance(part, int) else (f".{part}" if out else str(part))
+    return out
+
+
+def _problem(error: dict) -> str:
+    loc, kind = tuple(error["loc"]), error["type"]
+    where, parent, last = key_path(loc), key_path(loc[:-1]), loc[-1] if loc else None
+    if kind == "missing" and isinstance(last, str):
+        return f"{parent}: missing key {last!r}" if parent else f"missing section {last!r}"
+    if kind == "extra_forbidden":
+        return f"{parent}: unknown key {last!r}" if parent else f"unknown section {last!r}"
+    if kind == "missing":
+        return f"{where}: missing item"
+    message = str(error["ctx"]["error"]) if kind == "value_error" else error["msg"]
+    value = error.get("input")
+    if isinstance(value, str | int | float | bool) or value is None:
+        message += f" (got {value!r})"
+    return f"{where}: {message}" if where else message
+
+
+def describe(exc: ValidationError) -> str:
+    """The problems of a failed validation, one `key.path: problem` each, `; `-separated."""
+    problems = [_problem(e) for e in exc.errors(include_url=False)]
+    more = len(problems) - MAX_REPORTED_ERRORS
+    return "; ".join(problems[:MAX_REPORTED_ERRORS]) + (f"; and {more} more" if more > 0 else "")

@@ -7,7 +7,6 @@ import numpy as np
 import pytest
 
 from pipeline.params import load_params
-from pipeline.robot_config import controller_specs, replay_params, robot_params
 from sim.errors import SimulationError
 from sim.motion.replay import ReplayHuman
 from sim.motion.synthetic import WalkParams, capsule_world, synthetic_walk
@@ -22,8 +21,9 @@ from sim.robot.controllers import (
     resolve,
 )
 from sim.robot.controllers.adaptive import SPEED_GRID_MPS, forward_gain, lateral_gain
-from sim.rollout.loop import RolloutParams, robot_info, rollout
+from sim.rollout.loop import RolloutParams, rollout
 from sim.rollout.tuning import score
+from sim.rollout.world import robot_info
 
 
 class FeedForwardP(Controller):
@@ -51,7 +51,7 @@ class RecordingAdaptive(Adaptive):
 @pytest.fixture(scope="module")
 def setup():
     params = load_params()
-    return robot_params(params), replay_params(params), controller_specs(params)
+    return params.robot.build(), params.rollout.replay.build(), params.robot.controller_specs()
 
 
 TEST_WALK = WalkParams(duration_s=8.0)
@@ -78,12 +78,12 @@ def test_registry_errors_name_the_controller():
     with pytest.raises(SimulationError, match="not a Controller subclass"):
         resolve("numpy:ndarray")
     with pytest.raises(SimulationError, match="lacks 'class'"):
-        make_controller({"gains": {}}, robot_info(robot_params(load_params()), 100.0))
+        make_controller({"gains": {}}, robot_info(load_params().robot.build(), 100.0))
 
 
 def test_pid_signs():
     pid = PID({"kp_x": 2, "ki_x": 0, "kd_x": 0, "kp_y": 3, "ki_y": 0, "kd_y": 0}, robot_info(
-        robot_params(load_params()), 100.0))
+        load_params().robot.build(), 100.0))
     pid.reset()
     s = RobotSensors(0.0, np.array([0.1, -0.05, 0]), np.zeros(3), np.zeros(3), 0.0, 0.0)
     cmd = pid.step(s)

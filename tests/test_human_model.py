@@ -11,14 +11,14 @@ import numpy as np
 import pytest
 
 from ingest.canonical import load_trial, up_to_z
+from ingest.errors import SubjectError
 from ingest.kinematics import hip_joint_centres
 from ingest.manifest import Manifest
 from ingest.process import landmarks, process_trial
 from ingest.readers import read_markers
+from ingest.static import read_static_trial, scaling_roles
 from ingest.subject import load_subject
-from pipeline.params import ingest_params, load_params
-from pipeline.stages.reference import RetargetSection
-from pipeline.stages.scale import human_params
+from pipeline.params import load_params
 from sim.body.human import (
     FOOT_BIT,
     actuator_dofs,
@@ -30,7 +30,7 @@ from sim.body.human import (
 )
 from sim.body.human_params import BALL_JOINTS, HINGE_JOINTS
 from sim.body.markers import marker_positions, marker_sites, trial_from_qpos
-from sim.body.scaling import scale_subject, scaling_roles
+from sim.body.scaling import scale_subject
 from sim.errors import ScalingError, SimulationError
 from sim.motion.retarget import retarget
 
@@ -39,7 +39,7 @@ SUBJECTS = {"camargo": (74.8, 1.80), "opencap4": (62.6, 1.68)}
 
 @pytest.fixture(scope="module")
 def params():
-    return human_params(load_params())
+    return load_params().human.build()
 
 
 @pytest.fixture(scope="module")
@@ -51,7 +51,7 @@ def manifest():
 def human(request, params, manifest, tmp_path_factory):
     """(subject, body, model) with the model reloaded from its saved MJCF, as the stage writes it."""
     subject = load_subject(request.param)
-    body = scale_subject(subject, manifest, params)
+    body = scale_subject(subject, read_static_trial(subject, manifest), params)
     path = tmp_path_factory.mktemp(request.param) / "human.xml"
     path.write_text(build_human(body, params).to_xml())
     return subject, body, load_human_model(path)
@@ -79,7 +79,7 @@ def test_dof_motor_and_body_layout(human):
     dofs, gears = actuator_dofs(model)
     assert sorted(dofs) == list(range(6, 27))  # one motor per actuated DoF
     assert np.all(model.actuator_ctrlrange == [-1, 1])
-    limits = human_params(load_params()).torque_limit_nm_per_kg
+    limits = load_params().human.build().torque_limit_nm_per_kg
     assert gears[list(dofs).index(model.joint("knee_l").dofadr[0])] == pytest.approx(
         limits["knee"] * subject.mass_kg, rel=1e-5)
     assert gears[list(dofs).index(model.joint("hip_r").dofadr[0] + 1)] == pytest.approx(
@@ -294,13 +294,14 @@ def test_calcaneus_angle_is_the_twist_about_the_talocrural_axis():
 
 def test_errors_name_the_problem(params, manifest, tmp_path):
     subject = load_subject("opencap4")
-    with pytest.raises(ScalingError, match="no static trial"):
-        scale_subject(dataclasses.replace(subject, static=None), manifest, params)
+    with pytest.raises(SubjectError, match="no static trial"):
+        read_static_trial(dataclasses.replace(subject, static=None), manifest)
+    static = read_static_trial(subject, manifest)
     with pytest.raises(ScalingError, match="unknown anthropometry table 'nope'"):
-        scale_subject(subject, manifest, dataclasses.replace(params, anthropometry="nope"))
+        scale_subject(subject, static, dataclasses.replace(params, anthropometry="nope"))
     missing = dataclasses.replace(subject, markerset={**subject.markerset, "heel_left": "NoSuchMarker"})
     with pytest.raises(ScalingError, match=r"heel_left \(NoSuchMarker\)"):
-        scale_subject(missing, manifest, params)
+        scale_subject(missing, read_static_trial(missing, manifest), params)
     with pytest.raises(SimulationError, match="no human model here"):
         load_human_model(tmp_path / "absent.xml")
     bad = tmp_path / "bad.xml"
@@ -313,12 +314,13 @@ def test_retargeted_walk_runs_through_ingest_like_the_recording(params, manifest
     """opencap4 walking1: real markers -> marker IK on the model -> virtual-marker Trial ->
     `process_trial`: the same kinematic gait events (within 40 ms) and stride length (3 cm)."""
     all_params = load_params()
-    ip = ingest_params(all_params)
+    ip = all_params.ingest.build()
     ip = dataclasses.replace(ip, events=dataclasses.replace(ip.events, method="kinematic"))
     subject = load_subject("opencap4")
-    model = build_human(scale_subject(subject, manifest, params), params).compile()
+    body = scale_subject(subject, read_static_trial(subject, manifest), params)
+    model = build_human(body, params).compile()
     real = process_trial(load_trial(subject, subject.trials[0], manifest), subject.markerset, ip)
-    fit = retarget(model, real.trial.markers, RetargetSection.from_params(all_params).ik)
+    fit = retarget(model, real.trial.markers, all_params.retarget.build().ik)
     trial = trial_from_qpos(model, fit.qpos, real.trial.rate_hz, subject.id, "free", "walking1",
                             t0_s=real.trial.time_s[0])
     sim = process_trial(trial, subject.markerset, ip)
@@ -341,8 +343,9 @@ def test_lower_body_marker_set_falls_back_to_ratios(params, manifest):
     opencap4's own, so this checks the medial direction), trunk and arms from stature ratios, and
     the model keeps its layout, mass and height."""
     subject = load_subject("opencap4")
-    full = scale_subject(subject, manifest, params)
-    lower = scale_subject(dataclasses.replace(subject, path=None), manifest, params)
+    static = read_static_trial(subject, manifest)
+    full = scale_subject(subject, static, params)
+    lower = scale_subject(subject, dataclasses.replace(static, roles=dict(subject.markerset)), params)
     for joint in ("knee_l", "knee_r", "ankle_l", "ankle_r"):
         assert full.length_sources[joint] == "markers"
         assert lower.length_sources[joint] == "lateral marker + width ratio"

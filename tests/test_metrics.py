@@ -1,10 +1,13 @@
 """Metrics against hand-computed values on small known inputs, and on the real example subjects."""
 
+import hashlib
+import json
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
+import yaml
 
 from ingest.manifest import Manifest
 from ingest.process import process_subject
@@ -20,8 +23,8 @@ from metrics import (
     stability_table,
 )
 from metrics.tracking import tracking_table
-from pipeline.params import ingest_params, load_params
-from pipeline.stages.metrics import MetricsParams, compute, headline, params_hash
+from pipeline.params import PARAMS_FILE, load_params, parse_params
+from pipeline.stages.metrics import NON_RESULT_SECTIONS, compute, headline, params_hash
 
 ROOT = Path(__file__).resolve().parents[1]
 ID = {"subject": "s1", "source": "sim", "condition": "pid"}
@@ -165,7 +168,7 @@ def test_missing_columns_name_the_table():
 
 @pytest.fixture(scope="module")
 def real_tables():
-    p = ingest_params(load_params())
+    p = load_params().ingest.build()
     out = {}
     for sid in ("camargo", "opencap4"):
         t = process_subject(load_subject(sid), Manifest.load(), p, progress=False)
@@ -174,7 +177,7 @@ def real_tables():
 
 
 def test_real_subjects_metrics(real_tables):
-    mp = MetricsParams.from_params(load_params())
+    mp = load_params().metrics.build()
     for inputs in real_tables.values():
         tables = compute(inputs, mp)
         gait = tables["gait"]
@@ -217,7 +220,14 @@ def test_tracking_trace_takes_the_first_run_at_the_plot_rate():
 def test_params_hash_ignores_only_non_result_sections():
     params = load_params()
     base = params_hash(params)
-    assert params_hash({**params, "report": {"dpi": 1}, "subjects": ["x"]}) == base
-    assert params_hash({**params, "new_controller": {"gain": 1.0}}) != base
-    changed = {**params, "metrics": {**params["metrics"], "pool_sides": not params["metrics"]["pool_sides"]}}
-    assert params_hash(changed) != base
+    # the hash of the params.yaml document as written: stored versions keep matching the same file
+    raw = yaml.safe_load(PARAMS_FILE.read_text())
+    raw = {k: raw[k] for k in sorted(raw) if k not in NON_RESULT_SECTIONS}
+    assert base == hashlib.sha256(json.dumps(raw, sort_keys=True, default=str).encode()).hexdigest()[:16]
+    doc = params.document()
+    assert params_hash(parse_params({**doc, "report": {"dpi": 1}, "subjects": ["x"]})) == base
+    changed = {**doc, "metrics": {**doc["metrics"], "pool_sides": not doc["metrics"]["pool_sides"]}}
+    assert params_hash(parse_params(changed)) != base
+    # a new controller counts without editing NON_RESULT_SECTIONS
+    doc["robot"]["controllers"]["pid2"] = doc["robot"]["controllers"]["pid"]
+    assert params_hash(parse_params(doc)) != base

@@ -221,24 +221,23 @@ def real_fit(request):
     from ingest.canonical import load_trial
     from ingest.manifest import Manifest
     from ingest.process import process_trial
+    from ingest.static import read_static_trial
     from ingest.subject import load_subject
-    from pipeline.params import ingest_params, load_params
-    from pipeline.stages.reference import RetargetSection
+    from pipeline.params import load_params
     from sim.body.human import build_human
-    from sim.body.human_params import HumanParams
     from sim.body.scaling import scale_subject
     from sim.motion.reference import retarget_trial
 
     params = load_params()
-    hp = HumanParams.from_dict(params.get("human", {}))
-    section = RetargetSection.from_params(params)
+    hp = params.human.build()
+    section = params.retarget.build()
     manifest = Manifest.load()
     subject = load_subject(request.param)
-    model = build_human(scale_subject(subject, manifest, hp), hp).compile()
+    model = build_human(scale_subject(subject, read_static_trial(subject, manifest), hp), hp).compile()
     trial_id, window = SLICES[request.param]
     spec = next(s for s in subject.trials if s.id == trial_id)
     assert spec.condition == "free"
-    processed = process_trial(load_trial(subject, spec, manifest), subject.markerset, ingest_params(params))
+    processed = process_trial(load_trial(subject, spec, manifest), subject.markerset, params.ingest.build())
     rt = retarget_trial(model, processed, section.ik, section.reference, window_s=window)
     return request.param, model, rt, processed, section.reference
 
@@ -288,15 +287,14 @@ def test_real_walk_periodic_cycle_matches_the_kept_strides(real_fit):
         from ingest.manifest import Manifest
         from ingest.process import process_trial
         from ingest.subject import load_subject
-        from pipeline.params import ingest_params, load_params
-        from pipeline.stages.reference import RetargetSection
+        from pipeline.params import load_params
         from sim.motion.reference import retarget_trial
 
         params = load_params()
         subj, manifest = load_subject(subject), Manifest.load()
         spec = next(s for s in subj.trials if s.id == "walking2")
-        other = process_trial(load_trial(subj, spec, manifest), subj.markerset, ingest_params(params))
-        trials = [rt, retarget_trial(model, other, RetargetSection.from_params(params).ik, p)]
+        other = process_trial(load_trial(subj, spec, manifest), subj.markerset, params.ingest.build())
+        trials = [rt, retarget_trial(model, other, params.retarget.build().ik, p)]
         strides = pd.concat([processed.strides, other.strides])
     else:
         trials, strides = [rt], processed.strides
@@ -328,16 +326,17 @@ def test_real_walk_periodic_cycle_matches_the_kept_strides(real_fit):
 def test_reference_stage_writes_npz_json_and_figure(tmp_path):
     """`python -m pipeline reference opencap4` on a scaled model written like the scale stage's."""
     from ingest.manifest import Manifest
+    from ingest.static import read_static_trial
     from ingest.subject import load_subject
     from pipeline.cli import main
     from pipeline.params import load_params
     from sim.body.human import build_human
-    from sim.body.human_params import HumanParams
     from sim.body.scaling import scale_subject
     from sim.motion.reference import load_reference
 
-    hp = HumanParams.from_dict(load_params().get("human", {}))
-    xml = build_human(scale_subject(load_subject("opencap4"), Manifest.load(), hp), hp).to_xml()
+    hp = load_params().human.build()
+    subject = load_subject("opencap4")
+    xml = build_human(scale_subject(subject, read_static_trial(subject, Manifest.load()), hp), hp).to_xml()
     (tmp_path / "opencap4" / "model").mkdir(parents=True)
     (tmp_path / "opencap4" / "model" / "human.xml").write_text(xml)
     argv = ["reference", "opencap4", "--root", str(tmp_path), "--reports", str(tmp_path / "reports")]
@@ -360,14 +359,17 @@ def test_reference_stage_writes_npz_json_and_figure(tmp_path):
 
 
 def test_retarget_params_reject_unknown_keys():
-    from pipeline.params import ParamsError, load_params
-    from pipeline.stages.reference import RetargetSection
+    import yaml
 
-    section = RetargetSection.from_params(load_params())
+    from pipeline.params import PARAMS_FILE, ParamsError, load_params, parse_params
+
+    section = load_params().retarget.build()
     assert section.reference.conditions == ("free",) and section.ik.iterations >= 1
-    with pytest.raises(ParamsError, match="unknown keys.*cycle_sample"):
-        RetargetSection.from_params({"retarget": {"cycle_sample": 10}})
-    with pytest.raises(ParamsError, match="unknown keys.*iteration"):
-        RetargetSection.from_params({"retarget": {"ik": {"iteration": 3}}})
-    with pytest.raises(ParamsError, match="no 'retarget' section"):
-        RetargetSection.from_params({})
+    doc = yaml.safe_load(PARAMS_FILE.read_text())
+    retarget = doc["retarget"]
+    with pytest.raises(ParamsError, match=r"params\.yaml: retarget: unknown key 'cycle_sample'$"):
+        parse_params({**doc, "retarget": {**retarget, "cycle_sample": 10}})
+    with pytest.raises(ParamsError, match=r"params\.yaml: retarget\.ik: unknown key 'iteration'$"):
+        parse_params({**doc, "retarget": {**retarget, "ik": {**retarget["ik"], "iteration": 3}}})
+    with pytest.raises(ParamsError, match=r"params\.yaml: missing section 'retarget'$"):
+        parse_params({k: v for k, v in doc.items() if k != "retarget"})

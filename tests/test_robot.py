@@ -7,7 +7,6 @@ import numpy as np
 import pytest
 
 from pipeline.params import load_params
-from pipeline.robot_config import robot_params
 from sim.motion.synthetic import capsule_world
 from sim.robot.harness import AXES, HarnessIndex, harness_wrench, wrench_from_sensors
 from sim.robot.mrba import SENSOR_WIDTH, SENSORS, BaseDrive, RobotIndex, attach_robot, lock_arm
@@ -17,7 +16,7 @@ MASS_KG = 75.0
 
 @pytest.fixture(scope="module")
 def robot():
-    return robot_params(load_params())
+    return load_params().robot.build()
 
 
 def world(robot, gravity: bool = True):

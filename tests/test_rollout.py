@@ -12,14 +12,14 @@ import pandas as pd
 import pytest
 
 from pipeline.params import load_params
-from pipeline.robot_config import controller_specs, replay_params, robot_params
 from pipeline.stages.simulate import straight_bouts
 from sim.errors import SimulationError
 from sim.motion.reference import load_reference
 from sim.motion.replay import Motion, ReplayHuman, interpolate_qpos, scripted_fall, with_lead_in
 from sim.motion.synthetic import WalkParams, capsule_world, synthetic_walk
 from sim.robot.controllers import make_controller
-from sim.rollout.loop import ROBOT_COLUMNS, RolloutParams, physics_steps, robot_info, rollout, step_grid
+from sim.rollout.loop import ROBOT_COLUMNS, RolloutParams, rollout
+from sim.rollout.world import physics_steps, robot_info, step_grid
 
 WALK = WalkParams(duration_s=6.0)
 
@@ -27,8 +27,8 @@ WALK = WalkParams(duration_s=6.0)
 @pytest.fixture(scope="module")
 def setup():
     params = load_params()
-    fall = params["rollout"]["fall_test"]
-    return robot_params(params), replay_params(params), controller_specs(params), fall
+    fall = params.rollout.fall_test
+    return params.robot.build(), params.rollout.replay.build(), params.robot.controller_specs(), fall
 
 
 def run(setup, condition: str, seed: int = 0, motion: Motion | None = None, rate_hz: float = 100.0):
@@ -102,7 +102,7 @@ def test_seed_sets_start_offset_and_noise(setup):
 def test_scripted_fall_is_caught(setup, condition):
     *_, fall = setup
     t_fall = 4.0
-    motion = scripted_fall(synthetic_walk(WALK), t_fall, fall["drop_m"], fall["duration_s"])
+    motion = scripted_fall(synthetic_walk(WALK), t_fall, fall.drop_m, fall.duration_s)
     result = run(setup, condition, motion=motion)
     df = result.robot
     assert result.fall_time_s is not None
@@ -163,7 +163,7 @@ def test_camargo_simulate_reproduces_the_paper_table1_ordering(camargo_model, tm
     from pipeline.stages.simulate import run_simulate
 
     root = camargo_model.parent.parent
-    doc = run_simulate("camargo", load_params(), "params.yaml", root, tmp_path, progress=False)
+    doc = run_simulate("camargo", load_params(), root, tmp_path, progress=False)
     assert doc["unstable"] == 0 and doc["warnings"] == []
     pid, adaptive = doc["conditions"]["pid"], doc["conditions"]["adaptive"]
     assert pid["falls"] == adaptive["falls"] == 0

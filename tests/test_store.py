@@ -1,6 +1,5 @@
 """The versioned DuckDB store: idempotence, new versions, busy writer, crash midway, views, CLI."""
 
-import copy
 import json
 import signal
 import subprocess
@@ -11,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from pipeline.cli import main
-from pipeline.params import load_params
+from pipeline.params import load_params, parse_params
 from pipeline.stages.ingest import run_ingest
 from pipeline.stages.metrics import run_metrics
 from pipeline.stages.store import load_results
@@ -54,8 +53,9 @@ def test_rerun_unchanged_adds_no_version_and_param_change_adds_one(processed, tm
 
     # a param that changes results: per-side instead of pooled cycles -> new versions, old kept
     changed_root = tmp_path / "changed"
-    params = copy.deepcopy(load_params())
-    params["metrics"]["pool_sides"] = False
+    doc = load_params().document()
+    doc["metrics"]["pool_sides"] = False
+    params = parse_params(doc)
     for sid in SUBJECTS:
         run_metrics(sid, params, processed.parent / "processed", changed_root)
     new = store_results(db, results(changed_root), FAST, rev="rev3")

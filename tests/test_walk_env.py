@@ -13,9 +13,9 @@ import pytest
 import torch
 from gymnasium.utils.env_checker import check_env
 
-from pipeline.params import PARAMS_FILE, REPO_ROOT, load_params
-from pipeline.stages.train import train_section
-from sim.body.human_params import HumanParams, joint_kind
+from pipeline.params import load_params
+from pipeline.paths import POLICIES_ROOT, policy_dir
+from sim.body.human_params import joint_kind
 from sim.learn.amp import AMP, style_reward
 from sim.learn.policy_human import PolicyHuman
 from sim.learn.train import load_body, load_policy, train
@@ -23,13 +23,11 @@ from sim.learn.walk_env import AMP_SIZE, OBS_SIZE, make_walk_env
 from sim.motion.reference import load_reference
 from sim.rollout.loop import RolloutParams, rollout
 
-POLICY = REPO_ROOT / "data" / "policies" / "camargo"
-
 
 @pytest.fixture(scope="module")
 def setup(camargo_model):
     params = load_params()
-    tp, ev = train_section(params, PARAMS_FILE)
+    tp, ev = params.train.build(), params.evaluate_policy.build()
     cycle = load_reference(camargo_model / "reference.npz").cycle
     return params, tp, ev, cycle
 
@@ -50,7 +48,7 @@ def test_env_api_passes_gymnasium_checker(env):
 
 def test_servos_keep_the_literature_torque_limits(setup, env):
     params, _, _, _ = setup
-    hp = HumanParams.from_dict(params["human"])
+    hp = params.human.build()
     mass = float(env.model.body_mass.sum())
     for a in range(env.model.nu):
         kind = joint_kind(env.model.joint(env.model.actuator_trnid[a, 0]).name)
@@ -137,7 +135,7 @@ def test_short_training_run_checkpoints_and_resumes(tmp_path, setup, camargo_mod
 def test_committed_policy_walks_through_the_rollout_engine(setup, subject):
     """Each example subject's committed policy walks 3 s on the body it was trained on."""
     params, tp, _, _ = setup
-    folder = POLICY.parent / subject
+    folder = policy_dir(POLICIES_ROOT, subject)
     model, norm = load_policy(folder)
     body, cycle = load_body(folder)  # the body the policy was trained on
     env = make_walk_env(body, cycle, tp.env)
@@ -146,9 +144,7 @@ def test_committed_policy_walks_through_the_rollout_engine(setup, subject):
         return model.predict(norm.normalize_obs(obs), deterministic=True)[0]
 
     human = PolicyHuman(policy, env.model, cycle, tp.env, 3.0, start_phase=0.3)
-    from pipeline.robot_config import robot_params
-
-    p = RolloutParams(robot=robot_params(params), sample_rate_hz=100.0, with_robot=False)
+    p = RolloutParams(robot=params.robot.build(), sample_rate_hz=100.0, with_robot=False)
     result = rollout(mujoco.MjSpec.from_file(str(body)), human, None, p, 0)
     assert result.stable and human.fall_time_s is None
     assert result.human_qpos.shape == (301, env.model.nq)
@@ -184,13 +180,12 @@ def test_real_gait_in_the_model_matches_the_dataset_curves(camargo_model):
     dataset's own IK curves (the residual is the model's joint definitions and its virtual markers)."""
     import pandas as pd
 
-    from pipeline.params import ingest_params
     from pipeline.stages.train import curves, real_in_model_cycles, spm_check
 
     params = load_params()
     model = mujoco.MjModel.from_xml_path(str(camargo_model / "human.xml"))
     cycles = real_in_model_cycles(model, load_reference(camargo_model / "reference.npz"), "camargo",
-                                  ingest_params(params))
+                                  params.ingest.build())
     real = pd.read_parquet(camargo_model.parent / "real" / "cycles.parquet")
     real = real[real["condition"] == "free"]
     for joint in ("hip_flexion", "knee_flexion"):

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from ingest.errors import IngestError
-from ingest.readers.trc import UNIT_TO_M, MarkerTable
+from ingest.readers.table import UNIT_TO_M, MarkerTable
 
 
 @dataclass(frozen=True)

@@ -21,7 +21,7 @@ import numpy as np
 import pandas as pd
 
 from ingest.errors import IngestError
-from ingest.readers.trc import UNIT_TO_M, MarkerTable
+from ingest.readers.table import UNIT_TO_M, MarkerTable
 
 _MARKER = re.compile(r"^(?P<name>.+)_(?P<axis>[xyz])_(?P<unit>mm|cm|m)$")
 _ANGLE = re.compile(r"^(?P<name>.+)_(?P<unit>deg|rad)$")

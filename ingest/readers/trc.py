@@ -7,27 +7,13 @@ X1 Y1 Z1 ... labels; then tab-separated rows. Empty cells are missing samples (N
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from ingest.errors import IngestError
-
-UNIT_TO_M = {"m": 1.0, "mm": 1e-3, "cm": 1e-2}
-
-
-@dataclass(frozen=True)
-class MarkerTable:
-    """Markers as read: lab axes of the file, converted to metres from the declared unit."""
-
-    path: Path
-    rate_hz: float
-    time_s: np.ndarray
-    names: tuple[str, ...]
-    xyz_m: np.ndarray  # (n_frames, n_markers, 3)
-    declared_unit: str
+from ingest.readers.table import UNIT_TO_M, MarkerTable
 
 
 def _header_fields(path: Path, keys: str, values: str) -> dict[str, str]:
@@ -86,17 +72,3 @@ def read_trc(path: str | Path) -> MarkerTable:
     xyz = data[:, 2:].reshape(len(rows), n_markers, 3) * UNIT_TO_M[unit]
     return MarkerTable(path, rate, time, names, xyz, unit)
 
-
-def read_markers(path: str | Path) -> MarkerTable:
-    """Dispatch on the suffix to the TRC, C3D or CSV marker reader."""
-    from ingest.readers.c3d import read_c3d
-    from ingest.readers.csv import read_csv
-
-    suffix = Path(path).suffix.lower()
-    if suffix == ".trc":
-        return read_trc(path)
-    if suffix == ".c3d":
-        return read_c3d(path).markers
-    if suffix == ".csv":
-        return read_csv(path).markers
-    raise IngestError(path, f"unknown marker file type {suffix!r} (expected .trc, .c3d or .csv)")

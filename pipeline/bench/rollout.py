@@ -20,25 +20,25 @@ from __future__ import annotations
 
 import time
 from concurrent.futures import ProcessPoolExecutor
-from pathlib import Path
 
 import mujoco
 import numpy as np
 
-from pipeline.params import REPO_ROOT
-from pipeline.robot_config import controller_specs, replay_params, robot_params, tuning_params
+from pipeline.params import Params
+from pipeline.paths import PROCESSED_ROOT, human_xml
 from sim.motion.replay import Motion, ReplayHuman
 from sim.motion.synthetic import capsule_world, synthetic_walk
 from sim.robot.controllers import make_controller
-from sim.rollout.loop import RolloutParams, build_world, robot_info, rollout
+from sim.rollout.loop import RolloutParams, rollout
+from sim.rollout.world import build_world, robot_info
 
 TARGETS = {"ratio_to_mj_step": 0.8}
-HUMAN_XML = REPO_ROOT / "data" / "processed" / "camargo" / "model" / "human.xml"
+HUMAN_XML = human_xml(PROCESSED_ROOT, "camargo")
 
 
-def _setup(params: dict, path, rate_hz: float):
-    robot, replay = robot_params(params, path), replay_params(params, path)
-    walk = tuning_params(params, path).walk
+def _setup(params: Params, rate_hz: float):
+    robot, replay = params.robot.build(), params.rollout.replay.build()
+    walk = params.robot.tuning.build().walk
     if HUMAN_XML.exists():
         spec = mujoco.MjSpec.from_file(str(HUMAN_XML))
         m0 = spec.copy().compile()
@@ -50,19 +50,18 @@ def _setup(params: dict, path, rate_hz: float):
     else:
         spec, motion = capsule_world(walk.mass_kg, walk.pelvis_height_m), synthetic_walk(walk)
         world = "capsule"
-    ctrl = make_controller(controller_specs(params, path)["adaptive"], robot_info(robot))
+    ctrl = make_controller(params.robot.controller_specs()["adaptive"], robot_info(robot))
     return spec, ReplayHuman(motion, replay), ctrl, RolloutParams(robot=robot, sample_rate_hz=rate_hz), world
 
 
 def _one(args: tuple) -> float:
-    params, path, rate_hz, seed = args
-    spec, human, ctrl, p, _ = _setup(params, path, rate_hz)
+    params, rate_hz, seed = args
+    spec, human, ctrl, p, _ = _setup(params, rate_hz)
     return rollout(spec, human, ctrl, p, seed).wall_s
 
 
-def run_rollout_bench(params: dict, path: str | Path, rate_hz: float = 200.0, repeat: int = 9,
-                      n_parallel: int = 8) -> dict:
-    spec, human, ctrl, p, world = _setup(params, path, rate_hz)
+def run_rollout_bench(params: Params, rate_hz: float = 200.0, repeat: int = 9, n_parallel: int = 8) -> dict:
+    spec, human, ctrl, p, world = _setup(params, rate_hz)
     model = build_world(spec, human, p)
     walls, raws = [], []
     d = mujoco.MjData(model)
@@ -75,7 +74,7 @@ def run_rollout_bench(params: dict, path: str | Path, rate_hz: float = 200.0, re
         walls.append(result.wall_s)
     walls_a, raws_a = np.array(walls), np.array(raws)
     best, raw = float(walls_a.min()), float(raws_a.min())
-    jobs = [(params, path, rate_hz, s) for s in range(n_parallel)]
+    jobs = [(params, rate_hz, s) for s in range(n_parallel)]
     start = time.perf_counter()
     for job in jobs:
         _one(job)

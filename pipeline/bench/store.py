@@ -11,8 +11,9 @@ import tempfile
 import time
 from pathlib import Path
 
+from pipeline.params import Params
 from pipeline.stages.ingest import run_ingest
-from pipeline.stages.metrics import MetricsParams, compute, params_hash, read_inputs
+from pipeline.stages.metrics import compute, params_hash, read_inputs
 from pipeline.store import StoreParams, SubjectResults, query, store_results
 
 SUBJECTS = ("camargo", "opencap4")
@@ -28,8 +29,8 @@ def _best(fn, repeat: int) -> float:
     return best
 
 
-def time_store(params: dict, repeat: int = 3) -> dict:
-    mp = MetricsParams.from_params(params)
+def time_store(params: Params, repeat: int = 3) -> dict:
+    mp = params.metrics.build()
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp)
         for sid in SUBJECTS:

@@ -20,6 +20,7 @@ from ingest.canonical import load_trial
 from ingest.manifest import Manifest
 from ingest.process import IngestParams, process_trial
 from ingest.subject import Subject, TrialSpec, load_subject
+from pipeline.params import Params
 
 TARGETS = {"camargo_trial_s": 0.2}
 RETARGET_TARGETS = {"retarget_camargo_trial_s": 10.0}  # ~3000 frames in seconds, not minutes
@@ -43,22 +44,20 @@ def time_trials(subject: Subject, trials: tuple[TrialSpec, ...], manifest: Manif
     return best, n_frames
 
 
-def time_retarget(params: dict, repeat: int) -> dict:
+def time_retarget(params: Params, repeat: int) -> dict:
     """IK frames per second on camargo's trial and opencap4's free walks (see module docstring)."""
-    from pipeline.params import ingest_params
-    from pipeline.stages.reference import RetargetSection
+    from ingest.static import read_static_trial
     from sim.body.human import build_human
-    from sim.body.human_params import HumanParams
     from sim.body.scaling import scale_subject
     from sim.motion.retarget import retarget
 
-    manifest, p = Manifest.load(), ingest_params(params)
-    hp = HumanParams.from_dict(params.get("human", {}))
-    ik = RetargetSection.from_params(params).ik
+    manifest, p = Manifest.load(), params.ingest.build()
+    hp = params.human.build()
+    ik = params.retarget.build().ik
     out = {}
     for sid, runs in (("camargo", min(repeat, 2)), ("opencap4", repeat)):
         subject = load_subject(sid)
-        model = build_human(scale_subject(subject, manifest, hp), hp).compile()
+        model = build_human(scale_subject(subject, read_static_trial(subject, manifest), hp), hp).compile()
         markers = [process_trial(load_trial(subject, s, manifest), subject.markerset, p).trial.markers
                    for s in subject.trials if s.condition == "free"]
         best = float("inf")
@@ -73,21 +72,22 @@ def time_retarget(params: dict, repeat: int) -> dict:
     return out
 
 
-def time_human(params: dict, repeat: int, standing_s: float = 5.0) -> dict:
+def time_human(params: Params, repeat: int, standing_s: float = 5.0) -> dict:
     """Human model: `build_human` + `MjSpec.compile` time (best of `repeat`, after the static trial
     is scaled once, untimed) and the raw `mj_step` rate of the human standing in its static pose
     under the pose-hold PD: only the `mj_step` calls are timed (the PD runs between them), so
     steps/s is the physics' own limit that rollout rates are compared to."""
     import mujoco
 
+    from ingest.static import read_static_trial
     from sim.body.human import build_human, pose_hold_ctrl, pose_hold_gains
-    from sim.body.human_params import HumanParams
     from sim.body.scaling import scale_subject
 
-    manifest, hp = Manifest.load(), HumanParams.from_dict(params.get("human", {}))
+    manifest, hp = Manifest.load(), params.human.build()
     out = {}
     for sid in ("camargo", "opencap4"):
-        body = scale_subject(load_subject(sid), manifest, hp)
+        subject = load_subject(sid)
+        body = scale_subject(subject, read_static_trial(subject, manifest), hp)
         build = float("inf")
         for _ in range(max(repeat, 1)):
             start = time.perf_counter()
@@ -133,20 +133,17 @@ def run_ingest_bench(p: IngestParams, repeat: int) -> dict:
     }
 
 
-def run_bench(p: IngestParams, repeat: int = 5, params: dict | None = None,
-              sections: tuple[str, ...] = SECTIONS, params_path=None) -> dict:
+def run_bench(params: Params, repeat: int = 5, sections: tuple[str, ...] = SECTIONS) -> dict:
     """The benchmark sections asked for, each with its own `targets` and `meets_targets`:
     ingest (`TARGETS`), retarget (`RETARGET_TARGETS`), human (no target: the physical limit that
     rollouts are compared to), store (`STORE_TARGETS`) and rollout (ratio to raw `mj_step`)."""
     unknown = sorted(set(sections) - set(SECTIONS))
     if unknown:
         raise ValueError(f"unknown bench sections {unknown} (known: {', '.join(SECTIONS)})")
-    if params is None and set(sections) - {"ingest"}:
-        raise ValueError("bench sections other than ingest need the whole params")
     result: dict = {"repeat": repeat}
     for name in sections:
         if name == "ingest":
-            section, targets = run_ingest_bench(p, repeat), TARGETS
+            section, targets = run_ingest_bench(params.ingest.build(), repeat), TARGETS
         elif name == "retarget":
             section, targets = time_retarget(params, repeat), RETARGET_TARGETS
         elif name == "human":
@@ -162,7 +159,7 @@ def run_bench(p: IngestParams, repeat: int = 5, params: dict | None = None,
         else:
             from pipeline.bench.rollout import run_rollout_bench
 
-            section = run_rollout_bench(params, params_path)
+            section = run_rollout_bench(params)
             targets = section.pop("targets", {})
             section.pop("meets_targets", None)
         section["targets"] = dict(targets)

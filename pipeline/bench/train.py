@@ -15,8 +15,8 @@ import torch
 from stable_baselines3 import PPO
 from stable_baselines3.common.vec_env import DummyVecEnv
 
-from pipeline.params import PARAMS_FILE, REPO_ROOT
-from pipeline.stages.train import train_section
+from pipeline.params import Params
+from pipeline.paths import PROCESSED_ROOT, human_xml, reference_npz
 from sim.learn.amp import AMP, AMPCallback
 from sim.learn.train import make_vec_env
 from sim.learn.walk_env import AMP_SIZE, make_walk_env
@@ -37,13 +37,12 @@ def _rate(model: PPO, steps: int, callback=None) -> float:
     return model.num_timesteps / (time.perf_counter() - start)
 
 
-def time_training(params: dict, subject: str = "camargo", steps: int = 8192, n_envs: int = 2,
-                  root: Path = REPO_ROOT / "data" / "processed") -> dict:
+def time_training(params: Params, subject: str = "camargo", steps: int = 8192, n_envs: int = 2,
+                  root: Path = PROCESSED_ROOT) -> dict:
     torch.set_num_threads(1)
-    tp, _ = train_section(params, PARAMS_FILE)
-    p = replace(tp, n_steps=1024)
-    xml = root / subject / "model" / "human.xml"
-    cycle = load_reference(root / subject / "model" / "reference.npz").cycle
+    p = replace(params.train.build(), n_steps=1024)
+    xml = human_xml(root, subject)
+    cycle = load_reference(reference_npz(root, subject)).cycle
     walk = make_vec_env(xml, cycle, p, n_envs, subprocess=False)
     ref_env = make_walk_env(xml, cycle, p.env)
     rng = np.random.default_rng(0)

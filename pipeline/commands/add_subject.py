@@ -39,7 +39,8 @@ from ingest.subject import (
     load_markerset,
 )
 from pipeline.commands.quicklook import fitting_markerset
-from pipeline.params import PARAMS_FILE, load_params
+from pipeline.params import load_params, parse_params
+from pipeline.paths import PARAMS_FILE
 from pipeline.stages.outputs import replacing
 
 ID_PATTERN = re.compile(r"^[a-z0-9][a-z0-9_-]{0,63}$")
@@ -136,11 +137,11 @@ def add_subject(subject_id: str, height_m: float, mass_kg: float, static: Path, 
     if not ID_PATTERN.match(subject_id):
         raise SubjectError(subject_id, "subject id must be lower case letters, digits, '_' or '-'")
     params = load_params(registry.params_path)
-    if subj_file.exists() or subject_id in [str(s) for s in params.get("subjects") or []]:
+    if subj_file.exists() or subject_id in params.subjects:
         raise SubjectError(subj_file, f"subject {subject_id!r} is already registered")
     if not trials:
         raise SubjectError(subject_id, "no trials given (--trial COND=FILE)")
-    needed = [str(c) for c in (params.get("retarget") or {}).get("conditions") or []]
+    needed = list(params.retarget.conditions)
     if needed and not any(t.condition in needed for t in trials):
         raise SubjectError(subject_id, f"no trial with condition in {needed} (params retarget.conditions): "
                            "the reference motion of the simulated human is built from those")
@@ -192,7 +193,7 @@ def add_subject(subject_id: str, height_m: float, mass_kg: float, static: Path, 
     }
     params_text = _append_subject_to_params(registry.params_path.read_text(), subject_id,
                                             registry.params_path)
-    if subject_id not in (yaml.safe_load(params_text).get("subjects") or []):
+    if subject_id not in parse_params(yaml.safe_load(params_text), registry.params_path).subjects:
         raise SubjectError(registry.params_path, "could not add the subject to the 'subjects' list")
     targets = [subj_file, registry.params_path]
     if new:

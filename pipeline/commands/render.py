@@ -15,19 +15,18 @@ import mujoco
 import numpy as np
 import pandas as pd
 
-from pipeline.params import REPO_ROOT
-from pipeline.robot_config import replay_params
+from pipeline.params import Params
+from pipeline.paths import PROCESSED_ROOT, REPORTS_ROOT, human_xml, real_dir, reference_npz, report_dir
 from pipeline.stages.outputs import replacing
-from pipeline.stages.simulate import SimulateSection, straight_bouts
+from pipeline.stages.simulate import straight_bouts
 from sim.errors import SimulationError
 from sim.motion.reference import load_reference
 from sim.motion.replay import Motion, ReplayHuman
 from sim.robot.controllers import make_controller
 from sim.robot.mrba import attach_robot
-from sim.rollout.loop import RolloutParams, build_world, robot_info, rollout
+from sim.rollout.loop import RolloutParams, rollout
+from sim.rollout.world import build_world, robot_info
 
-DEFAULT_ROOT = REPO_ROOT / "data" / "processed"
-REPORTS_ROOT = REPO_ROOT / "reports"
 WIDTH, HEIGHT, FPS = 640, 480, 30
 
 
@@ -64,16 +63,15 @@ def render_frames(physics: mujoco.MjModel, world_qpos: np.ndarray, human_spec: m
     return frames
 
 
-def run_render(subject_id: str, condition: str, params: dict, path, root: Path = DEFAULT_ROOT,
+def run_render(subject_id: str, condition: str, params: Params, root: Path = PROCESSED_ROOT,
                reports: Path = REPORTS_ROOT, seed: int = 0, bout: int = 0) -> Path:
     os.environ.setdefault("MUJOCO_GL", "egl")
     import cv2
 
-    section = SimulateSection.from_params(params, path)
-    model_dir = root / subject_id / "model"
-    spec = mujoco.MjSpec.from_file(str(model_dir / "human.xml"))
-    ref = load_reference(model_dir / "reference.npz")
-    strides = pd.read_parquet(root / subject_id / "real" / "strides.parquet")
+    section = params.simulate_section()
+    spec = mujoco.MjSpec.from_file(str(human_xml(root, subject_id)))
+    ref = load_reference(reference_npz(root, subject_id))
+    strides = pd.read_parquet(real_dir(root, subject_id) / "strides.parquet")
     bouts = [(tr, b) for tr in sorted(set(ref.trial.tolist()))
              for b in straight_bouts(strides, tr, section.bout_margin_s)]
     if not 0 <= bout < len(bouts):
@@ -82,7 +80,7 @@ def run_render(subject_id: str, condition: str, params: dict, path, root: Path =
     time_s, qpos = ref.motion(trial)
     rows = (time_s >= t0) & (time_s <= t1)
     rate = float(1.0 / np.median(np.diff(time_s)))
-    human = ReplayHuman(Motion(time_s[rows] - time_s[rows][0], qpos[rows]), replay_params(params, path))
+    human = ReplayHuman(Motion(time_s[rows] - time_s[rows][0], qpos[rows]), params.rollout.replay.build())
     with_robot = condition != "free"
     p = RolloutParams(robot=section.robot, sample_rate_hz=rate, max_physics_dt_s=section.max_physics_dt_s,
                       start_offset_m=section.start_offset_m, with_robot=with_robot, subject=subject_id,
@@ -97,7 +95,7 @@ def run_render(subject_id: str, condition: str, params: dict, path, root: Path =
     result = rollout(spec, human, ctrl, p, seed, model=physics)
     frames = render_frames(physics, result.world_qpos, spec, result.human_qpos, rate, with_robot,
                            section.robot, float(human.start_pose()[0][2]))
-    out = reports / subject_id / f"rollout_{condition}.mp4"
+    out = report_dir(reports, subject_id) / f"rollout_{condition}.mp4"
     with replacing(out) as (tmp,):
         video = tmp.with_suffix(".mp4")
         writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"mp4v"), FPS, (WIDTH, HEIGHT))

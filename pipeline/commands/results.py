@@ -11,20 +11,21 @@ import pandas as pd
 
 from pipeline.commands.add_subject import NewTrial, Registry, add_subject
 from pipeline.params import load_params
-from pipeline.stages.metrics import DEFAULT_OUT_ROOT, DEFAULT_ROOT, run_metrics
-from pipeline.stages.report import DEFAULT_REPORTS, ReportParams, run_report
-from pipeline.stages.store import run_store, store_params
+from pipeline.paths import METRICS_ROOT, PROCESSED_ROOT, REPORTS_ROOT
+from pipeline.stages.metrics import run_metrics
+from pipeline.stages.report import run_report
+from pipeline.stages.store import run_store
 from pipeline.store import query
 
 
 def cmd_metrics(args: argparse.Namespace) -> int:
-    folder = run_metrics(args.subject, load_params(args.params), args.root, args.out_root, args.params)
+    folder = run_metrics(args.subject, load_params(args.params), args.root, args.out_root)
     print(f"wrote {folder}", file=sys.stderr)
     return 0
 
 
 def cmd_store(args: argparse.Namespace) -> int:
-    report = run_store(load_params(args.params), args.root, args.db, args.params)
+    report = run_store(load_params(args.params), args.root, args.db)
     print(f"store run {report.run_id}: {report.n_groups} groups, {len(report.new_versions)} new versions "
           f"in {report.seconds:.2f} s", file=sys.stderr)
     return 0
@@ -40,7 +41,7 @@ def format_frame(df: pd.DataFrame, fmt: str) -> str:
 
 
 def cmd_query(args: argparse.Namespace) -> int:
-    p = store_params(load_params(args.params), args.params)
+    p = load_params(args.params).store.build()
     print(format_frame(query(args.db or p.path, args.sql, p.busy_timeout_s), args.format))
     return 0
 
@@ -57,11 +58,11 @@ def cmd_add_subject(args: argparse.Namespace) -> int:
 
 def cmd_report(args: argparse.Namespace) -> int:
     params = load_params(args.params)
-    p = store_params(params, args.params)
-    all_subjects = [str(s) for s in params.get("subjects") or []]
+    p = params.store.build()
+    all_subjects = list(params.subjects)
     subjects = [] if args.summary_only else (args.subjects or all_subjects)
     written = run_report(subjects, all_subjects, args.db or p.path, args.reports, not args.no_summary,
-                         ReportParams.from_params(params, args.params), p.busy_timeout_s)
+                         params.report.build(), p.busy_timeout_s)
     print("wrote " + ", ".join(str(w) for w in written), file=sys.stderr)
     return 0
 
@@ -69,14 +70,14 @@ def cmd_report(args: argparse.Namespace) -> int:
 def add_results_commands(commands: argparse._SubParsersAction) -> None:
     metrics = commands.add_parser("metrics", help="compute a subject's metric tables (Tables I-III, SPM)")
     metrics.add_argument("subject")
-    metrics.add_argument("--root", type=Path, default=DEFAULT_ROOT,
+    metrics.add_argument("--root", type=Path, default=PROCESSED_ROOT,
                          help="inputs: <root>/<subject>/{real,sim}/ (default: %(default)s)")
-    metrics.add_argument("--out-root", type=Path, default=DEFAULT_OUT_ROOT,
+    metrics.add_argument("--out-root", type=Path, default=METRICS_ROOT,
                          help="outputs: <out-root>/<subject>/ (default: %(default)s)")
     metrics.set_defaults(func=cmd_metrics)
 
     store = commands.add_parser("store", help="add every subject's metrics to the DuckDB results store")
-    store.add_argument("--root", type=Path, default=DEFAULT_OUT_ROOT,
+    store.add_argument("--root", type=Path, default=METRICS_ROOT,
                        help="metric tables: <root>/<subject>/ (default: %(default)s)")
     store.add_argument("--db", type=Path, help="store file (default: params store.path)")
     store.set_defaults(func=cmd_store)
@@ -91,7 +92,7 @@ def add_results_commands(commands: argparse._SubParsersAction) -> None:
     rep.add_argument("subjects", nargs="*", help="subjects to report (default: all in params)")
     rep.add_argument("--summary-only", action="store_true", help="only reports/summary.md and index.html")
     rep.add_argument("--no-summary", action="store_true", help="only the per-subject reports")
-    rep.add_argument("--reports", type=Path, default=DEFAULT_REPORTS, help="output root (default: reports)")
+    rep.add_argument("--reports", type=Path, default=REPORTS_ROOT, help="output root (default: reports)")
     rep.add_argument("--db", type=Path, help="store file (default: params store.path)")
     rep.set_defaults(func=cmd_report)
 

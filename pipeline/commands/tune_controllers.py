@@ -10,23 +10,22 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from pipeline.params import ParamsError
-from pipeline.robot_config import controller_specs, replay_params, robot_params, tuning_params
+from pipeline.params import Params, ParamsError
 from pipeline.stages.outputs import write_json
 from sim.rollout.tuning import tune
 
 
-def run_tuning(params: dict, path: Path, out: Path) -> dict:
-    robot, replay, p = robot_params(params, path), replay_params(params, path), tuning_params(params, path)
-    specs = controller_specs(params, path)
-    initial = params["robot"]["tuning"].get("initial", {})
+def run_tuning(params: Params, out: Path) -> dict:
+    """Tune every controller named in `robot.tuning.initial` (each one of `robot.controllers`, checked
+    when the params were loaded) from its gains there; the document is written to `out`."""
+    robot, replay, p = params.robot.build(), params.rollout.replay.build(), params.robot.tuning.build()
+    specs = params.robot.controller_specs()
+    initial = params.robot.tuning.initial
     doc = {"procedure": f"scipy.optimize.minimize {p.method}, {p.max_evaluations} rollouts each, "
                         f"seed {p.seed}, synthetic walks {[dataclasses.asdict(w) for w in p.walks]}",
            "force_weight_m_per_n": p.force_weight_m_per_n, "controllers": {}}
     for name in tqdm(list(initial), desc="tune-controllers"):
-        if name not in specs:
-            raise ParamsError(path, f"robot.tuning.initial names {name!r}, not in robot.controllers")
-        spec = {"class": specs[name]["class"], "gains": {**specs[name].get("gains", {}), **initial[name]}}
+        spec = {"class": specs[name]["class"], "gains": {**specs[name]["gains"], **initial[name]}}
         res = tune(name, spec, robot, replay, p)
         doc["controllers"][name] = {"gains": {k: round(v, 4) for k, v in res.gains.items()},
                                     "objective": round(res.objective, 5),

@@ -14,10 +14,10 @@ from ingest.manifest import Manifest
 from ingest.process import SubjectTables, process_subject
 from ingest.subject import load_subject
 from ingest.trial import SIDES
-from pipeline.params import REPO_ROOT, ingest_params
+from pipeline.params import Params
+from pipeline.paths import PROCESSED_ROOT, real_dir
 from pipeline.stages.outputs import write_outputs
 
-DEFAULT_OUT_ROOT = REPO_ROOT / "data" / "processed"
 TABLES = ("events", "strides", "cycles")
 
 
@@ -33,13 +33,13 @@ def summary(strides: pd.DataFrame, n_trials: int) -> dict:
     }
 
 
-def run_ingest(subject_id: str, params: dict, out_root: Path = DEFAULT_OUT_ROOT,
+def run_ingest(subject_id: str, params: Params, out_root: Path = PROCESSED_ROOT,
                progress: bool = True) -> Path:
     """Process every trial of `subject_id` and write the stage outputs; returns their folder."""
     subject = load_subject(subject_id)
-    tables: SubjectTables = process_subject(subject, Manifest.load(), ingest_params(params),
+    tables: SubjectTables = process_subject(subject, Manifest.load(), params.ingest.build(),
                                             progress=progress)
-    folder = Path(out_root) / subject_id / "real"
+    folder = real_dir(out_root, subject_id)
     write_outputs(folder, {name: getattr(tables, name) for name in TABLES},
                   {"summary": summary(tables.strides, len(subject.trials))})
     return folder

@@ -13,15 +13,12 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import pandas as pd
 
 from ingest.manifest import sha256_of
 from metrics import (
-    JOINTS,
-    SpmParams,
     bands_table,
     compliance,
     compliance_table,
@@ -34,52 +31,24 @@ from metrics import (
 )
 from metrics.errors import MetricsError
 from metrics.tracking import TRACKING_COLUMNS, tracking_table
-from pipeline.params import REPO_ROOT, ParamsError
+from pipeline.params import MetricsParams, Params
+from pipeline.paths import METRICS_ROOT, PROCESSED_ROOT, metrics_dir, real_dir, sim_dir, subject_dir
 from pipeline.stages.outputs import write_outputs
 
-DEFAULT_ROOT = REPO_ROOT / "data" / "processed"
-DEFAULT_OUT_ROOT = REPO_ROOT / "data" / "metrics"
 TABLES = ("gait", "stability", "rom", "kinematics", "compliance", "harness", "tracking", "spm_tests",
           "spm_curves", "spm_clusters")
 SOURCES = ("real", "sim")
+SOURCE_DIRS = {"real": real_dir, "sim": sim_dir}  # each source's folder under <root>/<subject>/
 # Sections that do not shape the results; the hash of all others identifies a params version
 # (so a section added later, e.g. for a new controller, counts without editing this list).
 NON_RESULT_SECTIONS = ("subjects", "store", "report")
 
 
-@dataclass(frozen=True)
-class MetricsParams:
-    """The `metrics` section of params.yaml."""
-
-    pool_sides: bool = True
-    exclude_locked: bool = True
-    joints: tuple[str, ...] = JOINTS
-    tracking_rate_hz: float = 20.0
-    spm: SpmParams = field(default_factory=SpmParams)
-
-    @classmethod
-    def from_params(cls, params: dict, path: str | Path = "params.yaml") -> MetricsParams:
-        section = params.get("metrics")
-        if not isinstance(section, dict):
-            raise ParamsError(path, "no 'metrics' section")
-        try:
-            joints = tuple(section["joints"])
-            spm = dict(section["spm"])
-            return cls(bool(section["pool_sides"]), bool(section["exclude_locked"]), joints,
-                       float(section["tracking_rate_hz"]),
-                       SpmParams(alpha=float(spm["alpha"]), test=str(spm["test"]),
-                                 min_cycles=int(spm["min_cycles"]),
-                                 reference_condition=str(spm["reference_condition"]),
-                                 pool_sides=bool(section["pool_sides"]), joints=joints))
-        except KeyError as exc:
-            raise ParamsError(path, f"metrics section lacks key {exc.args[0]!r}") from None
-        except (TypeError, ValueError, MetricsError) as exc:
-            raise ParamsError(path, f"invalid metrics section ({exc})") from None
-
-
-def params_hash(params: dict) -> str:
-    """sha256 (16 hex) of the result-shaping params sections, in a canonical JSON form."""
-    doc = {k: params[k] for k in sorted(params) if k not in NON_RESULT_SECTIONS}
+def params_hash(params: Params) -> str:
+    """sha256 (16 hex) of the result-shaping params sections, in a canonical JSON form (that of the
+    params.yaml document: the same file gives the same hash)."""
+    document = params.document()
+    doc = {k: document[k] for k in sorted(document) if k not in NON_RESULT_SECTIONS}
     return hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
 
@@ -88,11 +57,12 @@ def read_inputs(subject: str, root: Path) -> dict[str, pd.DataFrame]:
     found = {name: [] for name in ("strides", "cycles", "robot")}
     for source in SOURCES:
         for name in found:
-            path = root / subject / source / f"{name}.parquet"
+            path = SOURCE_DIRS[source](root, subject) / f"{name}.parquet"
             if path.is_file():
                 found[name].append(pd.read_parquet(path))
     if not found["cycles"]:
-        raise MetricsError(str(root / subject), "no real/ or sim/ cycles.parquet: run ingest first")
+        raise MetricsError(str(subject_dir(root, subject)),
+                           "no real/ or sim/ cycles.parquet: run ingest first")
     return {name: pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
             for name, frames in found.items()}
 
@@ -148,19 +118,19 @@ def headline(tables: dict[str, pd.DataFrame]) -> dict:
 
 def input_hashes(subject: str, root: Path) -> dict[str, str]:
     return {str(p.relative_to(root)): sha256_of(p) for source in SOURCES
-            for p in sorted((root / subject / source).glob("*.parquet"))}
+            for p in sorted(SOURCE_DIRS[source](root, subject).glob("*.parquet"))}
 
 
-def run_metrics(subject: str, params: dict, root: Path = DEFAULT_ROOT, out_root: Path = DEFAULT_OUT_ROOT,
-                params_path: str | Path = "params.yaml") -> Path:
+def run_metrics(subject: str, params: Params, root: Path = PROCESSED_ROOT,
+                out_root: Path = METRICS_ROOT) -> Path:
     """Compute and write a subject's metric tables; returns the output folder."""
-    p = MetricsParams.from_params(params, params_path)
+    p = params.metrics.build()
     root = Path(root)
     try:
         tables = compute(read_inputs(subject, root), p)
     except (KeyError, ValueError) as exc:
-        raise MetricsError(str(root / subject), f"cannot compute metrics ({exc})") from None
-    folder = Path(out_root) / subject
+        raise MetricsError(str(subject_dir(root, subject)), f"cannot compute metrics ({exc})") from None
+    folder = metrics_dir(out_root, subject)
     provenance = {"subject": subject, "params_hash": params_hash(params),
                   "inputs": input_hashes(subject, root)}
     write_outputs(folder, tables, {"metrics": headline(tables), "provenance": provenance})

@@ -10,7 +10,6 @@ against the real `.mot` angles), written all-or-nothing.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -21,41 +20,20 @@ from ingest.manifest import Manifest
 from ingest.process import IngestParams, process_trial
 from ingest.subject import load_subject
 from ingest.trial import JOINTS, SIDES
-from pipeline.params import REPO_ROOT, ParamsError, ingest_params
+from pipeline.params import Params, RetargetSection
+from pipeline.paths import PROCESSED_ROOT, REPORTS_ROOT, human_xml, model_dir, reference_npz, report_dir
 from pipeline.stages.outputs import json_text, replacing
 from sim.errors import SimulationError
 from sim.motion.reference import (
     Reference,
     ReferenceCycle,
-    ReferenceParams,
     RetargetedTrial,
     cycle_from_trials,
     left_right_shift,
     retarget_trial,
     save_reference,
 )
-from sim.motion.retarget import RetargetParams, joint_angles
-
-DEFAULT_ROOT = REPO_ROOT / "data" / "processed"
-REPORTS_ROOT = REPO_ROOT / "reports"
-
-
-@dataclass(frozen=True)
-class RetargetSection:
-    """The `retarget` section of params.yaml: IK settings and reference-motion settings."""
-
-    ik: RetargetParams
-    reference: ReferenceParams
-
-    @classmethod
-    def from_params(cls, params: dict, path: str | Path = "params.yaml") -> RetargetSection:
-        section = params.get("retarget")
-        if not isinstance(section, dict):
-            raise ParamsError(path, "no 'retarget' section")
-        try:
-            return cls(RetargetParams.from_dict(section.get("ik", {})), ReferenceParams.from_dict(section))
-        except (TypeError, ValueError, SimulationError) as exc:
-            raise ParamsError(path, f"invalid retarget section ({exc})") from None
+from sim.motion.retarget import joint_angles
 
 
 def load_model(path: Path):
@@ -197,17 +175,17 @@ def fit_metrics(subject_id: str, model, trials: list[RetargetedTrial], real: dic
     }
 
 
-def run_reference(subject_id: str, params: dict, root: Path = DEFAULT_ROOT,
+def run_reference(subject_id: str, params: Params, root: Path = PROCESSED_ROOT,
                   reports: Path = REPORTS_ROOT, progress: bool = True) -> dict:
     """Retarget a subject and write reference.npz, reference.json and retarget.png; returns the
     metrics document."""
-    section = RetargetSection.from_params(params)
-    folder = Path(root) / subject_id / "model"
-    model = load_model(folder / "human.xml")
-    reference, doc, trials, real = retarget_subject(subject_id, model, ingest_params(params), section,
+    section = params.retarget.build()
+    folder = model_dir(root, subject_id)
+    model = load_model(human_xml(root, subject_id))
+    reference, doc, trials, real = retarget_subject(subject_id, model, params.ingest.build(), section,
                                                     progress=progress)
-    npz, js = folder / "reference.npz", folder / "reference.json"
-    png = Path(reports) / subject_id / "retarget.png"
+    npz, js = reference_npz(root, subject_id), folder / "reference.json"
+    png = report_dir(reports, subject_id) / "retarget.png"
     with replacing(npz, js, png) as (t_npz, t_js, t_png):
         with open(t_npz, "wb") as fh:
             save_reference(fh, reference)

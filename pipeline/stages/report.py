@@ -13,18 +13,17 @@ from __future__ import annotations
 
 import html
 import math
-from dataclasses import dataclass
 from pathlib import Path
 
 import matplotlib.pyplot as plt
 import pandas as pd
 
 from metrics.plots import group_label, harness_figure, kinematics_figure, spm_figure, tracking_figure
-from pipeline.params import REPO_ROOT, ParamsError
+from pipeline.params import ReportParams
+from pipeline.paths import REPORTS_ROOT, report_dir
 from pipeline.stages.outputs import replacing
 from pipeline.store import StoreError, open_store
 
-DEFAULT_REPORTS = REPO_ROOT / "reports"
 QUERIES = {
     "table1": "SELECT * FROM paper_table1 ORDER BY subject, condition, sim_human_mode",
     "table2": "SELECT * FROM paper_table2 ORDER BY subject, condition, sim_human_mode",
@@ -46,23 +45,6 @@ PAPER_NOTE = (
     "subject. Those per-table numbers could not be retrieved in this environment (only the paper's "
     "abstract was reachable), so the column says *not retrieved* rather than showing invented numbers."
 )
-
-
-@dataclass(frozen=True)
-class ReportParams:
-    """The `report` section of params.yaml."""
-
-    dpi: int = 110
-
-    @classmethod
-    def from_params(cls, params: dict, path: str | Path = "params.yaml") -> ReportParams:
-        section = params.get("report")
-        if not isinstance(section, dict):
-            raise ParamsError(path, "no 'report' section")
-        try:
-            return cls(int(section["dpi"]))
-        except (KeyError, TypeError, ValueError) as exc:
-            raise ParamsError(path, f"invalid report section ({exc})") from None
 
 
 # Columns the report reads from views that have grown over time: a store file whose views predate
@@ -172,13 +154,13 @@ def _save(fig, path: Path, dpi: int) -> None:
     plt.close(fig)
 
 
-def subject_report(subject: str, data: dict[str, pd.DataFrame], reports: Path = DEFAULT_REPORTS,
+def subject_report(subject: str, data: dict[str, pd.DataFrame], reports: Path = REPORTS_ROOT,
                    p: ReportParams = ReportParams()) -> Path:
     """Write `reports/<subject>/report.md` and its figures; returns the report path."""
     summary = _of(data["summary"], subject)
     if summary.empty:
         raise StoreError(subject, "no stored results for this subject: run `python -m pipeline store`")
-    folder = Path(reports) / subject
+    folder = report_dir(reports, subject)
     figs = folder / "figures"
     lines = [f"# {subject}: HITL gait report", "",
              "Built from the results store (`data/results.duckdb`, latest version of each subject, "
@@ -254,7 +236,7 @@ def _html_table(header: list[str], rows: list[list[str]]) -> str:
 
 
 def summary_report(subjects: list[str], data: dict[str, pd.DataFrame],
-                   reports: Path = DEFAULT_REPORTS) -> tuple[Path, Path]:
+                   reports: Path = REPORTS_ROOT) -> tuple[Path, Path]:
     """Write `reports/summary.md` and `reports/index.html` across subjects."""
     reports = Path(reports)
     summ = data["summary"]
@@ -295,7 +277,7 @@ def summary_report(subjects: list[str], data: dict[str, pd.DataFrame],
     return md_path, html_path
 
 
-def run_report(subjects: list[str], all_subjects: list[str], db: Path, reports: Path = DEFAULT_REPORTS,
+def run_report(subjects: list[str], all_subjects: list[str], db: Path, reports: Path = REPORTS_ROOT,
                summary: bool = True, p: ReportParams = ReportParams(),
                busy_timeout_s: float = 10.0) -> list[Path]:
     """Reports of `subjects`, then (with `summary`) the summary and index over `all_subjects`."""

@@ -15,47 +15,33 @@ import mujoco
 import numpy as np
 
 from ingest.manifest import Manifest
+from ingest.static import read_static_trial
 from ingest.subject import load_subject
-from pipeline.params import REPO_ROOT, ParamsError
+from pipeline.params import Params
+from pipeline.paths import PROCESSED_ROOT, REPORTS_ROOT, human_xml, model_dir, report_dir
 from pipeline.stages.outputs import json_text, replacing
 from sim.body.human import build_human, model_checks
-from sim.body.human_params import HumanParams
 from sim.body.render import render_model_png
 from sim.body.scaling import scale_subject
-
-DEFAULT_ROOT = REPO_ROOT / "data" / "processed"
-REPORTS_ROOT = REPO_ROOT / "reports"
-
-
-def human_params(params: dict, path: str | Path = "params.yaml") -> HumanParams:
-    """`HumanParams` from the `human` section of params.yaml."""
-    section = params.get("human")
-    if not isinstance(section, dict):
-        raise ParamsError(path, "no 'human' section")
-    try:
-        return HumanParams.from_dict(section)
-    except KeyError as exc:
-        raise ParamsError(path, f"human section has unknown key {exc.args[0]!r}") from None
-    except (TypeError, ValueError) as exc:
-        raise ParamsError(path, f"invalid human section ({exc})") from None
+from sim.errors import SimulationError
 
 
 def _rounded(d: dict, digits: int = 4) -> dict:
     return {k: round(float(v), digits) for k, v in d.items()}
 
 
-def run_scale(subject_id: str, params: dict, root: Path = DEFAULT_ROOT,
+def run_scale(subject_id: str, params: Params, root: Path = PROCESSED_ROOT,
               reports_root: Path = REPORTS_ROOT) -> Path:
     """Scale, build, check and render `subject_id`'s human; returns the model folder."""
     subject = load_subject(subject_id)
-    p = human_params(params)
-    body = scale_subject(subject, Manifest.load(), p)
+    p = params.human.build()
+    body = scale_subject(subject, read_static_trial(subject, Manifest.load()), p)
     spec = build_human(body, p)
     model = spec.compile()
     xml = spec.to_xml()
     checks = model_checks(model, body)
-    folder = Path(root) / subject_id / "model"
-    png = Path(reports_root) / subject_id / "model.png"
+    folder = model_dir(root, subject_id)
+    png = report_dir(reports_root, subject_id) / "model.png"
     summary = {
         "subject": subject_id, "height_m": body.height_m, "mass_kg": body.mass_kg,
         "anthropometry": body.anthropometry,
@@ -68,11 +54,11 @@ def run_scale(subject_id: str, params: dict, root: Path = DEFAULT_ROOT,
         "markers": len(body.marker_bodies),
         "checks": checks,
     }
-    xml_out, json_out, png_out = folder / "human.xml", folder / "model.json", png
+    xml_out, json_out, png_out = human_xml(root, subject_id), folder / "model.json", png
     with replacing(xml_out, json_out, png_out) as (xml_tmp, json_tmp, png_tmp):
         xml_tmp.write_text(xml)
         if mujoco.MjModel.from_xml_path(str(xml_tmp)).nv != model.nv:
-            raise ParamsError(xml_out, "saved MJCF does not reload to the same model")
+            raise SimulationError(xml_out, "saved MJCF does not reload to the same model")
         summary["render"] = render_model_png(
             xml_tmp, model.key_qpos[0], body.markers, body.height_m, png_tmp,
             title=f"{subject_id}: {body.height_m:.2f} m, {body.mass_kg:.1f} kg, static pose")

@@ -33,46 +33,24 @@ from tqdm import tqdm
 from ingest.errors import IngestError
 from ingest.process import IngestParams, process_trial
 from ingest.subject import load_subject
-from pipeline.params import REPO_ROOT, ParamsError, ingest_params
-from pipeline.robot_config import controller_specs, replay_params, robot_params
+from pipeline.params import Params, SimulateSection
+from pipeline.paths import (
+    PROCESSED_ROOT,
+    REPORTS_ROOT,
+    human_xml,
+    real_dir,
+    reference_npz,
+    report_dir,
+    sim_dir,
+)
 from pipeline.stages.outputs import replacing, write_outputs
 from sim.body.markers import trial_from_qpos
 from sim.errors import SimulationError
 from sim.motion.reference import load_reference
 from sim.motion.replay import Motion, ReplayHuman, with_lead_in
 from sim.robot.controllers import make_controller
-from sim.robot.mrba import RobotParams
-from sim.rollout.loop import ROBOT_COLUMNS, RolloutParams, robot_info, rollout
-
-DEFAULT_ROOT = REPO_ROOT / "data" / "processed"
-REPORTS_ROOT = REPO_ROOT / "reports"
-
-
-@dataclass(frozen=True)
-class SimulateSection:
-    """params `rollout` (besides `replay`) with the robot and controllers it uses."""
-
-    conditions: tuple[str, ...]
-    n_seeds: int
-    max_physics_dt_s: float
-    start_offset_m: float
-    bout_margin_s: float
-    lead_in_s: float
-    lead_in_ramp_s: float
-    workers: int
-    robot: RobotParams
-    controllers: dict
-
-    @classmethod
-    def from_params(cls, params: dict, path) -> SimulateSection:
-        r = params.get("rollout") or {}
-        try:
-            return cls(tuple(r["conditions"]), int(r["n_seeds"]), float(r["max_physics_dt_s"]),
-                       float(r["start_offset_m"]), float(r["bout_margin_s"]), float(r["lead_in_s"]),
-                       float(r["lead_in_ramp_s"]), int(r.get("workers", 2)),
-                       robot_params(params, path), controller_specs(params, path))
-        except KeyError as exc:
-            raise ParamsError(path, f"rollout section lacks key {exc.args[0]!r}") from None
+from sim.rollout.loop import ROBOT_COLUMNS, RolloutParams, rollout
+from sim.rollout.world import robot_info
 
 
 def straight_bouts(strides: pd.DataFrame, trial: str, margin_s: float, join_gap_s: float = 0.3
@@ -190,14 +168,13 @@ def summarise(robot: pd.DataFrame, results: list[dict]) -> dict:
             "human_mode": "replay", "bouts": "straight bouts only (kept real strides)", "conditions": per}
 
 
-def run_simulate(subject_id: str, params: dict, path, root: Path = DEFAULT_ROOT,
+def run_simulate(subject_id: str, params: Params, root: Path = PROCESSED_ROOT,
                  reports: Path = REPORTS_ROOT, progress: bool = True) -> dict:
-    section = SimulateSection.from_params(params, path)
-    replay, ip = replay_params(params, path), ingest_params(params, path)
-    model_dir = root / subject_id / "model"
-    human_xml, ref_npz = model_dir / "human.xml", model_dir / "reference.npz"
-    strides_file = root / subject_id / "real" / "strides.parquet"
-    for f in (human_xml, ref_npz, strides_file):
+    section = params.simulate_section()
+    replay, ip = params.rollout.replay.build(), params.ingest.build()
+    xml, ref_npz = human_xml(root, subject_id), reference_npz(root, subject_id)
+    strides_file = real_dir(root, subject_id) / "strides.parquet"
+    for f in (xml, ref_npz, strides_file):
         if not f.exists():
             raise SimulationError(f, f"missing input of `simulate {subject_id}` (run the stage that "
                                   "makes it)")
@@ -212,7 +189,7 @@ def run_simulate(subject_id: str, params: dict, path, root: Path = DEFAULT_ROOT,
     if not jobs:
         raise SimulationError(strides_file, f"no straight bout (kept strides) in the retargeted trials of "
                               f"{subject_id}")
-    init = (str(human_xml), str(ref_npz), subject_id, section, replay, ip)
+    init = (str(xml), str(ref_npz), subject_id, section, replay, ip)
     with ProcessPoolExecutor(max_workers=max(1, section.workers), initializer=_init_worker,
                              initargs=init) as pool:
         results = list(tqdm(pool.map(_run_job, jobs), total=len(jobs), desc=f"simulate {subject_id}",
@@ -225,8 +202,8 @@ def run_simulate(subject_id: str, params: dict, path, root: Path = DEFAULT_ROOT,
         tables[name] = pd.concat(parts, ignore_index=True) if parts else pd.DataFrame()
     tables["robot"] = robot
     summary = summarise(robot, results)
-    write_outputs(root / subject_id / "sim", tables, {"summary": summary})
-    png = reports / subject_id / "robot_tracking.png"
+    write_outputs(sim_dir(root, subject_id), tables, {"summary": summary})
+    png = report_dir(reports, subject_id) / "robot_tracking.png"
     with replacing(png) as (tmp,):
         plot_tracking(tmp.with_suffix(".png"), robot, subject_id)
         tmp.with_suffix(".png").replace(tmp)

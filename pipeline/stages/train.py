@@ -34,55 +34,24 @@ from tqdm import tqdm
 from ingest.errors import IngestError
 from ingest.process import IngestParams, process_trial
 from ingest.subject import load_subject
-from pipeline.params import REPO_ROOT, ParamsError, ingest_params
-from pipeline.robot_config import controller_specs, robot_params
+from pipeline import paths
+from pipeline.params import EvalParams, Params
 from pipeline.stages.outputs import replacing, write_outputs
 from sim.body.markers import trial_from_qpos
 from sim.errors import SimulationError
-from sim.learn.policy_human import PolicyHuman, Push, WarmStarted
+from sim.learn.policy_human import PolicyHuman, Push
 from sim.learn.train import BODY_FILE, CYCLE_FILE, POLICY_FILE, TrainParams, load_body, load_policy, train
 from sim.learn.walk_env import make_walk_env
 from sim.motion.reference import load_reference
 from sim.robot.controllers import make_controller
+from sim.robot.controllers.warm_start import WarmStarted
 from sim.robot.mrba import RobotParams
-from sim.rollout.loop import ROBOT_COLUMNS, RolloutParams, robot_info, rollout
-
-DEFAULT_ROOT = REPO_ROOT / "data" / "processed"
-POLICY_ROOT = REPO_ROOT / "data" / "policies"
-REPORTS_ROOT = REPO_ROOT / "reports"
-
-
-@dataclass(frozen=True)
-class EvalParams:
-    """`evaluate_policy` of params.yaml."""
-
-    n_seeds: int = 10
-    free_s: float = 20.0
-    robot_s: float = 15.0
-    push_n: float = 200.0
-    push_duration_s: float = 0.2
-    push_time_s: float = 5.0
-    fall_height_fraction: float = 0.7
-    spm_min_real_cycles: int = 5  # fewer real cycles: SPM reported but not judged (too few to test)
-
-
-def train_section(params: dict, path) -> tuple[TrainParams, EvalParams]:
-    section = params.get("train")
-    if not isinstance(section, dict):
-        raise ParamsError(path, "no 'train' section")
-    body = {k: v for k, v in section.items() if k != "subjects"}
-    try:
-        ev = params.get("evaluate_policy") or {}
-        ints = ("n_seeds", "spm_min_real_cycles")
-        return TrainParams.from_dict(body), EvalParams(**{k: (int(v) if k in ints else float(v))
-                                                          for k, v in ev.items()})
-    except (KeyError, TypeError) as exc:
-        raise ParamsError(path, f"invalid train section ({exc})") from None
+from sim.rollout.loop import ROBOT_COLUMNS, RolloutParams, rollout
+from sim.rollout.world import robot_info
 
 
 def _inputs(subject: str, root: Path) -> tuple[Path, Path]:
-    model_dir = root / subject / "model"
-    xml, npz = model_dir / "human.xml", model_dir / "reference.npz"
+    xml, npz = paths.human_xml(root, subject), paths.reference_npz(root, subject)
     for f in (xml, npz):
         if not f.exists():
             raise SimulationError(f, f"missing input of the policy stages for {subject} (run `python -m "
@@ -90,23 +59,23 @@ def _inputs(subject: str, root: Path) -> tuple[Path, Path]:
     return xml, npz
 
 
-def run_train(subject: str, params: dict, path, *, n_envs: int | None, threads: int | None, steps: int | None,
-              resume: bool, root: Path = DEFAULT_ROOT, out_root: Path = POLICY_ROOT,
+def run_train(subject: str, params: Params, *, n_envs: int | None, threads: int | None, steps: int | None,
+              resume: bool, root: Path = paths.PROCESSED_ROOT, out_root: Path = paths.POLICIES_ROOT,
               max_wall_s: float | None = None, subprocess: bool | None = None,
               init_from: str | None = None) -> dict:
     """Train `subject`'s policy; `init_from`: another subject whose committed policy is the start."""
-    p, _ = train_section(params, path)
+    p = params.train.build()
     start = None
     if init_from is not None and not resume:
-        start = out_root / init_from
+        start = paths.policy_dir(out_root, init_from)
         if not (start / POLICY_FILE).exists():
             raise SimulationError(start, f"no trained policy of {init_from!r} to start {subject}'s from")
     xml, npz = _inputs(subject, root)
     cycle = load_reference(npz).cycle
     command = "python -m pipeline train " + " ".join(sys.argv[2:]) if sys.argv[1:2] == ["train"] else ""
-    return train(xml, cycle, p, out_root / subject, n_envs=n_envs, threads=threads, total_steps=steps,
-                 resume=resume, max_wall_s=max_wall_s, subprocess=subprocess, command=command,
-                 init_from=start)
+    return train(xml, cycle, p, paths.policy_dir(out_root, subject), n_envs=n_envs, threads=threads,
+                 total_steps=steps, resume=resume, max_wall_s=max_wall_s, subprocess=subprocess,
+                 command=command, init_from=start)
 
 
 # -- policy rollouts ----------------------------------------------------------------------------
@@ -184,23 +153,22 @@ def _run(job: PolicyJob) -> dict:
     return out
 
 
-def policy_rollouts(subject: str, params: dict, path, jobs: list[PolicyJob], root: Path = DEFAULT_ROOT,
-                    policy_root: Path = POLICY_ROOT, workers: int | None = None, progress: bool = True
+def policy_rollouts(subject: str, params: Params, jobs: list[PolicyJob], root: Path = paths.PROCESSED_ROOT,
+                    policy_root: Path = paths.POLICIES_ROOT, workers: int | None = None, progress: bool = True
                     ) -> list[dict]:
-    tp, ev = train_section(params, path)
+    tp, ev = params.train.build(), params.evaluate_policy.build()
     _, npz = _inputs(subject, root)
-    policy_dir = policy_root / subject
+    policy_dir = paths.policy_dir(policy_root, subject)
     for f in (POLICY_FILE, BODY_FILE, CYCLE_FILE):
         if not (policy_dir / f).exists():
             raise SimulationError(policy_dir / f, f"no trained policy: run `python -m pipeline train "
                                   f"{subject}`")
     ref = load_reference(npz)
     rate = float(1.0 / np.median(np.diff(ref.time_s[ref.trial == ref.trial[0]])))
-    r = params.get("rollout") or {}
-    init = (str(policy_dir / BODY_FILE), rate, str(policy_dir), subject, tp, ev, robot_params(params, path),
-            controller_specs(params, path), ingest_params(params, path),
-            float(r.get("max_physics_dt_s", 0.002)), float(r.get("start_offset_m", 0.03)))
-    n = workers or int(r.get("workers", 2))
+    r = params.rollout
+    init = (str(policy_dir / BODY_FILE), rate, str(policy_dir), subject, tp, ev, params.robot.build(),
+            params.robot.controller_specs(), params.ingest.build(), r.max_physics_dt_s, r.start_offset_m)
+    n = workers or r.workers
     with ProcessPoolExecutor(max_workers=max(1, n), initializer=_init, initargs=init) as pool:
         return list(tqdm(pool.map(_run, jobs), total=len(jobs), desc=f"policy rollouts {subject}",
                          disable=not progress))
@@ -233,15 +201,14 @@ def compliance_summary(robot: pd.DataFrame) -> dict:
     return out
 
 
-def run_simulate_policy(subject: str, params: dict, path, root: Path = DEFAULT_ROOT,
-                        policy_root: Path = POLICY_ROOT, progress: bool = True) -> dict:
+def run_simulate_policy(subject: str, params: Params, root: Path = paths.PROCESSED_ROOT,
+                        policy_root: Path = paths.POLICIES_ROOT, progress: bool = True) -> dict:
     """Policy rollouts of every `rollout.conditions` x `rollout.n_seeds` (duration `evaluate_policy.
     free_s` / `robot_s`) written to `<root>/<subject>/sim_policy/` like the replay datasets."""
-    _, ev = train_section(params, path)
-    r = params.get("rollout") or {}
+    ev, r = params.evaluate_policy.build(), params.rollout
     jobs = [PolicyJob(c, s, ev.free_s if c == "free" else ev.robot_s)
-            for c in r.get("conditions", ["free"]) for s in range(int(r.get("n_seeds", 3)))]
-    results = policy_rollouts(subject, params, path, jobs, root, policy_root, progress=progress)
+            for c in r.conditions for s in range(r.n_seeds)]
+    results = policy_rollouts(subject, params, jobs, root, policy_root, progress=progress)
     tables = _tables(results)
     # the metrics issue's tables for the policy mode (metrics/ library, same functions as the stage)
     from metrics.compliance import compliance_table
@@ -256,7 +223,7 @@ def run_simulate_policy(subject: str, params: dict, path, root: Path = DEFAULT_R
                          sorted({x["job"].condition for x in results})},
                "unstable": sum(not x["stable"] for x in results),
                "conditions": compliance_summary(tables["robot"])}
-    write_outputs(root / subject / "sim_policy", tables, {"summary": summary})
+    write_outputs(paths.sim_policy_dir(root, subject), tables, {"summary": summary})
     return summary
 
 
@@ -348,10 +315,10 @@ def spm_figure(path: Path, curves_by_joint: dict, results: dict, subject: str) -
     plt.close(fig)
 
 
-def evaluate_policy(subject: str, params: dict, path, root: Path = DEFAULT_ROOT,
-                    policy_root: Path = POLICY_ROOT,
-                    reports: Path = REPORTS_ROOT, progress: bool = True) -> dict:
-    _, ev = train_section(params, path)
+def evaluate_policy(subject: str, params: Params, root: Path = paths.PROCESSED_ROOT,
+                    policy_root: Path = paths.POLICIES_ROOT,
+                    reports: Path = paths.REPORTS_ROOT, progress: bool = True) -> dict:
+    ev = params.evaluate_policy.build()
     start = time.perf_counter()
     seeds = range(ev.n_seeds)
     jobs = [PolicyJob("free", s, ev.free_s) for s in seeds]
@@ -359,13 +326,13 @@ def evaluate_policy(subject: str, params: dict, path, root: Path = DEFAULT_ROOT,
     push_s = min(ev.free_s, ev.push_time_s + 5.0)
     jobs += [PolicyJob("free", s, push_s, ev.push_n * (1 if s % 2 == 0 else -1), ev.push_time_s,
                        ev.push_duration_s, tag="push") for s in seeds]
-    results = policy_rollouts(subject, params, path, jobs, root, policy_root, progress=progress)
+    results = policy_rollouts(subject, params, jobs, root, policy_root, progress=progress)
     groups = {"free": [r for r in results if r["job"].condition == "free" and not r["job"].push_n],
               "pid": [r for r in results if r["job"].condition == "pid"],
               "adaptive": [r for r in results if r["job"].condition == "adaptive"],
               "push": [r for r in results if r["job"].push_n]}
-    real_strides = pd.read_parquet(root / subject / "real" / "strides.parquet")
-    real_cycles = pd.read_parquet(root / subject / "real" / "cycles.parquet")
+    real_strides = pd.read_parquet(paths.real_dir(root, subject) / "strides.parquet")
+    real_cycles = pd.read_parquet(paths.real_dir(root, subject) / "cycles.parquet")
     # the policy imitates free walking: its gait is compared with the free-walking strides
     real_kept = real_strides[real_strides["kept"] & (real_strides["condition"] == "free")]
     free = _tables(groups["free"])
@@ -410,8 +377,9 @@ def evaluate_policy(subject: str, params: dict, path, root: Path = DEFAULT_ROOT,
     doc["push"] = {"force_n": ev.push_n, "duration_s": ev.push_duration_s, "at_s": ev.push_time_s,
                    "walk_s": push_s, "rollouts": len(groups["push"]), "recovered": rec, "pass": rec >= 7}
     xml, npz = _inputs(subject, root)
-    policy_model = mujoco.MjModel.from_xml_path(str(policy_root / subject / BODY_FILE))
-    in_model = real_in_model_cycles(policy_model, load_reference(npz), subject, ingest_params(params, path))
+    policy_body = paths.policy_dir(policy_root, subject) / BODY_FILE
+    policy_model = mujoco.MjModel.from_xml_path(str(policy_body))
+    in_model = real_in_model_cycles(policy_model, load_reference(npz), subject, params.ingest.build())
     spm, shown = {}, {}
     for joint in ("hip_flexion", "knee_flexion"):
         dataset, model_real = curves(real_free_cycles, joint), curves(in_model, joint)
@@ -428,13 +396,13 @@ def evaluate_policy(subject: str, params: dict, path, root: Path = DEFAULT_ROOT,
                            "simulation (virtual markers, same ingest) vs one mean curve per 20-s policy "
                            "rollout; anova1, alpha 0.05; pass: no cluster longer than 20 % of the cycle")
     doc["spm"] = spm
-    png = reports / subject / "policy_spm.png"
+    png = paths.report_dir(reports, subject) / "policy_spm.png"
     png.parent.mkdir(parents=True, exist_ok=True)
     with replacing(png) as (tmp,):
         spm_figure(tmp.with_suffix(".png"), shown, spm, subject)
         tmp.with_suffix(".png").replace(tmp)
-    doc["policy_body_is_current_model"] = (policy_root / subject / BODY_FILE).read_bytes() == xml.read_bytes()
-    doc["figure"] = str(png.relative_to(REPO_ROOT)) if png.is_relative_to(REPO_ROOT) else str(png)
+    doc["policy_body_is_current_model"] = policy_body.read_bytes() == xml.read_bytes()
+    doc["figure"] = paths.repo_relative(png)
     doc["unstable_rollouts"] = sum(not r["stable"] for r in results)
     doc["skipped"] = [f"{r['job'].tag or r['job'].condition} seed {r['job'].seed}: {r['skipped']}"
                       for r in results if "skipped" in r]
@@ -449,4 +417,4 @@ def evaluate_policy(subject: str, params: dict, path, root: Path = DEFAULT_ROOT,
 
 
 __all__ = ["EvalParams", "PolicyJob", "evaluate_policy", "policy_rollouts", "run_simulate_policy",
-           "run_train", "train_section"]
+           "run_train"]

@@ -29,7 +29,7 @@ import numpy as np
 
 from sim.body.anthropometry import TABLES, Inertial, combine, segment_inertial
 from sim.body.human_params import BALL_JOINTS, HINGE_JOINTS, HumanParams, joint_kind
-from sim.body.scaling import SIDES, ScaledBody, frame_from_zy
+from sim.body.scaling import SIDE_NAME_OF_SUFFIX, ScaledBody, frame_from_zy
 from sim.errors import SimulationError
 
 MARKER_SITE_GROUP = 4
@@ -48,10 +48,10 @@ def _tree(body: ScaledBody) -> list[tuple[str, str | None, str, str | None]]:
     """(body, parent, origin joint centre, joint name) in build order."""
     rows = [("pelvis", None, "mid_hip", "root"), ("torso", "pelvis", "lumbar", "lumbar"),
             ("head", "torso", "neck", None)]
-    for s in SIDES:
+    for s in SIDE_NAME_OF_SUFFIX:
         rows += [(f"upper_arm_{s}", "torso", f"shoulder_{s}", f"shoulder_{s}"),
                  (f"forearm_{s}", f"upper_arm_{s}", f"elbow_{s}", f"elbow_{s}")]
-    for s in SIDES:
+    for s in SIDE_NAME_OF_SUFFIX:
         rows += [(f"thigh_{s}", "pelvis", f"hip_{s}", f"hip_{s}"),
                  (f"shank_{s}", f"thigh_{s}", f"knee_{s}", f"knee_{s}"),
                  (f"foot_{s}", f"shank_{s}", f"ankle_{s}", f"ankle_{s}")]
@@ -86,7 +86,7 @@ def body_inertials(body: ScaledBody) -> dict[str, Inertial]:
            "torso": combine([_segment(body, "torso", "upper_trunk", "neck", xyph, scale),
                              _segment(body, "torso", "mid_trunk", xyph, "lumbar", scale)]),
            "head": _segment(body, "head", "head", "vertex", "neck", scale)}
-    for s in SIDES:
+    for s in SIDE_NAME_OF_SUFFIX:
         out[f"thigh_{s}"] = _segment(body, f"thigh_{s}", "thigh", f"hip_{s}", f"knee_{s}", scale)
         out[f"shank_{s}"] = _segment(body, f"shank_{s}", "shank", f"knee_{s}", f"ankle_{s}", scale)
         out[f"foot_{s}"] = _segment(body, f"foot_{s}", "foot", f"heel_{s}", f"toe_{s}", scale)
@@ -230,7 +230,7 @@ def static_qpos(model: mujoco.MjModel, body: ScaledBody) -> np.ndarray:
 
     put("root", np.concatenate([body.joint_centres["mid_hip"], _quat(f["pelvis"])]))
     put("lumbar", _quat(f["pelvis"].T @ f["torso"]))
-    for s in SIDES:
+    for s in SIDE_NAME_OF_SUFFIX:
         put(f"hip_{s}", _quat(f["pelvis"].T @ f[f"thigh_{s}"]))
         put(f"shoulder_{s}", _quat(f["torso"].T @ f[f"upper_arm_{s}"]))
         for hinge in ("knee", "ankle", "elbow"):
@@ -307,7 +307,7 @@ def model_checks(model: mujoco.MjModel, body: ScaledBody) -> dict:
            "standing_height_static_m": round(standing_height(model, data), 4)}
     out["height_error_pct"] = round(100 * (out["standing_height_static_m"] / body.height_m - 1), 3)
     lengths = {}
-    for s in SIDES:
+    for s in SIDE_NAME_OF_SUFFIX:
         for seg, a, b in (("thigh", f"thigh_{s}", f"shank_{s}"), ("shank", f"shank_{s}", f"foot_{s}")):
             model_len = float(np.linalg.norm(data.xpos[model.body(b).id] - data.xpos[model.body(a).id]))
             lengths[f"{seg}_{s}"] = {"model_m": round(model_len, 4),

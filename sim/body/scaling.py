@@ -2,9 +2,11 @@
 and masses of the subject's body in the static pose (`ScaledBody`), which `sim.body.human` turns into
 a MuJoCo model.
 
+The static trial comes read (`ingest.static.StaticTrial`: markers as the median over the static
+window, the static IK angles, the landmark roles); scaling reads no file.
+
 Static frame (canonical): Z up, X = the direction the subject faces (mid-PSIS -> mid-ASIS),
 Y left, origin on the floor (lab floor, z = 0) midway between the feet (mean of heel and toe).
-Markers are the median over the static window.
 
 Joint centres: hip by the Harrington et al. (2007) regression (`ingest.kinematics`); knee and
 ankle at the midpoint of the lateral and medial markers, or the lateral marker shifted medially
@@ -19,12 +21,12 @@ Segment frames (columns x forward, y left, z up along the segment) set the zeros
 joints, which `human.neutral` chooses:
 - `static_ik` (static calibration of joint zeros, as gait labs do): the frames are placed so that
   the model's joint angles in the static pose equal the dataset's own IK angles of that pose
-  (`static.angles` of the subject file, median over the static window): pelvis = upright facing
-  the ASIS, then pelvis tilt and list; thigh = pelvis turned by the hip flexion, adduction and
-  rotation (intrinsic Y-X-Z, as `sim.motion.retarget.joint_angles` reads them); shank = thigh turned by the
-  knee angle about the knee axis, foot = shank turned about the ankle axis by the calcaneus' static
-  rotation about the talocrural axis (ankle angle, then the subtalar angle the model lacks:
-  `calcaneus_dorsiflexion_deg`, OpenSim foot axes from params). The
+  (`static.angles` of the subject file, median over the static window: `StaticTrial.angles_deg`):
+  pelvis = upright facing the ASIS, then pelvis tilt and list; thigh = pelvis turned by the hip
+  flexion, adduction and rotation (intrinsic Y-X-Z, as `sim.motion.retarget.joint_angles` reads
+  them); shank = thigh turned by the knee angle about the knee axis, foot = shank turned about the
+  ankle axis by the calcaneus' static rotation about the talocrural axis (ankle angle, then the
+  subtalar angle the model lacks: `calcaneus_dorsiflexion_deg`, OpenSim foot axes from params). The
   hinge axes stay anatomical (knee: medial-lateral knee markers; ankle: `human.ankle_axis`), written
   in the child's frame (`ScaledBody.hinge_axes`). The model's angles then share the zeros of the
   OpenSim model that produced the subject's `.mot` files. A subject without static angles falls
@@ -44,24 +46,21 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-import mujoco
 import numpy as np
-import yaml
+from scipy.spatial.transform import Rotation
 
-from ingest.canonical import canonical_angles, rotate_z, up_to_z
+from ingest.canonical import rotate_z
 from ingest.kinematics import hip_joint_centres
-from ingest.manifest import Manifest
-from ingest.readers import read_markers, read_mot
-from ingest.subject import MARKERSETS_DIR, Subject
+from ingest.static import StaticTrial
+from ingest.subject import Subject
 from sim.body.anthropometry import TABLES, WINTER_RATIOS, Table
 from sim.body.human_params import HumanParams
 from sim.errors import ScalingError
 
-SIDES = {"l": "left", "r": "right"}
+SIDE_NAME_OF_SUFFIX = {"l": "left", "r": "right"}  # the model's side suffixes -> canonical side names
 NEUTRALS = ("static_ik", "static_upright", "asis_psis")
 ANKLE_AXES = ("knee", "malleoli")
 CALIBRATED_JOINTS = ("hip_flexion", "hip_adduction", "hip_rotation", "knee_flexion", "ankle_dorsiflexion")
-SCALING_ROLES_DIR = MARKERSETS_DIR / "scaling"
 # body -> the landmark roles whose markers ride on it (side suffix added for sided bodies)
 ROLE_BODIES = {
     "pelvis": ("asis", "psis"),
@@ -113,69 +112,6 @@ class ScaledBody:
         return TABLES[self.anthropometry]
 
 
-def scaling_roles(subject: Subject, directory=SCALING_ROLES_DIR) -> dict[str, str]:
-    """The subject's landmark roles: its marker set plus the static-only ones in
-    `data/markersets/scaling/<markerset>.yaml` (absent file: none)."""
-    roles = dict(subject.markerset)
-    name = None
-    if subject.path is not None and subject.path.is_file():
-        name = (yaml.safe_load(subject.path.read_text()) or {}).get("markerset")
-    path = directory / f"{name}.yaml"
-    if name and path.is_file():
-        roles.update({str(k): str(v) for k, v in (yaml.safe_load(path.read_text()) or {}).items()})
-    return roles
-
-
-def static_markers(subject: Subject, manifest: Manifest) -> dict[str, np.ndarray]:
-    """Median marker positions over the subject's static window, Z up (lab axes otherwise)."""
-    if subject.static is None:
-        raise ScalingError(subject.path, "no static trial (field 'static') to scale the model from")
-    path = manifest.resolve(subject.static.markers)
-    table = read_markers(path)
-    xyz = up_to_z(table.xyz_m, subject.format.up_axis)
-    if subject.static.window_s is not None:
-        t0, t1 = subject.static.window_s
-        keep = (table.time_s >= t0) & (table.time_s <= t1)
-        if keep.sum() < 2:
-            raise ScalingError(path, f"static window {t0}-{t1} s holds {keep.sum()} frames")
-        xyz = xyz[keep]
-    with np.errstate(all="ignore"):
-        import warnings
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            med = np.nanmedian(xyz, axis=0)
-    return {n: med[j] for j, n in enumerate(table.names) if np.isfinite(med[j]).all()}
-
-
-def static_ik_angles(subject: Subject, manifest: Manifest) -> dict[str, float]:
-    """The dataset's IK angles of the static pose (canonical names and signs, degrees): the median
-    of `static.angles` over `static.window_s` (whole file without a window); {} when the subject
-    file names no static angles."""
-    if subject.static is None or subject.static.angles is None:
-        return {}
-    path = manifest.resolve(subject.static.angles)
-    mot = read_mot(path)
-    angles = canonical_angles(mot, subject.format, None)
-    keep = np.ones(len(mot.time_s), bool)
-    if subject.static.window_s is not None:
-        t0, t1 = subject.static.window_s
-        keep = (mot.time_s >= t0) & (mot.time_s <= t1)
-    if keep.sum() < 1:
-        raise ScalingError(path, f"static window {subject.static.window_s} s holds no IK frames")
-    out = {k: float(np.nanmedian(v[keep])) for k, v in angles.items()}
-    in_degrees = mot.in_degrees if mot.in_degrees is not None else subject.format.angle_unit == "deg"
-    for s, side in SIDES.items():  # not a canonical angle: the model folds it into its ankle hinge
-        column = f"subtalar_angle_{s}"
-        if column in mot.table.columns:
-            values = mot.table[column].to_numpy(float)[keep]
-            out[f"subtalar_{side}"] = float(np.nanmedian(values if in_degrees else np.degrees(values)))
-    need = [f"{j}_{s}" for j in CALIBRATED_JOINTS for s in ("left", "right")] + ["pelvis_tilt", "pelvis_list"]
-    missing = [k for k in need if not np.isfinite(out.get(k, np.nan))]
-    if missing:
-        raise ScalingError(path, f"static IK lacks {', '.join(missing)} (needed by human.neutral: static_ik)")
-    return out
-
-
 def calcaneus_dorsiflexion_deg(ankle_deg: float, subtalar_deg: float, talocrural_axis: np.ndarray,
                                subtalar_axis: np.ndarray) -> float:
     """Rotation of the calcaneus about the talocrural axis (deg, + = dorsiflexion) for an OpenSim
@@ -184,26 +120,9 @@ def calcaneus_dorsiflexion_deg(ankle_deg: float, subtalar_deg: float, talocrural
     model's one-hinge foot carries the calcaneus' markers, so this is its hinge angle; to first
     order ankle + (subtalar axis . talocrural axis) x subtalar."""
     h, n = _unit(np.asarray(talocrural_axis, float)), _unit(np.asarray(subtalar_axis, float))
-    rot = rot_axis(h, np.radians(ankle_deg)) @ rot_axis(n, np.radians(subtalar_deg))
-    quat = np.empty(4)
-    mujoco.mju_mat2Quat(quat, rot.ravel())
+    rot = Rotation.from_rotvec(np.radians(ankle_deg) * h) * Rotation.from_rotvec(np.radians(subtalar_deg) * n)
+    quat = rot.as_quat(canonical=True, scalar_first=True)
     return float(np.degrees(2.0 * np.arctan2(quat[1:] @ h, quat[0])))
-
-
-def rot_x(angle_rad: float) -> np.ndarray:
-    c, s = np.cos(angle_rad), np.sin(angle_rad)
-    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
-
-
-def rot_z(angle_rad: float) -> np.ndarray:
-    c, s = np.cos(angle_rad), np.sin(angle_rad)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
-def rot_axis(axis: np.ndarray, angle_rad: float) -> np.ndarray:
-    """Rotation by `angle_rad` about the unit vector `axis` (Rodrigues)."""
-    k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
-    return np.eye(3) + np.sin(angle_rad) * k + (1.0 - np.cos(angle_rad)) * k @ k
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
@@ -215,11 +134,6 @@ def frame_from_zy(z: np.ndarray, y_ref: np.ndarray) -> np.ndarray:
     z = _unit(z)
     x = _unit(np.cross(y_ref, z))
     return np.column_stack([x, np.cross(z, x), z])
-
-
-def rot_y(angle_rad: float) -> np.ndarray:
-    c, s = np.cos(angle_rad), np.sin(angle_rad)
-    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
 
 
 def _segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
@@ -243,7 +157,7 @@ def assign_markers(markers: dict[str, np.ndarray], roles: dict[str, str], jc: di
                 by_role[name] = f"{body}_{side}" if side and body != "pelvis" and body != "torso" else body
     bones = [("pelvis", "hip_l", "hip_r"), ("pelvis", "mid_hip", "lumbar"), ("torso", "lumbar", "neck"),
              ("torso", "shoulder_l", "shoulder_r"), ("head", "neck", "vertex")]
-    for s in SIDES:
+    for s in SIDE_NAME_OF_SUFFIX:
         bones += [(f"thigh_{s}", f"hip_{s}", f"knee_{s}"), (f"shank_{s}", f"knee_{s}", f"ankle_{s}"),
                   (f"foot_{s}", f"heel_{s}", f"toe_{s}")]
         if arms_measured:
@@ -280,11 +194,21 @@ def _to_static_frame(markers: dict[str, np.ndarray], roles: dict[str, str], orig
     return {n: p - shift for n, p in out.items()}
 
 
-def scale_subject(subject: Subject, manifest: Manifest, p: HumanParams) -> ScaledBody:
+def _static_ik(static: StaticTrial) -> dict[str, float]:
+    """The static IK angles `human.neutral: static_ik` calibrates to ({} without static angles)."""
+    ik = static.angles_deg
+    need = [f"{j}_{s}" for j in CALIBRATED_JOINTS for s in ("left", "right")] + ["pelvis_tilt", "pelvis_list"]
+    missing = [k for k in need if not np.isfinite(ik.get(k, np.nan))]
+    if ik and missing:
+        raise ScalingError(static.angles_source, f"static IK lacks {', '.join(missing)} (needed by "
+                           "human.neutral: static_ik)")
+    return dict(ik)
+
+
+def scale_subject(subject: Subject, static: StaticTrial, p: HumanParams) -> ScaledBody:
     """Joint centres, segment frames, lengths and masses of `subject` from its static trial."""
-    origin = str(manifest.resolve(subject.static.markers)) if subject.static else str(subject.path)
-    roles = scaling_roles(subject)
-    markers = _to_static_frame(static_markers(subject, manifest), roles, origin, p.floor_tolerance_m)
+    origin, roles = static.source, static.roles
+    markers = _to_static_frame(static.markers, roles, origin, p.floor_tolerance_m)
     table = TABLES.get(p.anthropometry)
     if table is None:
         raise ScalingError(origin, f"unknown anthropometry table {p.anthropometry!r} "
@@ -311,19 +235,20 @@ def scale_subject(subject: Subject, manifest: Manifest, p: HumanParams) -> Scale
     if p.neutral not in NEUTRALS or p.ankle_axis not in ANKLE_AXES:
         raise ScalingError(origin, f"unknown neutral {p.neutral!r} or ankle_axis {p.ankle_axis!r} "
                            f"(known: {', '.join(NEUTRALS)}; {', '.join(ANKLE_AXES)})")
-    ik = static_ik_angles(subject, manifest) if p.neutral == "static_ik" else {}
+    ik = _static_ik(static) if p.neutral == "static_ik" else {}
     neutral = "static_upright" if p.neutral == "static_ik" and not ik else p.neutral
     hinge_axes: dict[str, np.ndarray] = {}
     if neutral == "static_ik":
         tilt, pelvis_list = np.radians(ik["pelvis_tilt"]), np.radians(ik["pelvis_list"])
-        frames["pelvis"] = upright @ rot_y(tilt) @ rot_x(pelvis_list)  # yaw, pitch, roll as joint_angles
+        # yaw, pitch, roll as joint_angles reads them
+        frames["pelvis"] = upright @ Rotation.from_euler("YX", [tilt, pelvis_list]).as_matrix()
     else:
         frames["pelvis"] = upright if neutral == "static_upright" else anatomical
     # Torso upright in the static pose, facing the pelvis' heading.
     frames["torso"] = frames["head"] = upright
     torso_y = upright[:, 1]
 
-    for s, side in SIDES.items():
+    for s, side in SIDE_NAME_OF_SUFFIX.items():
         sign = 1.0 if s == "l" else -1.0  # +Y is left
         for joint, width in (("knee", p.knee_width_per_height), ("ankle", p.ankle_width_per_height)):
             lat, med = lm(f"{joint}_{side}"), lm(f"{joint}_medial_{side}")
@@ -351,10 +276,10 @@ def scale_subject(subject: Subject, manifest: Manifest, p: HumanParams) -> Scale
         thigh = frame_from_zy(jc[f"hip_{s}"] - jc[f"knee_{s}"], axis)
         v = thigh.T @ (jc[f"ankle_{s}"] - jc[f"knee_{s}"])
         angles[f"knee_{s}"] = float(np.arctan2(-v[0], -v[2]))
-        shank = thigh @ rot_y(angles[f"knee_{s}"])
+        shank = thigh @ Rotation.from_euler("y", angles[f"knee_{s}"]).as_matrix()
         u = shank.T @ np.array([*(toe - heel)[:2], 0.0])
         angles[f"ankle_{s}"] = float(np.arctan2(u[2], u[0]))
-        foot = shank @ rot_y(-angles[f"ankle_{s}"])
+        foot = shank @ Rotation.from_euler("y", -angles[f"ankle_{s}"]).as_matrix()
         frames.update({f"thigh_{s}": thigh, f"shank_{s}": shank, f"foot_{s}": foot})
 
     # Trunk and head: C7 from the marker or from the head length; vertex at the subject's height.
@@ -366,7 +291,7 @@ def scale_subject(subject: Subject, manifest: Manifest, p: HumanParams) -> Scale
     trunk_parts = [table.segments[n].length_mm for n in ("upper_trunk", "mid_trunk", "lower_trunk")]
     jc["lumbar"] = jc["mid_hip"] + (c7 - jc["mid_hip"]) * trunk_parts[2] / sum(trunk_parts)
 
-    for s, side in SIDES.items():
+    for s, side in SIDE_NAME_OF_SUFFIX.items():
         sign = 1.0 if s == "l" else -1.0
         l_ua, l_fa, l_hand = (table.length_ratio(n) * H for n in ("upper_arm", "forearm", "hand"))
         acromion = lm(f"shoulder_{side}")
@@ -394,10 +319,10 @@ def scale_subject(subject: Subject, manifest: Manifest, p: HumanParams) -> Scale
         v = upper.T @ (wjc - ejc)
         angles[f"elbow_{s}"] = float(np.arctan2(v[0], -v[2]))
         frames[f"upper_arm_{s}"] = upper
-        frames[f"forearm_{s}"] = upper @ rot_y(-angles[f"elbow_{s}"])
+        frames[f"forearm_{s}"] = upper @ Rotation.from_euler("y", -angles[f"elbow_{s}"]).as_matrix()
 
     contact = {}
-    for s, side in SIDES.items():
+    for s, side in SIDE_NAME_OF_SUFFIX.items():
         contact[f"foot_{s}"] = _contact_points(jc, s, lm(f"toe_medial_{side}"), lm(f"toe_lateral_{side}"),
                                                1.0 if s == "l" else -1.0, WINTER_RATIOS["foot_width"] * H,
                                                p.contact_radius_m)
@@ -406,7 +331,7 @@ def scale_subject(subject: Subject, manifest: Manifest, p: HumanParams) -> Scale
                "pelvis_height": float(np.linalg.norm(jc["lumbar"] - jc["mid_hip"])),
                "torso": float(np.linalg.norm(jc["neck"] - jc["lumbar"])),
                "head": float(np.linalg.norm(jc["vertex"] - jc["neck"]))}
-    for s in SIDES:
+    for s in SIDE_NAME_OF_SUFFIX:
         for seg, a, b in (("thigh", "hip", "knee"), ("shank", "knee", "ankle"),
                           ("upper_arm", "shoulder", "elbow"), ("forearm", "elbow", "wrist"),
                           ("hand", "wrist", "hand"), ("foot", "heel", "toe")):
@@ -427,16 +352,16 @@ def _calibrated_leg(pelvis: np.ndarray, ik: dict[str, float], s: str, knee_axis:
     decomposes it); knee and ankle hinges about the anatomical axes `knee_axis` / `ankle_axis`
     (unit, static frame, pointing left). Fills the static hinge angles and the hinge axes (child
     frame, + = flexion / dorsiflexion)."""
-    side = SIDES[s]
+    side = SIDE_NAME_OF_SUFFIX[s]
     sgn = -1.0 if s == "l" else 1.0
     rad = {k: np.radians(ik[f"{k}_{side}"]) for k in ("hip_flexion", "hip_adduction", "hip_rotation",
                                                       "knee_flexion", "ankle_dorsiflexion")}
-    thigh = pelvis @ rot_y(-rad["hip_flexion"]) @ rot_x(sgn * rad["hip_adduction"]) \
-        @ rot_z(sgn * rad["hip_rotation"])
+    hip = [-rad["hip_flexion"], sgn * rad["hip_adduction"], sgn * rad["hip_rotation"]]
+    thigh = pelvis @ Rotation.from_euler("YXZ", hip).as_matrix()
     knee = _unit(thigh.T @ knee_axis)
-    shank = thigh @ rot_axis(knee, rad["knee_flexion"])
+    shank = thigh @ Rotation.from_rotvec(rad["knee_flexion"] * knee).as_matrix()
     ankle = -_unit(shank.T @ ankle_axis)  # pointing right: + = dorsiflexion (toes up)
-    foot = shank @ rot_axis(ankle, rad["ankle_dorsiflexion"])
+    foot = shank @ Rotation.from_rotvec(rad["ankle_dorsiflexion"] * ankle).as_matrix()
     angles[f"knee_{s}"], angles[f"ankle_{s}"] = float(rad["knee_flexion"]), float(rad["ankle_dorsiflexion"])
     hinge_axes[f"knee_{s}"], hinge_axes[f"ankle_{s}"] = knee, ankle
     return thigh, shank, foot
@@ -473,7 +398,7 @@ def segment_masses(table: Table, mass_kg: float) -> dict[str, float]:
     frac = {"pelvis": seg["lower_trunk"].mass_fraction,
             "torso": seg["upper_trunk"].mass_fraction + seg["mid_trunk"].mass_fraction,
             "head": seg["head"].mass_fraction}
-    for s in SIDES:
+    for s in SIDE_NAME_OF_SUFFIX:
         frac |= {f"thigh_{s}": seg["thigh"].mass_fraction, f"shank_{s}": seg["shank"].mass_fraction,
                  f"foot_{s}": seg["foot"].mass_fraction, f"upper_arm_{s}": seg["upper_arm"].mass_fraction,
                  f"forearm_{s}": seg["forearm"].mass_fraction + seg["hand"].mass_fraction}

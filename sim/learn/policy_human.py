@@ -1,6 +1,6 @@
 """`PolicyHuman`: the torque-driven human walking under its trained policy (human mode ``policy``).
 
-It implements the rollout's `HumanDriver` (sim/motion/replay.py), so `sim.rollout.loop.rollout`
+It implements the rollout's `HumanDriver` (sim/motion/driver.py), so `sim.rollout.loop.rollout`
 runs it with or without the robot exactly as it runs the replay human. `prepare` turns the human's
 motors into the same torque-limited PD servos as in training (`sim.learn.walk_env.pd_servo_spec`);
 the human keeps its free root, its contacts and all its joints, so the harness and the robot act on
@@ -34,9 +34,8 @@ from sim.learn.walk_env import (
     observe,
     pd_servo_spec,
 )
+from sim.motion.driver import HumanDriver
 from sim.motion.reference import ReferenceCycle
-from sim.motion.replay import HumanDriver
-from sim.robot.controllers.base import BaseCommand, Controller, RobotSensors
 
 
 @dataclass(frozen=True)
@@ -99,7 +98,7 @@ class PolicyHuman(HumanDriver):
         self.min_up = float(np.cos(np.radians(self.p.max_tilt_deg)))
         self.qpos = np.zeros((len(sample_times_s), self.idx.nq))
         self.fall_time_s = None
-        # the pelvis path the robot may expect at the start (rollout._initial_speed reads `target`)
+        # the pelvis path the robot may expect at the start (sim.rollout.world.initial_speed reads `target`)
         self.target = np.column_stack([self.ref.speed_mps * sample_times_s, np.zeros(len(sample_times_s))])
         mujoco.mj_forward(model, data)
         data.ctrl[self.idx.act] = self.ref.ctrl[self.k0]
@@ -148,50 +147,49 @@ def check_policy_io(n_obs: int, n_act: int) -> None:
                               f"walking human gives {OBS_SIZE} / 21")
 
 
-class WarmStarted(Controller):
-    """A follow-me controller that enters the rollout already following a user at `speed_mps`.
+@dataclass(frozen=True)
+class PolicyWalk:
+    """One policy-human job: a walk of `duration_s` from a random phase (the seed's), optionally
+    with a lateral pelvis push of `push_n` (signed, world y) at `push_time_s`."""
 
-    The policy human starts mid-walk (it was trained on steady walking), while the replay mode lets
-    human, robot and controller start together from rest (`sim.motion.replay.with_lead_in`). So that every
-    controller meets the policy human in the same natural state - following steadily - its `reset`
-    runs the wrapped controller for `duration_s` in closed loop on a synthetic steady walk through its
-    public interface: a user at constant `speed_mps`, the base a first-order lag with the robot's
-    drive time constant (`RobotInfo.drive_tau_s`). The pre-roll runs at the first `step`, laid along
-    the robot's first odometry pose (ending there) with times before the first sample, so odometry
-    and time continue seamlessly. Only the controller's internal state (integrators, observers) is
-    set this way; no force acts on the human."""
+    duration_s: float
+    push_n: float = 0.0
+    push_time_s: float = 0.0
+    push_duration_s: float = 0.0
 
-    def __init__(self, inner: Controller, speed_mps: float, duration_s: float = 5.0) -> None:
-        super().__init__(inner.gains, inner.robot)
-        self.inner, self.speed_mps, self.duration_s = inner, float(speed_mps), float(duration_s)
 
-    def reset(self) -> None:
-        self.inner.reset()
-        self.pending = True
+@dataclass(frozen=True)
+class PolicySource:
+    """Policy humans of one subject for the batch runner (`sim.rollout.batch.DriverSource`): the
+    trained policy in `policy_dir` on its own body, sampled at `sample_rate_hz`."""
 
-    def _preroll(self, first: RobotSensors) -> None:
-        dt, tau = self.robot.dt_s, max(self.robot.drive_tau_s, self.robot.dt_s)
-        n = int(round(self.duration_s / dt))
-        x0, y0, yaw = first.base_pose
-        c, sn = float(np.cos(yaw)), float(np.sin(yaw))
-        v = self.speed_mps
-        back = v * n * dt  # base path length of the pre-roll (it starts and stays near the user's speed)
-        x_h = x_b = 0.0
-        v_b = v
-        s = RobotSensors(0.0, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0.0, 0.0)
-        for i in range(n):
-            s.time_s = first.time_s + (i - n) * dt
-            s.arm_q = (x_h - x_b, 0.0, first.arm_q[2])
-            s.arm_qd = (v - v_b, 0.0, 0.0)
-            s.base_pose = (x0 + c * (x_b - back), y0 + sn * (x_b - back), yaw)
-            s.base_speed_mps, s.base_yaw_rate_rps = v_b, 0.0
-            cmd = self.inner.step(s)
-            v_b += (cmd[0] - v_b) * dt / tau
-            x_b += v_b * dt
-            x_h += v * dt
+    policy_dir: str
+    env: WalkEnvParams
+    sample_rate_hz: float
+    fall_height_fraction: float
 
-    def step(self, sensors: RobotSensors) -> BaseCommand:
-        if self.pending:
-            self._preroll(sensors)
-            self.pending = False
-        return self.inner.step(sensors)
+    def open(self, world: mujoco.MjSpec):
+        import torch
+
+        from sim.learn.train import load_body, load_policy
+        from sim.learn.walk_env import make_walk_env
+        from sim.rollout.batch import HumanRun
+
+        torch.set_num_threads(1)
+        model, norm = load_policy(self.policy_dir)
+        body_xml, cycle = load_body(self.policy_dir)
+        pd_model = make_walk_env(str(body_xml), cycle, self.env).model
+
+        def policy(obs: np.ndarray) -> np.ndarray:
+            o = norm.normalize_obs(obs) if norm is not None else obs
+            return model.predict(o, deterministic=True)[0]
+
+        def make(walk: PolicyWalk, seed: int) -> HumanRun:
+            rng = np.random.default_rng(seed)
+            push = Push(walk.push_time_s, (0.0, walk.push_n), walk.push_duration_s) if walk.push_n else None
+            human = PolicyHuman(policy, pd_model, cycle, self.env, walk.duration_s,
+                                start_phase=float(rng.random()), push=push,
+                                fall_height_fraction=self.fall_height_fraction)
+            return HumanRun(human, self.sample_rate_hz, warm_speed_mps=cycle.speed_mps)
+
+        return make

@@ -44,12 +44,12 @@ BODY_FILE, CYCLE_FILE = "human.xml", "cycle.npz"  # the body and reference cycle
 class TrainParams:
     """The `train` section of params.yaml."""
 
-    total_steps: int = 2_000_000
+    total_steps: int = 3_700_000
     n_envs: int = 8
     threads: int = 1
     subprocess: bool = False
     n_steps: int = 256              # per env per rollout
-    batch_size: int = 1024
+    batch_size: int = 2048
     n_epochs: int = 5
     learning_rate: float = 2e-4
     gamma: float = 0.95             # DeepMimic
@@ -60,7 +60,7 @@ class TrainParams:
     target_kl: float = 0.05
     log_std_init: float = -1.0
     net_arch: tuple[int, ...] = (256, 256)
-    checkpoint_steps: int = 500_000
+    checkpoint_steps: int = 1_000_000
     seed: int = 0
     env: WalkEnvParams = field(default_factory=WalkEnvParams)
     amp: AMPParams = field(default_factory=AMPParams)

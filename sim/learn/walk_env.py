@@ -36,7 +36,7 @@ from sim.body.human_params import joint_kind
 from sim.errors import SimulationError
 from sim.motion.reference import ReferenceCycle
 
-SIDES = ("l", "r")
+SIDE_SUFFIXES = ("l", "r")  # the model's side suffixes (foot_l, foot_r)
 HUMAN_ACTUATORS = ("lumbar_x", "lumbar_y", "lumbar_z", "hip_l_x", "hip_l_y", "hip_l_z", "hip_r_x", "hip_r_y",
                    "hip_r_z", "shoulder_l_x", "shoulder_l_y", "shoulder_l_z", "shoulder_r_x", "shoulder_r_y",
                    "shoulder_r_z", "knee_l", "knee_r", "ankle_l", "ankle_r", "elbow_l", "elbow_r")
@@ -64,7 +64,7 @@ class WalkEnvParams:
     imitation_scales: dict[str, float] = field(default_factory=lambda: {
         "pose": 2.0, "velocity": 0.02, "feet": 40.0, "height": 40.0, "root_velocity": 2.0})
     task_scale: float = 2.0                 # exp(-scale (dv_forward^2 + v_lateral^2))
-    push_force_n: tuple[float, float] = (0.0, 150.0)
+    push_force_n: tuple[float, float] = (0.0, 250.0)
     push_duration_s: float = 0.2
     push_interval_s: tuple[float, float] = (1.0, 3.0)
     push_probability: float = 0.5           # share of episodes with pushes
@@ -163,7 +163,7 @@ class BodyIndex:
             return i
         self.pelvis = body("pelvis")
         self.torso = body("torso")
-        self.feet = np.array([body(f"foot_{s}") for s in SIDES])
+        self.feet = np.array([body(f"foot_{s}") for s in SIDE_SUFFIXES])
         j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, root)
         if j < 0:
             raise SimulationError("human model", f"no free joint {root!r}")

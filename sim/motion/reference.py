@@ -306,6 +306,11 @@ class Reference:
             out[f"cycle_{f.name}"] = np.asarray(getattr(self.cycle, f.name))
         return out
 
+    def rate_hz(self, trial: str) -> float:
+        """Sampling rate of one retargeted trial (its median sample period)."""
+        time_s, _ = self.motion(trial)
+        return float(1.0 / np.median(np.diff(time_s)))
+
     def motion(self, trial: str) -> tuple[np.ndarray, np.ndarray]:
         """(time_s, qpos) of one retargeted trial."""
         rows = self.trial == trial

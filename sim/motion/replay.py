@@ -1,11 +1,4 @@
-"""Human drivers for rollouts: the `HumanDriver` interface and the kinematic `ReplayHuman`.
-
-A driver adapts the human part of the world before the robot is attached (`prepare`), sets the
-human's initial state (`reset`), acts once per output sample before the physics steps
-(`before_sample`), records what it needs after them (`record`), and returns the human's joint
-positions per sample in the human model's own qpos layout (`qpos_samples`, what the virtual markers
-need). A torque-driven `PolicyHuman` implements the
-same methods; the rollout and robot code do not change.
+"""The kinematic human driver `ReplayHuman` and the motions it replays.
 
 `ReplayHuman` (human mode ``replay``) makes the subject's recorded motion drive the human:
 
@@ -26,13 +19,14 @@ same methods; the rollout and robot code do not change.
 
 from __future__ import annotations
 
-from abc import ABC, abstractmethod
 from dataclasses import dataclass
 
 import mujoco
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from sim.errors import SimulationError
+from sim.motion.driver import HumanDriver
 
 DRIVE_JOINTS = ("replay_x", "replay_y", "replay_z", "replay_yaw", "replay_pitch", "replay_roll")
 
@@ -56,75 +50,6 @@ class ReplayParams:
     max_force_n: float = 5000.0
     max_torque_nm: float = 500.0
     max_vertical_bodyweights: float = 3.0
-
-
-class HumanDriver(ABC):
-    """What a rollout needs from the human side; see the module docstring."""
-
-    mode: str
-    duration_s: float
-
-    @abstractmethod
-    def prepare(self, spec: mujoco.MjSpec) -> None: ...
-
-    @abstractmethod
-    def start_pose(self) -> tuple[np.ndarray, float]:
-        """Pelvis world position (3,) and heading (rad) at t = 0."""
-
-    @abstractmethod
-    def reset(self, model: mujoco.MjModel, data: mujoco.MjData, sample_times_s: np.ndarray) -> None: ...
-
-    @abstractmethod
-    def before_sample(self, model: mujoco.MjModel, data: mujoco.MjData, k: int) -> None: ...
-
-    @abstractmethod
-    def record(self, model: mujoco.MjModel, data: mujoco.MjData, k: int) -> None: ...
-
-    @abstractmethod
-    def qpos_samples(self) -> np.ndarray: ...
-
-    def sample_controls(self) -> tuple[np.ndarray, np.ndarray] | None:
-        """Optional, after `reset`: (a view into `data.ctrl`, values (n_samples, width)) when all that
-        `before_sample(k)` does is write row k into that view; the rollout then writes it itself
-        and does not call `before_sample` (one Python call per sample less)."""
-        return None
-
-    def from_world_qpos(self, world_qpos: np.ndarray) -> None:
-        """Optional: take the per-sample state from the world qpos (n, nq_world) the rollout recorded
-        at the output samples. A driver that overrides this is not called through `record` (one
-        Python call per sample less)."""
-        return None
-
-
-def quat_to_zyx(q: np.ndarray) -> np.ndarray:
-    """Intrinsic Z-Y-X angles (yaw, pitch, roll) of unit quaternions (n, 4) wxyz; yaw unwrapped."""
-    w, x, y, z = q.T
-    yaw = np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
-    pitch = np.arcsin(np.clip(2 * (w * y - z * x), -1, 1))
-    roll = np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
-    return np.column_stack([np.unwrap(yaw), pitch, roll])
-
-
-def zyx_to_quat(a: np.ndarray) -> np.ndarray:
-    """Unit quaternions (n, 4) of intrinsic Z-Y-X angles (n, 3)."""
-    cy, sy = np.cos(a[:, 0] / 2), np.sin(a[:, 0] / 2)
-    cp, sp = np.cos(a[:, 1] / 2), np.sin(a[:, 1] / 2)
-    cr, sr = np.cos(a[:, 2] / 2), np.sin(a[:, 2] / 2)
-    return np.column_stack([cr * cp * cy + sr * sp * sy, sr * cp * cy - cr * sp * sy,
-                            cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy])
-
-
-def quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton product of quaternion arrays (n, 4) (either may be a single (4,))."""
-    a, b = np.atleast_2d(a), np.atleast_2d(b)
-    w1, x1, y1, z1 = a.T
-    w2, x2, y2, z2 = b.T
-    return np.column_stack([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2, w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-                            w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2, w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2])
-
-
-def quat_conj(q: np.ndarray) -> np.ndarray:
-    return q * np.array([1, -1, -1, -1])
 
 
 def interpolate_qpos(motion: Motion, times_s: np.ndarray, root_adr: int) -> np.ndarray:
@@ -208,6 +133,7 @@ class ReplayHuman(HumanDriver):
             raise SimulationError(spec.modelname or "world", f"no body {self.pelvis!r}")
         self.p0 = np.array(body.pos, dtype=float)
         self.q0 = np.array(body.quat, dtype=float) / np.linalg.norm(body.quat)
+        self.r0 = Rotation.from_quat(self.q0, scalar_first=True)
         # the human's own actuators, sensors, tendons, keyframes and equalities refer to its joints:
         # a kinematic replay uses none of them
         for group in (spec.actuators, spec.sensors, spec.tendons, spec.keys, spec.equalities, spec.pairs):
@@ -256,12 +182,13 @@ class ReplayHuman(HumanDriver):
         """Drive-joint targets (n, 6) at `times_s`: position offsets and Z-Y-X angles."""
         q = interpolate_qpos(self.motion, times_s + self.motion.time_s[0], self.root_adr)
         root = q[:, self.root_adr:self.root_adr + 7]
-        rel = quat_mul(quat_conj(self.q0), root[:, 3:])
-        return np.column_stack([root[:, :3] - self.p0, quat_to_zyx(rel)])
+        zyx = (self.r0.inv() * Rotation.from_quat(root[:, 3:], scalar_first=True)).as_euler("ZYX")
+        zyx[:, 0] = np.unwrap(zyx[:, 0])
+        return np.column_stack([root[:, :3] - self.p0, zyx])
 
     def start_pose(self) -> tuple[np.ndarray, float]:
         root = self.motion.qpos[0, self.root_adr:self.root_adr + 7]
-        yaw = quat_to_zyx(root[None, 3:])[0, 0]
+        yaw = Rotation.from_quat(root[3:], scalar_first=True).as_euler("ZYX")[0]
         return root[:3].copy(), float(yaw)
 
     def reset(self, model: mujoco.MjModel, data: mujoco.MjData, sample_times_s: np.ndarray) -> None:
@@ -308,5 +235,43 @@ class ReplayHuman(HumanDriver):
         drive_q = self.drive_q
         a = self.root_adr
         q[:, a:a + 3] = self.p0 + drive_q[:, :3]
-        q[:, a + 3:a + 7] = quat_mul(self.q0, zyx_to_quat(drive_q[:, 3:]))
+        q[:, a + 3:a + 7] = (self.r0 * Rotation.from_euler("ZYX", drive_q[:, 3:])).as_quat(scalar_first=True)
         return q
+
+
+@dataclass(frozen=True)
+class ReplaySegment:
+    """One replay job: `[t0_s, t1_s]` of a retargeted trial, entered after a lead-in of its strides."""
+
+    trial: str
+    t0_s: float
+    t1_s: float
+    stride_s: float
+
+
+@dataclass(frozen=True)
+class ReplaySource:
+    """Replay humans of one subject for the batch runner (`sim.rollout.batch.DriverSource`): the
+    retargeted motion of `reference_npz`, each segment entered after a lead-in (`with_lead_in`) that
+    is simulated but not recorded."""
+
+    reference_npz: str
+    replay: ReplayParams
+    lead_in_s: float
+    lead_in_ramp_s: float
+
+    def open(self, world: mujoco.MjSpec):
+        from sim.motion.reference import load_reference
+        from sim.rollout.batch import HumanRun
+
+        ref = load_reference(self.reference_npz)
+
+        def make(seg: ReplaySegment, seed: int) -> HumanRun:
+            time_s, qpos = ref.motion(seg.trial)
+            rows = (time_s >= seg.t0_s) & (time_s <= seg.t1_s)
+            t, q = time_s[rows], qpos[rows]
+            motion = with_lead_in(Motion(t - t[0], q), seg.stride_s, self.lead_in_s, self.lead_in_ramp_s)
+            return HumanRun(ReplayHuman(motion, self.replay), ref.rate_hz(seg.trial),
+                            discard_s=self.lead_in_s, t0_s=float(t[0]))
+
+        return make

@@ -30,11 +30,12 @@ from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from sim.errors import SimulationError
 
 ROOT_JOINT = "root"
-SIDES = {"left": "l", "right": "r"}
+SUFFIX_OF_SIDE = {"left": "l", "right": "r"}  # canonical side names -> the model's suffixes
 
 
 @dataclass(frozen=True)
@@ -310,14 +311,6 @@ def site_positions(model: mujoco.MjModel, qpos: np.ndarray, names: list[str]) ->
 
 # --------------------------------------------------------------------------- joint angles
 
-def _yxz(rel: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Intrinsic Y-X-Z angles (a, b, c) of rotation matrices (n, 3, 3): R = Ry(a) Rx(b) Rz(c)."""
-    b = np.arcsin(np.clip(-rel[:, 1, 2], -1.0, 1.0))
-    a = np.arctan2(rel[:, 0, 2], rel[:, 2, 2])
-    c = np.arctan2(rel[:, 1, 0], rel[:, 1, 1])
-    return a, b, c
-
-
 def _joint_child_parent(model: mujoco.MjModel, joint: str) -> tuple[int, int, int] | None:
     j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, joint)
     if j < 0:
@@ -350,7 +343,7 @@ def joint_angles(model: mujoco.MjModel, qpos: np.ndarray) -> dict[str, np.ndarra
     """
     qpos = np.atleast_2d(np.asarray(qpos, float))
     data = mujoco.MjData(model)
-    joints = {f"{kind}_{s}": f"{kind}_{s}" for kind in ("hip", "shoulder") for s in SIDES.values()}
+    joints = {f"{kind}_{s}": f"{kind}_{s}" for kind in ("hip", "shoulder") for s in SUFFIX_OF_SIDE.values()}
     joints["lumbar"] = "lumbar"
     found = {k: jb for k, v in joints.items() if (jb := _joint_child_parent(model, v)) is not None}
     root = _joint_child_parent(model, ROOT_JOINT)
@@ -372,8 +365,7 @@ def joint_angles(model: mujoco.MjModel, qpos: np.ndarray) -> dict[str, np.ndarra
     for key, (_, child, parent) in found.items():
         rel = np.einsum("nji,njk->nik", xmat[parent], xmat[child])
         rel0 = rest[parent].T @ rest[child]
-        a, b, c = _yxz(rel @ rel0.T)
-        a, b, c = np.degrees(a), np.degrees(b), np.degrees(c)
+        a, b, c = np.degrees(Rotation.from_matrix(rel @ rel0.T).as_euler("YXZ")).T.copy()  # Ry(a) Rx(b) Rz(c)
         if key == "lumbar":
             out.update(lumbar_extension=a, lumbar_bending=b, lumbar_rotation=c)
             continue
@@ -384,16 +376,13 @@ def joint_angles(model: mujoco.MjModel, qpos: np.ndarray) -> dict[str, np.ndarra
         out[f"{kind}_adduction_{side}"] = sign * b
         out[f"{kind}_rotation_{side}"] = sign * c
     for kind, name in (("knee", "knee_flexion"), ("ankle", "ankle_dorsiflexion"), ("elbow", "elbow_flexion")):
-        for s, side in ((v, k) for k, v in SIDES.items()):
+        for side, s in SUFFIX_OF_SIDE.items():
             j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f"{kind}_{s}")
             if j >= 0:
                 adr = model.jnt_qposadr[j]
                 out[f"{name}_{side}"] = np.degrees(qpos[:, adr] - model.qpos0[adr])
     if root is not None:
         r = np.einsum("nij,kj->nik", xmat[root[1]], rest[root[1]])
-        yaw = np.arctan2(r[:, 1, 0], r[:, 0, 0])
-        pitch = np.arcsin(np.clip(-r[:, 2, 0], -1.0, 1.0))
-        roll = np.arctan2(r[:, 2, 1], r[:, 2, 2])
-        out.update(pelvis_tilt=np.degrees(pitch), pelvis_list=np.degrees(roll),
-                   pelvis_rotation=np.degrees(yaw))
+        yaw, pitch, roll = np.degrees(Rotation.from_matrix(r).as_euler("ZYX")).T.copy()
+        out.update(pelvis_tilt=pitch, pelvis_list=roll, pelvis_rotation=yaw)
     return out

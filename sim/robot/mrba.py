@@ -66,9 +66,9 @@ class BaseParams:
     yaw_gain_nm_per_radps: float = 400.0
     max_force_n: float = 800.0
     max_torque_nm: float = 300.0
-    max_speed_mps: float = 2.0
+    max_speed_mps: float = 2.5
     max_yaw_rate_rps: float = 1.5
-    max_accel_mps2: float = 1.5
+    max_accel_mps2: float = 2.0
     max_yaw_accel_rps2: float = 4.0
     latency_s: float = 0.03
     control_rate_hz: float = 100.0

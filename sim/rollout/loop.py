@@ -1,7 +1,9 @@
 """Closed-loop rollouts: a human driver, the MRBA (optional) and a follow-me controller, one seed.
 
 `rollout` is a pure function of (world, human driver, controller, params, seed): it builds its own
-model, so it can be called many times and in parallel processes.
+model (`sim.rollout.world`: the compiled world, the physics step grid, the robot's start state), so it
+can be called many times and in parallel processes. `RolloutParams` and `RolloutResult` are its input
+and output; `ROBOT_COLUMNS` are the columns of its robot table.
 
 Timing: the controller, the fall rule and the drive act once per control tick (`control_rate_hz`,
 100 Hz as on a real mobile base: the command path of a differential drive); the human driver acts
@@ -24,18 +26,18 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
-from fractions import Fraction
 
 import mujoco
 import numpy as np
 import pandas as pd
 
 from sim.errors import SimulationError
-from sim.motion.replay import HumanDriver, quat_conj, quat_mul, quat_to_zyx
-from sim.robot.controllers.base import BaseCommand, Controller, RobotInfo, RobotSensors
+from sim.motion.driver import HumanDriver
+from sim.robot.controllers.base import BaseCommand, Controller, RobotSensors
 from sim.robot.fall import FallDetector
 from sim.robot.harness import HarnessIndex, wrench_from_sensors
-from sim.robot.mrba import SENSOR_WIDTH, SENSORS, BaseDrive, RobotIndex, RobotParams, attach_robot, lock_arm
+from sim.robot.mrba import SENSOR_WIDTH, SENSORS, BaseDrive, RobotIndex, RobotParams, lock_arm
+from sim.rollout.world import build_world, initial_speed, place_robot, step_grid
 
 ROBOT_COLUMNS = ["subject", "source", "human_mode", "condition", "trial", "seed", "time_s", "e_x_m", "e_y_m",
                  "base_x_m", "base_y_m", "base_yaw_rad", "base_speed_mps", "base_yaw_rate_rps",
@@ -82,92 +84,6 @@ class RolloutResult:
     @property
     def stable(self) -> bool:
         return not self.warnings and bool(np.isfinite(self.world_qpos).all())
-
-
-def _period(rate_hz: float) -> Fraction:
-    return 1 / Fraction(rate_hz).limit_denominator(1000)
-
-
-def step_grid(sample_rate_hz: float, max_dt_s: float, control_rate_hz: float | None = None
-              ) -> tuple[float, int, int]:
-    """(physics dt, steps per output sample, steps per control tick): the largest dt <= `max_dt_s`
-    dividing both periods (control rate default: the sample rate)."""
-    ps = _period(sample_rate_hz)
-    pc = ps if control_rate_hz is None else _period(control_rate_hz)
-    g = Fraction(math.gcd(ps.numerator * pc.denominator, pc.numerator * ps.denominator),
-                 ps.denominator * pc.denominator)
-    n = int(math.ceil(float(g) / max_dt_s - 1e-9))
-    dt = g / n
-    return float(dt), int(ps / dt), int(pc / dt)
-
-
-def physics_steps(sample_rate_hz: float, max_dt_s: float, control_rate_hz: float | None = None
-                  ) -> tuple[float, int]:
-    """(physics dt, steps per output sample); see `step_grid`."""
-    dt, n_sample, _ = step_grid(sample_rate_hz, max_dt_s, control_rate_hz)
-    return dt, n_sample
-
-
-def build_world(world: mujoco.MjSpec, human: HumanDriver, p: RolloutParams) -> mujoco.MjModel:
-    """Compile the rollout world: a copy of `world` prepared by the human driver, plus the robot."""
-    spec = world.copy()
-    human.prepare(spec)
-    if p.with_robot:
-        attach_robot(spec, p.robot, p.harness_body, neutral_height_m=float(human.start_pose()[0][2]))
-    dt, _ = physics_steps(p.sample_rate_hz, p.max_physics_dt_s, p.control_rate_hz)
-    spec.option.timestep = dt
-    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
-    try:
-        return spec.compile()
-    except ValueError as exc:
-        raise SimulationError(world.modelname or "world", f"rollout world does not compile ({exc})") from None
-
-
-def robot_info(p: RobotParams, control_rate_hz: float | None = None) -> RobotInfo:
-    """Constants a controller may model: reach, drive lag (latency + servo time constant), control
-    period (default the robot's `control_rate_hz`), latency."""
-    b = p.base
-    control_rate_hz = b.control_rate_hz if control_rate_hz is None else control_rate_hz
-    tau = b.latency_s + (b.mass_kg + 3 * p.arm.link_mass_kg) / b.drive_gain_n_per_mps
-    return RobotInfo(reach_m=b.reach_m, drive_tau_s=tau, dt_s=1.0 / control_rate_hz, latency_s=b.latency_s)
-
-
-def _rot2(yaw: float) -> np.ndarray:
-    c, s = np.cos(yaw), np.sin(yaw)
-    return np.array([[c, -s], [s, c]])
-
-
-def _place_robot(model, data, idx: RobotIndex, hidx: HarnessIndex, human: HumanDriver, p: RolloutParams,
-                 offset: np.ndarray) -> None:
-    """Robot at rest-relative start: arm deflected by `offset`, neutral point under the pelvis."""
-    pelvis, yaw = human.start_pose()
-    b = p.robot.base
-    base_spec = model.body_pos[idx.base_body]
-    rot = _rot2(yaw)
-    neutral = pelvis[:2] - rot @ offset
-    base_world = neutral - rot @ np.array([b.reach_m, 0.0])
-    data.qpos[idx.base_qpos] = (*(base_world - base_spec[:2]), yaw)
-    z_neutral = model.body_pos[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "mrba_arm_x")][2]
-    data.qpos[idx.arm_qpos] = (offset[0], offset[1], pelvis[2] - z_neutral)
-    # harness hinges: pelvis orientation relative to the arm end, relative to the reference pose
-    mujoco.mj_kinematics(model, data)
-    pid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, p.harness_body)
-    q_pelvis = data.xquat[pid].copy()
-    q_ref = model.eq_data[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_EQUALITY, "mrba_harness_weld"), 6:10]
-    q_yaw = np.array([np.cos(yaw / 2), 0, 0, np.sin(yaw / 2)])
-    rel = quat_mul(quat_conj(q_yaw), quat_mul(q_pelvis, quat_conj(q_ref)))
-    ypr = quat_to_zyx(rel)[0]
-    data.qpos[hidx.qpos[3:]] = ypr[::-1]  # AXES order: roll, pitch, yaw
-
-
-def _initial_speed(human: HumanDriver, times_s: np.ndarray) -> float:
-    """Pelvis speed over the first 0.2 s of the motion, along its heading (0 when it starts at rest)."""
-    if not hasattr(human, "target"):
-        return 0.0
-    k = min(max(int(round(0.2 / (times_s[1] - times_s[0]))), 1), len(times_s) - 1)
-    d = human.target[k, :2] - human.target[0, :2]
-    _, yaw = human.start_pose()
-    return float(d @ np.array([np.cos(yaw), np.sin(yaw)]) / (times_s[k] - times_s[0]))
 
 
 def _schedule(n_samples: int, n_sample: int, n_control: int) -> list[tuple[int, int, int]]:
@@ -226,8 +142,8 @@ def rollout(world: mujoco.MjSpec, human: HumanDriver, controller: Controller | N
         rp = p.robot
         idx, hidx = RobotIndex.of(model), HarnessIndex.of(model)
         offset = rng.uniform(-p.start_offset_m, p.start_offset_m, 2)
-        _place_robot(model, data, idx, hidx, human, p, offset)
-        v0 = _initial_speed(human, times)
+        place_robot(model, data, idx, hidx, human, p, offset)
+        v0 = initial_speed(human, times)
         yaw0 = data.qpos[idx.base_qpos[2]]
         data.qvel[idx.base_dof[:2]] = v0 * np.cos(yaw0), v0 * np.sin(yaw0)
         drive = BaseDrive(rp.base, dt_control)
@@ -343,5 +259,4 @@ def rollout(world: mujoco.MjSpec, human: HumanDriver, controller: Controller | N
         wall_s=wall, warnings=warnings, initial_state=initial_state)
 
 
-__all__ = ["ROBOT_COLUMNS", "RolloutParams", "RolloutResult", "build_world", "physics_steps", "robot_info",
-           "rollout", "step_grid"]
+__all__ = ["ROBOT_COLUMNS", "RolloutParams", "RolloutResult", "rollout"]

@@ -37,7 +37,8 @@ from sim.robot.controllers import make_controller
 from sim.robot.controllers.adaptive import GAINS as ADAPTIVE_GAINS
 from sim.robot.controllers.pid import GAINS as PID_GAINS
 from sim.robot.mrba import BaseParams, RobotParams
-from sim.rollout.loop import RolloutParams, RolloutResult, build_world, robot_info, rollout
+from sim.rollout.loop import RolloutParams, RolloutResult, rollout
+from sim.rollout.world import build_world, robot_info
 
 # Gains searched per controller class, and whether they are stored as log10 already.
 SEARCHED = {"pid": (PID_GAINS, False), "adaptive": (ADAPTIVE_GAINS, True)}
@@ -48,7 +49,7 @@ class TuningParams:
     """params `robot.tuning`."""
 
     method: str = "Nelder-Mead"
-    max_evaluations: int = 90
+    max_evaluations: int = 80
     seed: int = 0
     force_weight_m_per_n: float = 0.001
     limit_weight_m: float = 0.2

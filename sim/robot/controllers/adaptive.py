@@ -1,67 +1,27 @@
-"""Speed-adaptive follow-me controller: gait-aware user-velocity observer + feed-forward + LQR.
+"""Speed-adaptive follow-me controller: an observer of the user's walking velocity, its feed-forward,
+and LQR state feedback on the arm deflection (after Wang et al., IFAC 2023), from robot sensors only.
 
-Modelled on Wang et al. (IFAC 2023), who estimate the user's walking velocity with an observer from
-the robot's sensors and close the loop with LQR state feedback. Here, from robot sensors only:
+- Observer: the user's ground position (odometry + arm slides, every control tick) gives the stride
+  period (autocorrelation peak of the user's velocity, every `stride_update_s`) and the speed, the
+  velocity averaged over exactly one stride, which cancels the intra-stride oscillation; until a
+  stride is found, the speed over the last `startup_window_s`.
+- Heading: a comb filter (velocity now minus one stride ago, `comb_compensation`) takes the stride
+  average's half-stride lag out of the heading and gives the heading rate. This is a disclosed
+  trade-off kept on purpose: it helps a walk entering a turn, as every straight bout of a real
+  walkway ends, and costs on a constant curve.
+- Gait-periodic feed-forward: the velocity one stride ago, `drive_tau_s` later in the stride,
+  predicts the coming sway, fed forward as yaw rate (`oscillation_ff_lateral`; the forward surge is
+  left out, it would take the drive's acceleration limit for millimetres of e_x).
+- Feedback: the speed and heading rate are fed forward; LQR on ``[int e_x, e_x, v_base - v_user]``
+  (base = first-order lag of `drive_tau_s`) and ``[int e_y, e_y, psi_rel, w_base]``, the lateral
+  gains scheduled on the estimated speed (Riccati solutions on a speed grid, once per reset).
 
-- Measurement: the user's (harness point's) ground position ``p_u = p_base + R(yaw) [reach + a_x,
-  a_y]`` from odometry and the arm slides, once per control tick.
-- Stride period, online: every `stride_update_s` the autocorrelation of the user's velocity over the
-  last `stride_buffer_s` (forward plus lateral component, each normalised) is searched for its peak
-  between `stride_min_s` and `stride_max_s`. The lateral sway repeats once per stride and the
-  forward surge twice, so only the stride lag makes both correlate (Winter 2009: adult strides
-  0.9-1.3 s; Camargo's fast walking ~0.9 s). Until a clear peak is found, `stride_init_s` is used.
-- Observer: the user's velocity averaged over exactly one estimated stride, ``(p_u(t) - p_u(t - T))
-  / T``: a moving average over one period cancels the intra-stride oscillation and all its
-  harmonics (the forward surge at step frequency and the lateral sway at stride frequency) while
-  keeping the mean speed and heading; a fixed window (1.1 s) leaks the oscillation whenever the
-  user's stride differs (Camargo: ~0.9 s). The average describes the user half a stride ago; two
-  consecutive averages (ending now and half a stride ago) give the rate of change of speed and
-  heading, which can extrapolate it over that half stride (`lag_compensation` for the speed,
-  `heading_lag_compensation` for heading and heading rate, 0..1). Both default 0: on the synthetic
-  tuning walks (never the evaluation data) full extrapolation overshoots at the end of accelerations
-  (+0.3 m/s after a 1.5 s ramp to 1.2 m/s) and its heading rate is noisy (tuning objective 0.091
-  with it vs 0.065 without, same gains); the LQR integral takes up the averaging lag instead.
-- Heading without the averaging lag (`comb_compensation`, default 1): the user's velocity now minus
-  their velocity one stride ago (each over the last 2 x `osc_half_window_s`) cancels the
-  stride-periodic part and leaves the change of the mean velocity over one stride, twice what the
-  stride average lags; half of it added to the average gives the heading now, and its angle to the
-  average's heading over half a stride the heading rate (fed forward). A comb filter, the core of
-  repetitive control. It acts once a stride period has been found. A trade-off, chosen rather than
-  found by the tuning: on the tuning set (final design, each variant tuned) it helps the walk that
-  enters a turn (mean |e_y| 1.84 -> 1.34 cm) and costs on the constant curve (1.26 -> 2.06 cm); the
-  mean objective is 0.0566 with it, 0.0546 without. It was added after the replayed Camargo bouts,
-  which end entering the circuit's turn, showed the stride average's heading lag (e_y 2.3 cm
-  without it, 1.2 cm with it); every straight bout of a real walkway ends in a turn. The speed
-  keeps the plain stride average (the comb's speed tied on the tuning objective: 0.0613 vs 0.0607).
-- Starting to walk: until the first stride period is found, the speed fed forward is the user's
-  speed along the averaged heading over the last `startup_window_s` (0.5 s) instead of the average
-  over what there is, which lags an accelerating user by half the elapsed time (tuning objective
-  0.0838 -> 0.0743 at equal gains, peak e_x at the start 14 -> 7 cm).
-- Gait-periodic prediction: walking repeats every stride, so the user's velocity one stride ago,
-  taken `drive_tau_s` later in the stride (central difference over +-`osc_half_window_s`, 0.15 s:
-  with 0.08 s, 4-12 % of the yaw commands changed faster than the drive's acceleration limit on the
-  tuning walks, 2-3 % with 0.15 s; tuning objective 0.0735 -> 0.0603, each tuned), predicts
-  the intra-stride oscillation about the mean that is about to come, ahead by the drive lag (the
-  idea behind adaptive-oscillator gait prediction, Ronsse et al. 2011, and repetitive control).
-  Its deviation from the current stride average is fed forward across the base heading as yaw rate
-  ``u_lat / reach`` (the arm's neutral point moves sideways by reach x yaw rate;
-  `oscillation_ff_lateral`): the lateral sway (~3 cm at stride frequency, Winter 2009) is what the
-  deflection e_y mostly consists of. Along the heading (`oscillation_ff_forward`, default 0) it is
-  left out: following the forward surge (+-0.05-0.15 m/s at step frequency, ~2 Hz) would take
-  ~2 m/s^2, the drive's acceleration limit, for a few millimetres of e_x.
-- Feed-forward: the estimated speed along the base heading, and the user's heading rate as yaw rate,
-  plus the predicted oscillation.
-- Forward LQR on ``[int e_x, e_x, v_base - v_user]`` with the base velocity as a first-order lag of
-  time constant `drive_tau_s`; the third state is measured directly, ``-de_x/dt`` from the arm's
-  forward slide (with ``v_base - v_ff``, the stride-averaged speed standing in for the user's, the
-  feedback saw the surge late: tuning objective 0.0607 -> 0.0567 at equal gains); lateral LQR on
-  ``[int e_y, e_y, psi_rel, w_base]`` with
-  ``e_y' = -v psi_rel - reach w`` (``psi_rel``: base heading minus the estimated user heading). The
-  lateral plant depends on the walking speed, so its gains are scheduled on the estimated speed
-  (solved once per reset with `scipy.linalg.solve_continuous_are` on a speed grid).
-
-All per-tick arithmetic is on Python floats (the stride search, every `stride_update_s`, on numpy);
-see sim/rollout/loop.py.
+Numbers: the LQR weights (params `robot.controllers.adaptive`) are tuned by `sim.rollout.tuning` on
+synthetic walks, never the evaluation data; `comb_compensation`, `lag_compensation` and the observer
+constants (`OBSERVER_DEFAULTS`) are design constants, not searched. Stride bounds follow Winter
+(2009, adult strides 0.9-1.3 s); the periodic prediction follows adaptive-oscillator gait prediction
+(Ronsse et al. 2011) and repetitive control. Per-tick arithmetic is on Python floats (see
+sim/rollout/loop.py).
 """
 
 from __future__ import annotations

@@ -1,0 +1,98 @@
+"""Every data and report path of gaitloop, built here and nowhere else.
+
+Layout, relative to the repository root (each root can be moved by a command's `--root`,
+`--out-root` or `--reports` option, so the per-subject functions take the root they build under):
+
+    params.yaml
+    data/processed/<subject>/model/       human.xml, model.json (scale); reference.npz/.json (reference)
+    data/processed/<subject>/real/        events, strides, cycles (ingest)
+    data/processed/<subject>/sim/         replay-human rollouts processed like the real trials (simulate)
+    data/processed/<subject>/sim_policy/  policy-human rollouts (simulate --human policy)
+    data/metrics/<subject>/               metric tables and provenance (metrics)
+    data/policies/<subject>/              the trained walking policy (train)
+    data/results.duckdb                   the results store (params store.path; relative paths in params
+                                          are taken from the repository root)
+    reports/<subject>/                    figures, videos and report.md of one subject
+    reports/                              bench.json, controller_tuning.json, summary.md, index.html
+
+`ingest.manifest` and `ingest.subject` keep their own root for data/sources.yaml, data/raw and
+data/subjects: ingest does not depend on the pipeline.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+REPO_ROOT = Path(__file__).resolve().parent.parent
+PARAMS_FILE = REPO_ROOT / "params.yaml"
+DATA_ROOT = REPO_ROOT / "data"
+PROCESSED_ROOT = DATA_ROOT / "processed"
+METRICS_ROOT = DATA_ROOT / "metrics"
+POLICIES_ROOT = DATA_ROOT / "policies"
+STORE_FILE = DATA_ROOT / "results.duckdb"
+REPORTS_ROOT = REPO_ROOT / "reports"
+BENCH_REPORT = REPORTS_ROOT / "bench.json"
+TUNING_REPORT = REPORTS_ROOT / "controller_tuning.json"
+
+HUMAN_XML = "human.xml"          # in model_dir: the scaled human (scale stage)
+REFERENCE_NPZ = "reference.npz"  # in model_dir: the retargeted motion and cycle (reference stage)
+
+
+def repo_path(path: str | Path) -> Path:
+    """`path` as given when absolute, else relative to the repository root (paths in params.yaml)."""
+    path = Path(path)
+    return path if path.is_absolute() else REPO_ROOT / path
+
+
+def repo_relative(path: Path) -> str:
+    """`path` relative to the repository root when it lies inside it, else as given (for documents
+    that name their files)."""
+    return str(path.relative_to(REPO_ROOT)) if path.is_relative_to(REPO_ROOT) else str(path)
+
+
+def subject_dir(root: str | Path, subject: str) -> Path:
+    """`<root>/<subject>`: a subject's folder under any of the roots above."""
+    return Path(root) / subject
+
+
+def model_dir(root: str | Path, subject: str) -> Path:
+    """`<root>/<subject>/model` (root: data/processed): scaled human and reference motion."""
+    return subject_dir(root, subject) / "model"
+
+
+def human_xml(root: str | Path, subject: str) -> Path:
+    return model_dir(root, subject) / HUMAN_XML
+
+
+def reference_npz(root: str | Path, subject: str) -> Path:
+    return model_dir(root, subject) / REFERENCE_NPZ
+
+
+def real_dir(root: str | Path, subject: str) -> Path:
+    """`<root>/<subject>/real` (root: data/processed): the ingested real trials."""
+    return subject_dir(root, subject) / "real"
+
+
+def sim_dir(root: str | Path, subject: str) -> Path:
+    """`<root>/<subject>/sim` (root: data/processed): replay-human rollouts."""
+    return subject_dir(root, subject) / "sim"
+
+
+def sim_policy_dir(root: str | Path, subject: str) -> Path:
+    """`<root>/<subject>/sim_policy` (root: data/processed): policy-human rollouts."""
+    return subject_dir(root, subject) / "sim_policy"
+
+
+def metrics_dir(root: str | Path, subject: str) -> Path:
+    """`<root>/<subject>` (root: data/metrics): a subject's metric tables."""
+    return subject_dir(root, subject)
+
+
+def policy_dir(root: str | Path, subject: str) -> Path:
+    """`<root>/<subject>` (root: data/policies): a subject's trained policy."""
+    return subject_dir(root, subject)
+
+
+def report_dir(reports: str | Path, subject: str) -> Path:
+    """`<reports>/<subject>` (reports: reports/): a subject's figures, videos and report."""
+    return subject_dir(reports, subject)

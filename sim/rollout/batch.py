@@ -1,0 +1,230 @@
+"""The one batch runner: many rollouts of one subject's human, in worker processes.
+
+A `RolloutJob` names a condition (`free` or a controller of `BatchSetup.controllers`), a seed, the
+simulated trial's id and the human driver's own description of the job. Each worker opens the
+subject's world once (`Worker`): the MuJoCo spec, the human model for virtual markers, and the
+driver source (`DriverSource.open`: the replay reference or the trained policy). Per job it builds
+the driver and the controller, runs `sim.rollout.loop.rollout`, and turns the human's motion into a
+canonical sim `Trial` through the virtual markers, processed by `ingest.process.process_trial`
+exactly like a real trial. Simulate (replay human), policy rollouts, render and the rollout bench
+all run here, so every rollout of the project is set up one way.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import mujoco
+import numpy as np
+import pandas as pd
+from tqdm import tqdm
+
+from ingest.errors import IngestError
+from ingest.process import IngestParams, process_trial
+from sim.body.markers import trial_from_qpos
+from sim.errors import SimulationError
+from sim.motion.driver import HumanDriver
+from sim.robot.controllers import make_controller
+from sim.robot.controllers.base import Controller
+from sim.robot.controllers.warm_start import WarmStarted
+from sim.robot.mrba import RobotParams
+from sim.rollout.loop import ROBOT_COLUMNS, RolloutParams, RolloutResult, rollout
+from sim.rollout.world import robot_info
+
+TABLES = ("events", "strides", "cycles")
+
+
+@dataclass(frozen=True)
+class HumanRun:
+    """A driver source's answer for one job: the driver and how its samples are timed."""
+
+    driver: HumanDriver
+    sample_rate_hz: float
+    discard_s: float = 0.0                # lead-in simulated but not recorded
+    t0_s: float = 0.0                     # the first recorded sample's time in the trial's own clock
+    warm_speed_mps: float | None = None   # controller warm start: the human is already walking
+
+
+class DriverSource(Protocol):
+    """Picklable description of a kind of human; `open` runs once per worker and returns the
+    function that makes one job's `HumanRun` from (the job's `human` field, its seed)."""
+
+    def open(self, world: mujoco.MjSpec) -> Callable[[Any, int], HumanRun]: ...
+
+
+@dataclass(frozen=True)
+class RolloutJob:
+    condition: str        # "free" (no robot) or a name in `BatchSetup.controllers`
+    seed: int
+    trial: str            # id of the simulated trial
+    human: Any            # the driver source's own job description (picklable)
+
+
+@dataclass(frozen=True)
+class BatchSetup:
+    """Everything a worker needs, picklable: the subject's world and how to run and process it."""
+
+    human_xml: str
+    subject: str
+    markerset: dict[str, str]
+    robot: RobotParams
+    controllers: dict[str, dict]
+    ingest: IngestParams
+    max_physics_dt_s: float
+    start_offset_m: float
+    drivers: DriverSource
+    process: bool = True  # False: no virtual-marker processing (benchmarks, worlds without markers)
+
+
+@dataclass
+class RolloutOutcome:
+    """One job's results: the robot table, the processed sim tables (or why they were skipped)."""
+
+    job: RolloutJob
+    human_mode: str
+    stable: bool
+    warnings: dict[str, int]
+    robot_fall_s: float | None
+    human_fall_s: float | None
+    wall_s: float
+    sim_s: float
+    distance_m: float
+    robot: pd.DataFrame
+    tables: dict[str, pd.DataFrame] = field(default_factory=dict)
+    skipped: str | None = None
+    result: RolloutResult | None = None  # kept only when asked (render): world qpos is large
+
+    @property
+    def fell(self) -> bool:
+        """The human fell, the robot detected a fall, or the simulation went unstable."""
+        return self.human_fall_s is not None or self.robot_fall_s is not None or not self.stable
+
+
+class Worker:
+    """One process's open world: runs jobs one after the other."""
+
+    def __init__(self, setup: BatchSetup) -> None:
+        self.setup = setup
+        self.spec = mujoco.MjSpec.from_file(setup.human_xml)
+        self.human_model = mujoco.MjModel.from_xml_path(setup.human_xml)
+        self.make_run = setup.drivers.open(self.spec)
+
+    def prepare(self, job: RolloutJob) -> tuple[HumanRun, Controller | None, RolloutParams]:
+        """The job's driver, controller (None for free walking) and rollout params."""
+        s = self.setup
+        run = self.make_run(job.human, job.seed)
+        with_robot = job.condition != "free"
+        ctrl = None
+        if with_robot:
+            if job.condition not in s.controllers:
+                raise SimulationError(f"condition {job.condition}", "neither free nor in robot.controllers")
+            ctrl = make_controller(s.controllers[job.condition], robot_info(s.robot))
+            if run.warm_speed_mps is not None:
+                ctrl = WarmStarted(ctrl, run.warm_speed_mps)
+        p = RolloutParams(robot=s.robot, sample_rate_hz=run.sample_rate_hz,
+                          max_physics_dt_s=s.max_physics_dt_s, start_offset_m=s.start_offset_m,
+                          with_robot=with_robot, subject=s.subject,
+                          condition=job.condition, trial=job.trial, discard_s=run.discard_s)
+        return run, ctrl, p
+
+    def run(self, job: RolloutJob, keep_result: bool = False, model: mujoco.MjModel | None = None
+            ) -> RolloutOutcome:
+        run, ctrl, p = self.prepare(job)
+        human = run.driver
+        result = rollout(self.spec, human, ctrl, p, job.seed, model=model)
+        human_fall = getattr(human, "fall_time_s", None)
+        out = RolloutOutcome(
+            job=job, human_mode=human.mode, stable=result.stable, warnings=result.warnings,
+            robot_fall_s=result.fall_time_s, human_fall_s=human_fall, wall_s=result.wall_s,
+            sim_s=result.n_physics_steps * result.physics_dt_s,
+            distance_m=float(result.human_qpos[-1, 0] - result.human_qpos[0, 0]), robot=result.robot,
+            result=result if keep_result else None)
+        if not self.setup.process:
+            return out
+        qpos = result.human_qpos
+        if human_fall is not None:  # gait analysis of the walking before the fall only
+            qpos = qpos[result.time_s < human_fall]
+        try:
+            trial = trial_from_qpos(self.human_model, qpos, run.sample_rate_hz, self.setup.subject,
+                                    job.condition, job.trial, t0_s=run.t0_s)
+            processed = process_trial(trial, self.setup.markerset, self.setup.ingest)
+            extra = {"human_mode": human.mode, "seed": job.seed}
+            out.tables = {k: getattr(processed, k).assign(**extra) for k in TABLES}
+        except (IngestError, SimulationError) as exc:
+            out.skipped = str(exc)
+        return out
+
+
+_WORKER: Worker | None = None
+
+
+def _open_worker(setup: BatchSetup) -> None:
+    global _WORKER
+    _WORKER = Worker(setup)
+
+
+def _run_in_worker(job: RolloutJob) -> RolloutOutcome:
+    assert _WORKER is not None, "worker not opened"
+    return _WORKER.run(job)
+
+
+class BatchRunner:
+    """Runs jobs of one `BatchSetup`: in this process with `workers <= 1`, else in a process pool
+    that stays open (and warm) until the `with` block ends."""
+
+    def __init__(self, setup: BatchSetup, workers: int = 1) -> None:
+        self.setup, self.workers = setup, max(1, int(workers))
+        self._pool: ProcessPoolExecutor | None = None
+        self._local: Worker | None = None
+
+    def __enter__(self) -> BatchRunner:
+        if self.workers > 1:
+            self._pool = ProcessPoolExecutor(max_workers=self.workers, initializer=_open_worker,
+                                             initargs=(self.setup,))
+        else:
+            self._local = Worker(self.setup)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self._pool is not None:
+            self._pool.shutdown()
+        self._pool = self._local = None
+
+    def map(self, jobs: Iterable[RolloutJob], desc: str = "rollouts", progress: bool = False
+            ) -> list[RolloutOutcome]:
+        """Outcomes in job order, with a progress bar when `progress`."""
+        jobs = list(jobs)
+        it = self._pool.map(_run_in_worker, jobs) if self._pool is not None else map(self._local.run, jobs)
+        return list(tqdm(it, total=len(jobs), desc=desc, disable=not progress))
+
+
+def run_batch(setup: BatchSetup, jobs: Iterable[RolloutJob], workers: int = 1, desc: str = "rollouts",
+              progress: bool = False) -> list[RolloutOutcome]:
+    """Every job of `setup`, outcomes in job order (see `BatchRunner`)."""
+    with BatchRunner(setup, workers) as runner:
+        return runner.map(jobs, desc, progress)
+
+
+def batch_tables(outcomes: Iterable[RolloutOutcome]) -> dict[str, pd.DataFrame]:
+    """events, strides, cycles and robot tables of all outcomes, each concatenated in job order."""
+    outcomes = list(outcomes)
+    tables = {}
+    for name in TABLES:
+        parts = [o.tables[name] for o in outcomes if name in o.tables]
+        tables[name] = pd.concat(parts, ignore_index=True) if parts else pd.DataFrame()
+    robot = [o.robot for o in outcomes if not o.robot.empty]
+    tables["robot"] = (pd.concat(robot, ignore_index=True)[ROBOT_COLUMNS] if robot
+                       else pd.DataFrame(columns=ROBOT_COLUMNS))
+    return tables
+
+
+def sample_rate_hz(time_s: np.ndarray) -> float:
+    """The sampling rate of a uniformly sampled time vector (median step)."""
+    return float(1.0 / np.median(np.diff(time_s)))
+
+
+__all__ = ["BatchRunner", "BatchSetup", "DriverSource", "HumanRun", "RolloutJob", "RolloutOutcome", "Worker",
+           "batch_tables", "run_batch", "sample_rate_hz"]

@@ -1,0 +1,246 @@
+"""dvc.yaml's code deps cover every project module a stage runs, so `dvc repro` never serves a
+result made by older code.
+
+A stage's code is found from its `cmd` (`python -m pipeline <command> ...`): `pipeline/__main__.py`
+and, by AST, the transitive closure of the project modules (packages ingest, sim, metrics,
+pipeline) it imports. Module-level and function-level imports both count (a function's import runs
+when the function is called), except the imports inside *other* commands' handlers: the handler of
+each command comes from the real argparse parser (`set_defaults(func=...)`), and only this
+command's handler runs. `from pkg import name` counts `pkg/name.py` when it exists, and every
+package's `__init__.py` along a module's path counts (Python executes it). Each of those files must
+lie under one of the stage's deps (the file itself or a folder holding it); data deps are not
+checked. Dynamic imports (`importlib.import_module` of a controller named in params) are not seen.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import copy
+import inspect
+import os
+import re
+import shlex
+from collections.abc import Iterable, Mapping
+from functools import cache
+from pathlib import Path, PurePosixPath
+
+import pytest
+import yaml
+
+REPO = Path(__file__).resolve().parents[2]
+DVC_YAML = REPO / "dvc.yaml"
+PACKAGES = ("ingest", "sim", "metrics", "pipeline")
+ENTRY = Path("pipeline/__main__.py")  # `python -m pipeline`
+HandlerKey = tuple[Path, str]  # (repo-relative file, top-level function name)
+
+
+# --- modules -------------------------------------------------------------------------------------
+
+
+def module_file(name: str) -> Path | None:
+    """Repo-relative file of project module `name` (`a/b.py` or `a/b/__init__.py`), None if it is
+    not a project module or does not exist."""
+    parts = name.split(".")
+    if parts[0] not in PACKAGES:
+        return None
+    base = Path(*parts)
+    for candidate in (base / "__init__.py", base.with_suffix(".py")):
+        if (REPO / candidate).is_file():
+            return candidate
+    return None
+
+
+def module_files(name: str) -> set[Path]:
+    """The files Python executes to import `name`: each package `__init__.py` on the way, then
+    the module itself."""
+    parts, files = name.split("."), set()
+    for i in range(1, len(parts) + 1):
+        f = module_file(".".join(parts[:i]))
+        if f is None:
+            break
+        files.add(f)
+    return files
+
+
+def module_name(path: Path) -> str:
+    parts = path.with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+@cache
+def _tree(path: Path) -> ast.Module:
+    return ast.parse((REPO / path).read_text(encoding="utf-8"), filename=str(path))
+
+
+def _nodes(node: ast.AST, skip: frozenset[str]) -> Iterable[ast.AST]:
+    """Every node under `node`, leaving out the bodies of top-level functions named in `skip`."""
+    for child in ast.iter_child_nodes(node):
+        if (isinstance(node, ast.Module) and isinstance(child, ast.FunctionDef | ast.AsyncFunctionDef)
+                and child.name in skip):
+            continue
+        yield child
+        yield from _nodes(child, skip)
+
+
+def imported_files(path: Path, skip: frozenset[str] = frozenset()) -> set[Path]:
+    """Project files that the imports in `path` (any level; not inside the top-level functions
+    named in `skip`) make Python execute."""
+    name = module_name(path)
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    files: set[Path] = set()
+    for node in _nodes(_tree(path), skip):
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                files |= module_files(alias.name)
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                anchor = package.split(".")[: len(package.split(".")) - node.level + 1]
+                base = ".".join(anchor + ([node.module] if node.module else []))
+            else:
+                base = node.module or ""
+            files |= module_files(base)
+            for alias in node.names:
+                if alias.name != "*" and module_file(f"{base}.{alias.name}"):
+                    files |= module_files(f"{base}.{alias.name}")
+    return files
+
+
+# --- commands ------------------------------------------------------------------------------------
+
+
+def _key(func) -> HandlerKey:
+    return Path(inspect.getsourcefile(func)).resolve().relative_to(REPO), func.__name__
+
+
+@cache
+def handlers() -> dict[str, HandlerKey]:
+    """Command name -> its handler, from the real parser."""
+    from pipeline.cli import build_parser
+
+    (sub,) = (a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    return {name: _key(p.get_default("func")) for name, p in sub.choices.items()}
+
+
+def command_of(cmd: str) -> str:
+    argv = shlex.split(cmd)
+    assert argv[:3] == ["python", "-m", "pipeline"], f"not a `python -m pipeline` command: {cmd!r}"
+    commands = [a for a in argv[3:] if a in handlers()]
+    assert commands, f"no pipeline command in {cmd!r} (known: {', '.join(sorted(handlers()))})"
+    return commands[0]
+
+
+def stage_modules(cmd: str) -> set[Path]:
+    """Repo-relative project files that `cmd` (`python -m pipeline <command> ...`) executes or may
+    execute: the closure of imports from `pipeline/__main__.py`, with other commands' handlers
+    left out."""
+    mine = handlers()[command_of(cmd)]
+    skip: dict[Path, set[str]] = {}
+    for key in set(handlers().values()) - {mine}:
+        skip.setdefault(key[0], set()).add(key[1])
+    todo = module_files(module_name(ENTRY)) | {ENTRY, mine[0]}
+    seen: set[Path] = set()
+    while todo:
+        path = todo.pop()
+        seen.add(path)
+        todo |= imported_files(path, frozenset(skip.get(path, ()))) - seen
+    return seen
+
+
+def uncovered(stage_deps: Iterable[str], modules: Iterable[Path | str]) -> list[str]:
+    """The modules (repo-relative) that no dep covers; a dep covers itself and, if a folder,
+    everything under it."""
+    deps = [PurePosixPath(os.path.normpath(d).replace(os.sep, "/")) for d in stage_deps]
+    out = []
+    for m in modules:
+        m = Path(m)
+        rel = PurePosixPath((m.resolve().relative_to(REPO) if m.is_absolute() else m).as_posix())
+        if not any(rel == d or d in rel.parents for d in deps):
+            out.append(rel.as_posix())
+    return sorted(out)
+
+
+# --- dvc.yaml ------------------------------------------------------------------------------------
+
+
+def _subject() -> str:
+    subjects = yaml.safe_load((REPO / "params.yaml").read_text()).get("subjects") or ["subject"]
+    return str(subjects[0])
+
+
+def _substitute(value, subject: str):
+    if isinstance(value, str):
+        value = re.sub(r"\$\{\s*(item|key)\s*\}", subject, value)
+        return re.sub(r"\$\{[^}]*\}", "", value)  # ${item.args} and the like: extra arguments
+    if isinstance(value, list):
+        return [_substitute(v, subject) for v in value]
+    if isinstance(value, dict):
+        return {_substitute(k, subject): _substitute(v, subject) for k, v in value.items()}
+    return value
+
+
+def stages(doc: Mapping) -> dict[str, dict]:
+    """Stage name -> {cmd, deps} with `foreach`/`do` bodies filled in for one subject."""
+    out, subject = {}, _subject()
+    for name, spec in doc["stages"].items():
+        body = _substitute(spec["do"] if "foreach" in spec else spec, subject)
+        deps = [d if isinstance(d, str) else next(iter(d)) for d in body.get("deps", [])]
+        out[name] = {"cmd": body["cmd"], "deps": deps}
+    return out
+
+
+def problems(doc: Mapping) -> dict[str, list[str]]:
+    """Stage name -> the modules its command runs that its deps miss (stages with none left out)."""
+    found = {name: uncovered(s["deps"], stage_modules(s["cmd"])) for name, s in stages(doc).items()}
+    return {name: missing for name, missing in found.items() if missing}
+
+
+def load_dvc_yaml() -> dict:
+    return yaml.safe_load(DVC_YAML.read_text())
+
+
+# --- tests ---------------------------------------------------------------------------------------
+
+STAGES = stages(load_dvc_yaml())
+
+
+@pytest.mark.parametrize("stage", sorted(STAGES))
+def test_stage_deps_cover_the_code_it_runs(stage):
+    spec = STAGES[stage]
+    missing = uncovered(spec["deps"], stage_modules(spec["cmd"]))
+    assert not missing, (f"dvc.yaml stage {stage!r} (`{spec['cmd']}`) runs {missing} but none of its deps "
+                         f"{spec['deps']} covers them: add the file or its folder")
+
+
+def test_broken_dvc_yaml_is_reported():
+    """The check fails on a copy of dvc.yaml whose simulate stage lost its sim deps."""
+    broken = copy.deepcopy(load_dvc_yaml())
+    sim_stage = broken["stages"]["simulate"]["do"]
+    sim_stage["deps"] = [d for d in sim_stage["deps"] if not (d == "sim" or d.startswith("sim/"))]
+
+    found = problems(broken)
+
+    runs = stage_modules(STAGES["simulate"]["cmd"])
+    sim_modules = sorted(p.as_posix() for p in runs if p.parts[0] == "sim")
+    assert list(found) == ["simulate"], found
+    assert found["simulate"] == sim_modules
+    assert {"sim/__init__.py", "sim/errors.py"} <= set(found["simulate"])
+
+
+def test_stage_modules_follow_function_imports_and_packages():
+    runs = {p.as_posix() for p in stage_modules("python -m pipeline reference camargo")}
+    # cmd_reference imports pipeline.stages.reference inside the function; load_human_model is
+    # imported inside a function of that module; `import sim.x` runs sim/__init__.py
+    assert {"pipeline/__init__.py", "pipeline/__main__.py", "pipeline/cli.py", "pipeline/stages/__init__.py",
+            "pipeline/stages/reference.py", "sim/__init__.py", "sim/body/human.py"} <= runs
+    # another command's lazy import (cmd_render's) is not this command's code
+    assert "pipeline/commands/render.py" not in runs
+
+
+def test_uncovered():
+    mods = [Path("sim/robot/mrba.py"), Path("sim/errors.py"), Path("pipeline/params.py")]
+    assert uncovered(["sim/robot", "pipeline/params.py", "data/x.yaml"], mods) == ["sim/errors.py"]
+    assert uncovered(["sim/", "./pipeline"], mods) == []
+    assert uncovered(["sim/rob", "sim/errors"], mods) == ["pipeline/params.py", "sim/errors.py",
+                                                           "sim/robot/mrba.py"]
+    assert uncovered([], [REPO / "sim" / "errors.py"]) == ["sim/errors.py"]

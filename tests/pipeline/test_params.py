@@ -1,0 +1,187 @@
+"""params.yaml's schema (pipeline/params.py): library defaults equal the file, errors name the file
+and the key path, the CLI turns them into one line; the paths of pipeline/paths.py."""
+
+from __future__ import annotations
+
+import dataclasses
+import pickle
+from pathlib import Path
+
+import pytest
+import yaml
+
+from pipeline.cli import main
+from pipeline.commands.tune_controllers import write_gains
+from pipeline.params import PARAMS_FILE, Params, ParamsError, load_params, parse_params
+from pipeline.paths import (
+    PROCESSED_ROOT,
+    REPO_ROOT,
+    REPORTS_ROOT,
+    STORE_FILE,
+    human_xml,
+    model_dir,
+    real_dir,
+    reference_npz,
+    repo_path,
+    repo_relative,
+    report_dir,
+    sim_dir,
+    sim_policy_dir,
+)
+from sim.rollout.loop import RolloutParams
+
+# Not a tunable default: the tuning walks are a list of specs (the per-walk optional keys default to
+# WalkParams' fields, which the schema uses as is).
+NOT_COMPARED = {"TuningParams.walks"}
+
+
+@pytest.fixture(scope="module")
+def params() -> Params:
+    return load_params()
+
+
+def doc() -> dict:
+    return yaml.safe_load(PARAMS_FILE.read_text())
+
+
+def write(tmp_path: Path, document: dict, name: str = "params.yaml") -> Path:
+    path = tmp_path / name
+    path.write_text(yaml.safe_dump(document, sort_keys=False))
+    return path
+
+
+def built(params: Params) -> dict[str, object]:
+    """Every dataclass the sections turn into, by name."""
+    retarget, section = params.retarget.build(), params.simulate_section()
+    return {
+        "IngestParams": params.ingest.build(),
+        "MetricsParams": params.metrics.build(),
+        "StoreParams": params.store.build(),
+        "ReportParams": params.report.build(),
+        "RetargetParams": retarget.ik,
+        "ReferenceParams": retarget.reference,
+        "RobotParams": params.robot.build(),
+        "TuningParams": params.robot.tuning.build(),
+        "ReplayParams": params.rollout.replay.build(),
+        "HumanParams": params.human.build(),
+        "TrainParams": params.train.build(),
+        "EvalParams": params.evaluate_policy.build(),
+        "RolloutParams": RolloutParams(robot=section.robot, max_physics_dt_s=section.max_physics_dt_s,
+                                       start_offset_m=section.start_offset_m),
+    }
+
+
+def drift(value, default, where: str) -> list[str]:
+    """Fields of `value` (from params.yaml) that differ from `default`, recursing into dataclasses."""
+    out = []
+    for f in dataclasses.fields(value):
+        name = f"{where}.{f.name}"
+        a, b = getattr(value, f.name), getattr(default, f.name)
+        if name in NOT_COMPARED:
+            continue
+        if dataclasses.is_dataclass(a) and type(a) is type(b):
+            out += drift(a, b, name)
+        elif a != b:
+            out.append(f"{name}: default {b!r}, params.yaml {a!r}")
+    return out
+
+
+def test_library_defaults_equal_params_yaml(params):
+    problems = []
+    for name, value in built(params).items():
+        cls = type(value)
+        required = {f.name: getattr(value, f.name) for f in dataclasses.fields(cls)
+                    if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING}
+        problems += drift(value, cls(**required), name)  # the defaults, required fields as in params
+    assert not problems, "library defaults drifted from params.yaml:\n" + "\n".join(problems)
+
+
+def test_every_key_of_params_yaml_is_read_and_kept(params):
+    assert params.document() == doc()
+    assert params.path == PARAMS_FILE
+    assert pickle.loads(pickle.dumps(params)) == params  # goes to process-pool workers
+
+
+@pytest.mark.parametrize(("edit", "message"), [
+    (lambda d: d["robot"]["base"].update(mass_kg="heavy"),
+     r"params\.yaml: robot\.base\.mass_kg: Input should be a valid number.*\(got 'heavy'\)$"),
+    (lambda d: d["ingest"]["bouts"].pop("smooth_hz"),
+     r"params\.yaml: ingest\.bouts: missing key 'smooth_hz'$"),
+    (lambda d: d["robot"]["harness"].update(stifness=[1.0] * 6),
+     r"params\.yaml: robot\.harness: unknown key 'stifness'$"),
+    (lambda d: d["robot"]["tuning"]["walks"][1].update(speed_mps=[1.2]),
+     r"params\.yaml: robot\.tuning\.walks\[1\]\.speed_mps: Input should be a valid number$"),
+    (lambda d: d["human"].update(contact_solref=[0.02]),
+     r"params\.yaml: human\.contact_solref\[1\]: missing item$"),
+    (lambda d: d["ingest"]["events"].update(method="magic"),
+     r"params\.yaml: ingest\.events\.method: Input should be 'auto', 'force' or 'kinematic' "
+     r"\(got 'magic'\)$"),
+    (lambda d: d.pop("evaluate_policy"), r"params\.yaml: missing section 'evaluate_policy'$"),
+    (lambda d: d.update(extra={"a": 1}), r"params\.yaml: unknown section 'extra'$"),
+    (lambda d: d["rollout"].update(conditions=["free", "pdi"]),
+     r"params\.yaml: rollout\.conditions: 'pdi' is neither free nor a controller in robot\.controllers$"),
+    (lambda d: d["robot"]["tuning"]["initial"].update(lqr={"k": 1.0}),
+     r"params\.yaml: robot\.tuning\.initial\.lqr: no controller 'lqr' in robot\.controllers$"),
+])
+def test_errors_name_the_file_and_the_key_path(tmp_path, edit, message):
+    document = doc()
+    edit(document)
+    with pytest.raises(ParamsError, match=message):
+        load_params(write(tmp_path, document))
+
+
+def test_several_errors_are_listed_in_one_message():
+    document = doc()
+    document["ingest"]["filter"]["order"] = 4.5
+    document["report"].pop("dpi")
+    with pytest.raises(ParamsError) as err:
+        parse_params(document)
+    assert err.value.problem == ("ingest.filter.order: Input should be a valid integer, got a number with a "
+                                 "fractional part (got 4.5); report: missing key 'dpi'")
+
+
+@pytest.mark.parametrize(("text", "message"), [
+    (None, r"none\.yaml: cannot read params file"),
+    ("a: [", r"none\.yaml: not valid YAML"),
+    ("- camargo\n", r"none\.yaml: expected a mapping of sections"),
+])
+def test_unreadable_files_name_the_file(tmp_path, text, message):
+    path = tmp_path / "none.yaml"
+    if text is not None:
+        path.write_text(text)
+    with pytest.raises(ParamsError, match=message):
+        load_params(path)
+
+
+def test_cli_bad_params_is_one_line_error(tmp_path, capsys):
+    document = doc()
+    document["robot"]["base"]["mass_kg"] = "heavy"
+    bad = write(tmp_path, document, "bad.yaml")
+    assert main(["--params", str(bad), "ingest", "camargo", "--out-root", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith(f"error: {bad}: robot.base.mass_kg: Input should be a "
+                                                   "valid number")
+    assert not (tmp_path / "camargo").exists()
+
+
+def test_tuned_gains_written_to_the_file_load_back(tmp_path, params):
+    path = tmp_path / "params.yaml"
+    path.write_text(PARAMS_FILE.read_text())  # the real text: comments and layout as write_gains meets them
+    gains = {"kp_x": 1.5, "ki_x": 2.0, "kd_x": 0.25, "kp_y": 3.0, "ki_y": 0.5, "kd_y": 0.75, "i_max": 0.1}
+    write_gains(path, {"controllers": {"pid": {"gains": gains}}})
+    tuned = load_params(path)
+    assert tuned.robot.controllers["pid"].gains == gains
+    assert tuned.robot.controllers["adaptive"] == params.robot.controllers["adaptive"]
+    assert tuned.robot.controller_specs()["pid"] == {"class": "pid", "gains": gains}
+
+
+def test_paths_build_the_documented_layout(params):
+    assert PROCESSED_ROOT == REPO_ROOT / "data" / "processed" and REPORTS_ROOT == REPO_ROOT / "reports"
+    assert human_xml(PROCESSED_ROOT, "s") == model_dir(PROCESSED_ROOT, "s") / "human.xml"
+    assert reference_npz("root", "s") == Path("root/s/model/reference.npz")
+    assert [f("root", "s") for f in (real_dir, sim_dir, sim_policy_dir, report_dir)] == [
+        Path("root/s/real"), Path("root/s/sim"), Path("root/s/sim_policy"), Path("root/s")]
+    assert params.store.build().path == repo_path(params.store.path) == STORE_FILE
+    assert repo_path("/abs/x.duckdb") == Path("/abs/x.duckdb")
+    assert repo_relative(REPORTS_ROOT / "s" / "a.png") == "reports/s/a.png"
+    assert repo_relative(Path("/elsewhere/a.png")) == "/elsewhere/a.png"
