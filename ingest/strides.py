@@ -123,3 +123,18 @@ def _reject_off_pace(df: pd.DataFrame, path: PelvisPath, time_s: np.ndarray,
     df.loc[not_in_bout, "reason"] = "outside straight bout"
     df.loc[not_in_bout, "kept"] = False
     return df
+
+
+def kept_stride_runs(strides: pd.DataFrame, trial: str, margin_s: float, join_gap_s: float
+                     ) -> list[tuple[float, float]]:
+    """(start, end) times of the runs of kept strides of `trial` (strides overlapping or within
+    `join_gap_s` of each other join one run), widened by `margin_s`: the steady straight walking
+    of a recording, which the replay human walks."""
+    kept = strides[(strides["trial"] == trial) & strides["kept"]].sort_values("t_start_s")
+    runs: list[list[float]] = []
+    for t0, t1 in zip(kept["t_start_s"], kept["t_end_s"], strict=True):
+        if runs and t0 <= runs[-1][1] + join_gap_s:
+            runs[-1][1] = max(runs[-1][1], t1)
+        else:
+            runs.append([t0, t1])
+    return [(r0 - margin_s, r1 + margin_s) for r0, r1 in runs]

@@ -136,3 +136,36 @@ def harness_figure(harness: pd.DataFrame, title: str) -> Figure:
     fig.suptitle(title)
     fig.tight_layout()
     return fig
+
+
+POLICY_SPM_STYLES = {"real (dataset IK)": ("0.5", "--"), "real (same model)": ("k", "-"),
+                     "policy (rollout means)": ("tab:blue", "-")}
+
+
+def policy_spm_figure(curves_by_joint: dict, results: dict, subject: str) -> Figure:
+    """Free walking of a policy human vs its subject (`evaluate-policy`): mean +- SD of the real
+    curves (dataset IK and retargeted onto the model) and of the rollout means, with the
+    supra-threshold clusters of the primary SPM test shaded."""
+    import numpy as np
+
+    fig, axes = plt.subplots(1, len(curves_by_joint), figsize=(5.5 * len(curves_by_joint), 4.0))
+    for ax, (joint, groups) in zip(np.atleast_1d(axes), curves_by_joint.items(), strict=True):
+        for name, data in groups.items():
+            if data.size == 0:
+                continue
+            colour, ls = POLICY_SPM_STYLES[name]
+            x = np.linspace(0, 100, data.shape[1])
+            m, sd = data.mean(0), data.std(0)
+            ax.plot(x, m, color=colour, ls=ls, label=f"{name} (n={len(data)})")
+            ax.fill_between(x, m - sd, m + sd, color=colour, alpha=0.12)
+        primary = results[joint]["primary"]
+        for c0, c1 in primary.get("clusters_pct", []):
+            ax.axvspan(c0, c1, color="tab:red", alpha=0.15)
+        ax.set_title(f"{joint}: clusters (red) vs real in the model,\nlongest "
+                     f"{primary.get('longest_cluster_pct', float('nan')):.0f} % of the cycle", fontsize=10)
+        ax.set_xlabel("gait cycle (%)")
+        ax.set_ylabel("angle (deg)")
+        ax.legend(fontsize=8)
+    fig.suptitle(f"{subject}: free walking, real vs policy human (SPM anova1, alpha 0.05)")
+    fig.tight_layout()
+    return fig

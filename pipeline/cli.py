@@ -9,27 +9,39 @@ import dataclasses
 import json
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ingest.errors import GaitloopError
-from ingest.process import process_trial
-from pipeline.bench.suite import SECTIONS, run_bench
-from pipeline.commands.quicklook import file_trial, format_events, quicklook_subject
-from pipeline.commands.results import add_results_commands
+from pipeline.bench import SECTIONS
 from pipeline.params import load_params
-from pipeline.paths import BENCH_REPORT, PARAMS_FILE, PROCESSED_ROOT, REPORTS_ROOT, TUNING_REPORT
-from pipeline.stages.ingest import run_ingest
+from pipeline.paths import (
+    BENCH_REPORT,
+    METRICS_ROOT,
+    PARAMS_FILE,
+    PROCESSED_ROOT,
+    REPORTS_ROOT,
+    TUNING_REPORT,
+)
 from pipeline.stages.outputs import json_text, write_json
+
+if TYPE_CHECKING:
+    import pandas
 
 EXIT_ERROR = 2
 
 
 def cmd_ingest(args: argparse.Namespace) -> int:
+    from pipeline.stages.ingest import run_ingest
+
     folder = run_ingest(args.subject, load_params(args.params), args.out_root)
     print(f"wrote {folder}", file=sys.stderr)
     return 0
 
 
 def cmd_events(args: argparse.Namespace) -> int:
+    from ingest.process import process_trial
+    from pipeline.commands.quicklook import file_trial, format_events, quicklook_subject
+
     p = load_params(args.params).ingest.build()
     if args.method:
         p = dataclasses.replace(p, events=dataclasses.replace(p.events, method=args.method))
@@ -49,6 +61,8 @@ def _sections(text: str) -> tuple[str, ...]:
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
+    from pipeline.bench.suite import run_bench
+
     result = run_bench(load_params(args.params), args.repeat, args.only or SECTIONS)
     if args.only and args.out.exists():  # refresh those sections, keep the others' last numbers
         result = {**json.loads(args.out.read_text()), **result}
@@ -95,7 +109,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
     params = load_params(args.params)
     if getattr(args, "human", "replay") == "policy":
-        from pipeline.stages.train import run_simulate_policy
+        from pipeline.stages.simulate import run_simulate_policy
 
         doc = run_simulate_policy(args.subject, params, args.root or PROCESSED_ROOT)
         print(f"{args.subject} policy: falls {doc['falls']}, {doc['conditions']}", file=sys.stderr)
@@ -121,7 +135,7 @@ def cmd_train(args: argparse.Namespace) -> int:
 
 
 def cmd_evaluate_policy(args: argparse.Namespace) -> int:
-    from pipeline.stages.train import evaluate_policy
+    from pipeline.commands.evaluate_policy import evaluate_policy
 
     doc = evaluate_policy(args.subject, load_params(args.params), progress=not args.json)
     if args.out:
@@ -137,6 +151,108 @@ def cmd_render(args: argparse.Namespace) -> int:
                       args.reports or REPORTS_ROOT, args.seed, args.bout)
     print(f"wrote {path}", file=sys.stderr)
     return 0
+
+
+def cmd_metrics(args: argparse.Namespace) -> int:
+    from pipeline.stages.metrics import run_metrics
+
+    folder = run_metrics(args.subject, load_params(args.params), args.root, args.out_root)
+    print(f"wrote {folder}", file=sys.stderr)
+    return 0
+
+
+def cmd_store(args: argparse.Namespace) -> int:
+    from pipeline.stages.store import run_store
+
+    report = run_store(load_params(args.params), args.root, args.db)
+    print(f"store run {report.run_id}: {report.n_groups} groups, {len(report.new_versions)} new versions "
+          f"in {report.seconds:.2f} s", file=sys.stderr)
+    return 0
+
+
+def format_frame(df: pandas.DataFrame, fmt: str) -> str:
+    """A query result as an aligned table, CSV or a JSON list of records."""
+    if fmt == "csv":
+        return df.to_csv(index=False).rstrip("\n")
+    if fmt == "json":
+        return json.dumps(json.loads(df.to_json(orient="records", date_format="iso")), indent=2)
+    return df.to_string(index=False) if not df.empty else f"(no rows; columns: {', '.join(df.columns)})"
+
+
+def cmd_query(args: argparse.Namespace) -> int:
+    from pipeline.store import query
+
+    p = load_params(args.params).store.build()
+    print(format_frame(query(args.db or p.path, args.sql, p.busy_timeout_s), args.format))
+    return 0
+
+
+def cmd_add_subject(args: argparse.Namespace) -> int:
+    from pipeline.commands.add_subject import NewTrial, Registry, add_subject
+
+    registry = Registry(params_path=args.params)
+    trials = [NewTrial.parse(t) for t in args.trial]
+    path = add_subject(args.id, args.height_m, args.mass_kg, args.static, trials, markerset=args.markerset,
+                       up_axis=args.up_axis, knee_flexion_sign=args.knee_flexion_sign, dataset=args.dataset,
+                       registry=registry)
+    print(f"wrote {path} and added {args.id!r} to {args.params}; run `dvc repro`", file=sys.stderr)
+    return 0
+
+
+def cmd_report(args: argparse.Namespace) -> int:
+    from pipeline.stages.report import run_report
+
+    params = load_params(args.params)
+    p = params.store.build()
+    all_subjects = list(params.subjects)
+    subjects = [] if args.summary_only else (args.subjects or all_subjects)
+    written = run_report(subjects, all_subjects, args.db or p.path, args.reports, not args.no_summary,
+                         params.report.build(), p.busy_timeout_s)
+    print("wrote " + ", ".join(str(w) for w in written), file=sys.stderr)
+    return 0
+
+
+def add_results_commands(commands: argparse._SubParsersAction) -> None:
+    metrics = commands.add_parser("metrics", help="compute a subject's metric tables (Tables I-III, SPM)")
+    metrics.add_argument("subject")
+    metrics.add_argument("--root", type=Path, default=PROCESSED_ROOT,
+                         help="inputs: <root>/<subject>/{real,sim}/ (default: %(default)s)")
+    metrics.add_argument("--out-root", type=Path, default=METRICS_ROOT,
+                         help="outputs: <out-root>/<subject>/ (default: %(default)s)")
+    metrics.set_defaults(func=cmd_metrics)
+
+    store = commands.add_parser("store", help="add every subject's metrics to the DuckDB results store")
+    store.add_argument("--root", type=Path, default=METRICS_ROOT,
+                       help="metric tables: <root>/<subject>/ (default: %(default)s)")
+    store.add_argument("--db", type=Path, help="store file (default: params store.path)")
+    store.set_defaults(func=cmd_store)
+
+    q = commands.add_parser("query", help="run SQL on the results store (read-only)")
+    q.add_argument("sql", help='e.g. "select * from paper_table2"')
+    q.add_argument("--format", choices=("table", "csv", "json"), default="table")
+    q.add_argument("--db", type=Path, help="store file (default: params store.path)")
+    q.set_defaults(func=cmd_query)
+
+    rep = commands.add_parser("report", help="write reports/<subject>/report.md, summary.md and index.html")
+    rep.add_argument("subjects", nargs="*", help="subjects to report (default: all in params)")
+    rep.add_argument("--summary-only", action="store_true", help="only reports/summary.md and index.html")
+    rep.add_argument("--no-summary", action="store_true", help="only the per-subject reports")
+    rep.add_argument("--reports", type=Path, default=REPORTS_ROOT, help="output root (default: reports)")
+    rep.add_argument("--db", type=Path, help="store file (default: params store.path)")
+    rep.set_defaults(func=cmd_report)
+
+    add = commands.add_parser("add-subject", help="register a new subject from its raw files")
+    add.add_argument("id", help="new subject id (lower case, digits, _ or -)")
+    add.add_argument("--height-m", type=float, required=True)
+    add.add_argument("--mass-kg", type=float, required=True)
+    add.add_argument("--static", type=Path, required=True, help="static (scaling) marker file")
+    add.add_argument("--trial", action="append", required=True, metavar="COND=MARKERS[,ANGLES[,GRF]]",
+                     help="a walking trial: condition and marker file, optionally IK angles and GRF .mot")
+    add.add_argument("--markerset", help="marker set in data/markersets/ (default: the one that fits)")
+    add.add_argument("--up-axis", choices=("y", "z"), default="z")
+    add.add_argument("--knee-flexion-sign", type=int, choices=(1, -1), default=1)
+    add.add_argument("--dataset", help="dataset label (default: added:<id>)")
+    add.set_defaults(func=cmd_add_subject)
 
 
 def build_parser() -> argparse.ArgumentParser:

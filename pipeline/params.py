@@ -11,9 +11,9 @@ place where that happens: `ingest` -> `IngestParams`, `metrics` -> `MetricsParam
 `StoreParams`, `report` -> `ReportParams`, `retarget` -> `RetargetSection` (IK and reference
 settings), `robot` -> `RobotParams` (and `controller_specs()`), `robot.tuning` -> `TuningParams`,
 `rollout.replay` -> `ReplayParams`, `human` -> `HumanParams`, `train` -> `TrainParams`,
-`evaluate_policy` -> `EvalParams`; `Params.simulate_section()` -> `SimulateSection` (rollout, robot
-and controllers together). The library dataclasses keep defaults equal to params.yaml
-(tests/pipeline/test_params.py checks it).
+`evaluate_policy` -> `EvalParams`; `Params.batch_setup()` -> the rollout batch runner's
+`BatchSetup` (robot, controllers, rollout and ingest settings together). The library dataclasses
+keep defaults equal to params.yaml (tests/pipeline/test_params.py checks it).
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError,
 from ingest.errors import GaitloopError
 from ingest.process import IngestParams
 from metrics import JOINTS, SpmParams
+from metrics.policy_checks import PolicyChecks
 from pipeline.paths import PARAMS_FILE, repo_path
 from pipeline.store import StoreParams
 from sim.body.human_params import HumanParams
@@ -40,9 +41,10 @@ from sim.rollout.tuning import TuningParams
 
 if TYPE_CHECKING:
     from sim.learn.train import TrainParams
+    from sim.rollout.batch import BatchSetup, DriverSource
 
 __all__ = ["PARAMS_FILE", "EvalParams", "MetricsParams", "Params", "ParamsError", "ReportParams",
-           "RetargetSection", "SimulateSection", "load_params", "parse_params"]
+           "RetargetSection", "load_params", "parse_params"]
 
 MAX_REPORTED_ERRORS = 5
 
@@ -96,22 +98,7 @@ class EvalParams:
     push_time_s: float = 5.0
     fall_height_fraction: float = 0.7
     spm_min_real_cycles: int = 5  # fewer real cycles: SPM reported but not judged (too few to test)
-
-
-@dataclass(frozen=True)
-class SimulateSection:
-    """params `rollout` (besides `replay`) with the robot and controllers it uses."""
-
-    conditions: tuple[str, ...]
-    n_seeds: int
-    max_physics_dt_s: float
-    start_offset_m: float
-    bout_margin_s: float
-    lead_in_s: float
-    lead_in_ramp_s: float
-    workers: int
-    robot: RobotParams
-    controllers: dict
+    push_recovery_s: float = 5.0  # the pushed walk goes on this long after the push
 
 
 # -- the schema -----------------------------------------------------------------------------------
@@ -387,6 +374,7 @@ class RolloutSchema(Schema):
     n_seeds: int
     conditions: tuple[str, ...]
     bout_margin_s: float
+    bout_join_gap_s: float
     workers: int
     lead_in_s: float
     lead_in_ramp_s: float
@@ -530,6 +518,21 @@ class TrainSchema(Schema):
         return TrainParams.from_dict(self.model_dump(exclude={"subjects"}))
 
 
+class PolicyChecksSchema(Schema):
+    free_no_fall_fraction: float
+    robot_no_fall_fraction: float
+    push_recovered_fraction: float
+    max_speed_error_pct: float
+    max_stride_error_pct: float
+    max_knee_peak_difference_deg: float
+    swing_start_pct: float
+    spm_alpha: float
+    max_spm_cluster_pct: float
+
+    def build(self) -> PolicyChecks:
+        return PolicyChecks(**self.model_dump())
+
+
 class EvaluatePolicySchema(Schema):
     n_seeds: int
     free_s: float
@@ -539,9 +542,11 @@ class EvaluatePolicySchema(Schema):
     push_time_s: float
     fall_height_fraction: float
     spm_min_real_cycles: int
+    push_recovery_s: float
+    checks: PolicyChecksSchema
 
     def build(self) -> EvalParams:
-        return EvalParams(**self.model_dump())
+        return EvalParams(**self.model_dump(exclude={"checks"}))
 
 
 class Params(Schema):
@@ -578,11 +583,16 @@ class Params(Schema):
         """The file these params were read from."""
         return self._path
 
-    def simulate_section(self) -> SimulateSection:
+    def batch_setup(self, subject: str, markerset: dict[str, str], human_xml: str | Path,
+                    drivers: DriverSource, process: bool = True) -> BatchSetup:
+        """What the rollout batch runner needs for `subject`'s world: robot, controllers, the
+        rollout's physics step and start offset, and the ingest params that process its trials."""
+        from sim.rollout.batch import BatchSetup
+
         r = self.rollout
-        return SimulateSection(r.conditions, r.n_seeds, r.max_physics_dt_s, r.start_offset_m, r.bout_margin_s,
-                               r.lead_in_s, r.lead_in_ramp_s, r.workers, self.robot.build(),
-                               self.robot.controller_specs())
+        return BatchSetup(str(human_xml), subject, dict(markerset), self.robot.build(),
+                          self.robot.controller_specs(), self.ingest.build(), r.max_physics_dt_s,
+                          r.start_offset_m, drivers, process)
 
     def document(self) -> dict[str, Any]:
         """The params as the YAML document they came from: plain JSON types, keys as in params.yaml,

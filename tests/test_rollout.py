@@ -11,8 +11,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from ingest.strides import kept_stride_runs
 from pipeline.params import load_params
-from pipeline.stages.simulate import straight_bouts
 from sim.errors import SimulationError
 from sim.motion.reference import load_reference
 from sim.motion.replay import Motion, ReplayHuman, interpolate_qpos, scripted_fall, with_lead_in
@@ -130,7 +130,7 @@ def test_camargo_replay_bout_is_stable_and_followed(setup, camargo_model):
     ref = load_reference(camargo_model / "reference.npz")
     strides = pd.read_parquet(camargo_model.parent / "real" / "strides.parquet")
     trial = sorted(set(ref.trial.tolist()))[0]
-    (t0, t1), *_ = straight_bouts(strides, trial, 0.0)
+    (t0, t1), *_ = kept_stride_runs(strides, trial, 0.0, 0.3)
     time_s, qpos = ref.motion(trial)
     rows = (time_s >= t0) & (time_s <= t1)
     stride_s = float(strides.loc[strides["kept"], "stride_time_s"].median())

@@ -180,12 +180,14 @@ def test_real_gait_in_the_model_matches_the_dataset_curves(camargo_model):
     dataset's own IK curves (the residual is the model's joint definitions and its virtual markers)."""
     import pandas as pd
 
-    from pipeline.stages.train import curves, real_in_model_cycles, spm_check
+    from ingest.subject import load_subject
+    from metrics.policy_checks import curves, spm_check
+    from sim.rollout.batch import reference_cycles
 
     params = load_params()
     model = mujoco.MjModel.from_xml_path(str(camargo_model / "human.xml"))
-    cycles = real_in_model_cycles(model, load_reference(camargo_model / "reference.npz"), "camargo",
-                                  params.ingest.build())
+    cycles = reference_cycles(model, load_reference(camargo_model / "reference.npz"), "camargo",
+                              load_subject("camargo").markerset, params.ingest.build())
     real = pd.read_parquet(camargo_model.parent / "real" / "cycles.parquet")
     real = real[real["condition"] == "free"]
     for joint in ("hip_flexion", "knee_flexion"):

@@ -8,18 +8,22 @@
   Target >= 0.8 (issue 4). The controller runs at `robot.base.control_rate_hz`, the output at
   `rate_hz` (sim/rollout/loop.py).
 - `realtime_factor`: simulated seconds per wall second of one rollout.
-- `parallel_speedup`: wall time of `n_parallel` rollouts (each with its world build) in sequence
-  over the same rollouts in a 2-process pool (both cores) whose workers have started (a warm-up
-  map first: process start and imports are paid once per `simulate` run, not per rollout).
+- `parallel_speedup`: wall time of `n_parallel` rollouts (each with its world build) run by the
+  batch runner (`sim.rollout.batch`, as `simulate` runs them) in this process, over the same
+  rollouts in its 2-process pool (both cores) whose workers have started (a warm-up map first:
+  process start and imports are paid once per `simulate` run, not per rollout).
 
 The world is the camargo human (data/processed/camargo/model/human.xml) when it exists, else the
-capsule world of sim.motion.synthetic; the human replays the synthetic tuning walk; controller `adaptive`.
+capsule world of sim.motion.synthetic; the human replays the synthetic tuning walk; controller
+`adaptive`.
 """
 
 from __future__ import annotations
 
+import tempfile
 import time
-from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -29,6 +33,7 @@ from pipeline.paths import PROCESSED_ROOT, human_xml
 from sim.motion.replay import Motion, ReplayHuman
 from sim.motion.synthetic import capsule_world, synthetic_walk
 from sim.robot.controllers import make_controller
+from sim.rollout.batch import BatchRunner, RolloutJob
 from sim.rollout.loop import RolloutParams, rollout
 from sim.rollout.world import build_world, robot_info
 
@@ -54,10 +59,18 @@ def _setup(params: Params, rate_hz: float):
     return spec, ReplayHuman(motion, replay), ctrl, RolloutParams(robot=robot, sample_rate_hz=rate_hz), world
 
 
-def _one(args: tuple) -> float:
-    params, rate_hz, seed = args
-    spec, human, ctrl, p, _ = _setup(params, rate_hz)
-    return rollout(spec, human, ctrl, p, seed).wall_s
+@dataclass(frozen=True)
+class SyntheticSource:
+    """The bench's human for the batch runner: the replayed synthetic tuning walk."""
+
+    params: Params
+    rate_hz: float
+
+    def open(self, world: mujoco.MjSpec):
+        from sim.rollout.batch import HumanRun
+
+        _, human, _, _, _ = _setup(self.params, self.rate_hz)
+        return lambda job, seed: HumanRun(ReplayHuman(human.motion, human.p), self.rate_hz)
 
 
 def run_rollout_bench(params: Params, rate_hz: float = 200.0, repeat: int = 9, n_parallel: int = 8) -> dict:
@@ -74,16 +87,20 @@ def run_rollout_bench(params: Params, rate_hz: float = 200.0, repeat: int = 9, n
         walls.append(result.wall_s)
     walls_a, raws_a = np.array(walls), np.array(raws)
     best, raw = float(walls_a.min()), float(raws_a.min())
-    jobs = [(params, rate_hz, s) for s in range(n_parallel)]
-    start = time.perf_counter()
-    for job in jobs:
-        _one(job)
-    sequential = time.perf_counter() - start
-    with ProcessPoolExecutor(max_workers=2) as pool:
-        list(pool.map(_one, jobs[:2]))  # workers started and imports done, as in a long simulate run
+    with tempfile.TemporaryDirectory() as tmp:
+        xml = Path(tmp) / "world.xml"
+        xml.write_text(spec.to_xml())
+        setup = params.batch_setup("bench", {}, xml, SyntheticSource(params, rate_hz), process=False)
+        jobs = [RolloutJob("adaptive", s, f"bench_seed{s}", None) for s in range(n_parallel)]
         start = time.perf_counter()
-        list(pool.map(_one, jobs))
-        parallel = time.perf_counter() - start
+        with BatchRunner(setup, workers=1) as runner:
+            runner.map(jobs)
+        sequential = time.perf_counter() - start
+        with BatchRunner(setup, workers=2) as runner:
+            runner.map(jobs[:2])  # workers started and imports done, as in a long simulate run
+            start = time.perf_counter()
+            runner.map(jobs)
+            parallel = time.perf_counter() - start
     out = {"world": world, "sample_rate_hz": rate_hz, "control_rate_hz": p.control_rate_hz,
            "physics_dt_s": result.physics_dt_s,
            "physics_steps": result.n_physics_steps, "rollout_loop_s": round(best, 4),

@@ -20,6 +20,7 @@ from ingest.canonical import load_trial
 from ingest.manifest import Manifest
 from ingest.process import IngestParams, process_trial
 from ingest.subject import Subject, TrialSpec, load_subject
+from pipeline.bench import SECTIONS
 from pipeline.params import Params
 
 TARGETS = {"camargo_trial_s": 0.2}
@@ -111,9 +112,6 @@ def time_human(params: Params, repeat: int, standing_s: float = 5.0) -> dict:
 def meets(section: dict, targets: dict[str, float]) -> bool:
     """Durations (keys ending in `_s`) are upper bounds; rates and ratios are lower bounds."""
     return all(section[k] <= v if k.endswith("_s") else section[k] >= v for k, v in targets.items())
-
-
-SECTIONS = ("ingest", "retarget", "human", "store", "rollout", "train")
 
 
 def run_ingest_bench(p: IngestParams, repeat: int) -> dict:

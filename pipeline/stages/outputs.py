@@ -50,3 +50,14 @@ def write_json(path: Path, doc: dict) -> None:
     """One JSON document, written all-or-nothing."""
     with replacing(path) as (temp,):
         temp.write_text(json_text(doc))
+
+
+def write_figure(fig, path: Path, dpi: int) -> None:
+    """A matplotlib figure as PNG, written all-or-nothing; the figure is closed."""
+    import matplotlib.pyplot as plt
+
+    try:
+        with replacing(path) as (temp,):
+            fig.savefig(temp, dpi=dpi, format="png")
+    finally:
+        plt.close(fig)

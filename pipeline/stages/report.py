@@ -15,13 +15,12 @@ import html
 import math
 from pathlib import Path
 
-import matplotlib.pyplot as plt
 import pandas as pd
 
 from metrics.plots import group_label, harness_figure, kinematics_figure, spm_figure, tracking_figure
 from pipeline.params import ReportParams
 from pipeline.paths import REPORTS_ROOT, report_dir
-from pipeline.stages.outputs import replacing
+from pipeline.stages.outputs import replacing, write_figure
 from pipeline.store import StoreError, open_store
 
 QUERIES = {
@@ -148,12 +147,6 @@ def _of(df: pd.DataFrame, subject: str) -> pd.DataFrame:
     return df[df["subject"] == subject] if "subject" in df.columns else df.iloc[0:0]
 
 
-def _save(fig, path: Path, dpi: int) -> None:
-    with replacing(path) as (temp,):
-        fig.savefig(temp, dpi=dpi, format="png")
-    plt.close(fig)
-
-
 def subject_report(subject: str, data: dict[str, pd.DataFrame], reports: Path = REPORTS_ROOT,
                    p: ReportParams = ReportParams()) -> Path:
     """Write `reports/<subject>/report.md` and its figures; returns the report path."""
@@ -180,14 +173,15 @@ def subject_report(subject: str, data: dict[str, pd.DataFrame], reports: Path = 
 
     bands = _of(data["kinematics"], subject)
     side = "both" if (bands["side"] == "both").any() else "right"
-    _save(kinematics_figure(bands[bands["side"] == side], f"{subject}: joint kinematics (mean ± SD, "
+    write_figure(kinematics_figure(bands[bands["side"] == side], f"{subject}: joint kinematics (mean ± SD, "
                             f"side {side})"), figs / "kinematics.png", p.dpi)
     lines += ["## Joint kinematics", "", "![kinematics](figures/kinematics.png)", ""]
 
     tests = _of(data["spm_tests"], subject)
     curves = data["spm_curves"][data["spm_curves"]["test_id"].isin(tests["test_id"])]
-    _save(spm_figure(tests, curves, f"{subject}: SPM{{{'F' if (tests['test'] == 'anova1').all() else 't'}}} "
-                     "(alpha 0.05)"), figs / "spm.png", p.dpi)
+    statistic = "F" if (tests["test"] == "anova1").all() else "t"
+    write_figure(spm_figure(tests, curves, f"{subject}: SPM{{{statistic}}} (alpha 0.05)"), figs / "spm.png",
+                 p.dpi)
     clusters = _of(data["clusters"], subject)
     lines += ["## SPM1D", "", "Statistic curves, critical thresholds (dashed) and supra-threshold clusters "
               "(shaded); the paper's one-way ANOVA unless params say `ttest2`.", "",
@@ -207,11 +201,11 @@ def subject_report(subject: str, data: dict[str, pd.DataFrame], reports: Path = 
 
     tracking, harness = _of(data["tracking"], subject), _of(data["harness"], subject)
     if not tracking.empty:
-        _save(tracking_figure(tracking, f"{subject}: tracking (first run per condition)"),
+        write_figure(tracking_figure(tracking, f"{subject}: tracking (first run per condition)"),
               figs / "tracking.png", p.dpi)
         lines += ["## Tracking", "", "![tracking](figures/tracking.png)", ""]
     if not harness.empty:
-        _save(harness_figure(harness, f"{subject}: harness interaction"), figs / "harness.png", p.dpi)
+        write_figure(harness_figure(harness, f"{subject}: harness interaction"), figs / "harness.png", p.dpi)
         lines += ["## Harness force and torque", "", "![harness](figures/harness.png)", ""]
     if tracking.empty and harness.empty:
         lines += ["## Tracking and harness force", "", "No simulated robot runs for this subject yet.", ""]

@@ -23,16 +23,17 @@ import pandas as pd
 from tqdm import tqdm
 
 from ingest.errors import IngestError
-from ingest.process import IngestParams, process_trial
+from ingest.process import IngestParams, ProcessedTrial, process_trial
 from sim.body.markers import trial_from_qpos
 from sim.errors import SimulationError
 from sim.motion.driver import HumanDriver
+from sim.motion.reference import Reference
 from sim.robot.controllers import make_controller
 from sim.robot.controllers.base import Controller
 from sim.robot.controllers.warm_start import WarmStarted
 from sim.robot.mrba import RobotParams
 from sim.rollout.loop import ROBOT_COLUMNS, RolloutParams, RolloutResult, rollout
-from sim.rollout.world import robot_info
+from sim.rollout.world import build_world, robot_info
 
 TABLES = ("events", "strides", "cycles")
 
@@ -96,6 +97,8 @@ class RolloutOutcome:
     tables: dict[str, pd.DataFrame] = field(default_factory=dict)
     skipped: str | None = None
     result: RolloutResult | None = None  # kept only when asked (render): world qpos is large
+    world: mujoco.MjModel | None = None  # the compiled world of `result`, kept with it
+    human: HumanRun | None = None        # the driver that ran, kept with it
 
     @property
     def fell(self) -> bool:
@@ -130,32 +133,55 @@ class Worker:
                           condition=job.condition, trial=job.trial, discard_s=run.discard_s)
         return run, ctrl, p
 
-    def run(self, job: RolloutJob, keep_result: bool = False, model: mujoco.MjModel | None = None
-            ) -> RolloutOutcome:
+    def run(self, job: RolloutJob, keep_result: bool = False) -> RolloutOutcome:
         run, ctrl, p = self.prepare(job)
         human = run.driver
-        result = rollout(self.spec, human, ctrl, p, job.seed, model=model)
+        world = build_world(self.spec, human, p)
+        result = rollout(self.spec, human, ctrl, p, job.seed, model=world)
         human_fall = getattr(human, "fall_time_s", None)
         out = RolloutOutcome(
             job=job, human_mode=human.mode, stable=result.stable, warnings=result.warnings,
             robot_fall_s=result.fall_time_s, human_fall_s=human_fall, wall_s=result.wall_s,
             sim_s=result.n_physics_steps * result.physics_dt_s,
             distance_m=float(result.human_qpos[-1, 0] - result.human_qpos[0, 0]), robot=result.robot,
-            result=result if keep_result else None)
+            result=result if keep_result else None, world=world if keep_result else None,
+            human=run if keep_result else None)
         if not self.setup.process:
             return out
         qpos = result.human_qpos
         if human_fall is not None:  # gait analysis of the walking before the fall only
             qpos = qpos[result.time_s < human_fall]
         try:
-            trial = trial_from_qpos(self.human_model, qpos, run.sample_rate_hz, self.setup.subject,
-                                    job.condition, job.trial, t0_s=run.t0_s)
-            processed = process_trial(trial, self.setup.markerset, self.setup.ingest)
+            processed = process_motion(self.human_model, qpos, run.sample_rate_hz, self.setup.subject,
+                                       job.condition, job.trial, self.setup.markerset, self.setup.ingest,
+                                       t0_s=run.t0_s)
             extra = {"human_mode": human.mode, "seed": job.seed}
             out.tables = {k: getattr(processed, k).assign(**extra) for k in TABLES}
         except (IngestError, SimulationError) as exc:
             out.skipped = str(exc)
         return out
+
+
+def process_motion(model: mujoco.MjModel, qpos: np.ndarray, rate_hz: float, subject: str, condition: str,
+                   trial: str, markerset: dict[str, str], ingest: IngestParams, t0_s: float = 0.0
+                   ) -> ProcessedTrial:
+    """A motion of `model` as a canonical sim `Trial` (virtual markers, joint angles), processed by
+    `ingest.process.process_trial` exactly like a real recording."""
+    sim_trial = trial_from_qpos(model, qpos, rate_hz, subject, condition, trial, t0_s=t0_s)
+    return process_trial(sim_trial, markerset, ingest)
+
+
+def reference_cycles(model: mujoco.MjModel, reference: Reference, subject: str, markerset: dict[str, str],
+                     ingest: IngestParams, condition: str = "free") -> pd.DataFrame:
+    """Cycles of the subject's recorded `condition` trials as retargeted onto `model` and processed
+    like a simulation: the real gait in the model's joint definitions and event detection (the
+    reference a policy human is held to)."""
+    parts = []
+    for trial in sorted(set(reference.trial[reference.condition == condition].tolist())):
+        t, q = reference.motion(trial)
+        parts.append(process_motion(model, q, reference.rate_hz(trial), subject, condition, trial, markerset,
+                                    ingest, t0_s=float(t[0])).cycles)
+    return pd.concat(parts, ignore_index=True) if parts else pd.DataFrame()
 
 
 _WORKER: Worker | None = None
@@ -227,4 +253,4 @@ def sample_rate_hz(time_s: np.ndarray) -> float:
 
 
 __all__ = ["BatchRunner", "BatchSetup", "DriverSource", "HumanRun", "RolloutJob", "RolloutOutcome", "Worker",
-           "batch_tables", "run_batch", "sample_rate_hz"]
+           "batch_tables", "process_motion", "reference_cycles", "run_batch", "sample_rate_hz"]

@@ -52,7 +52,7 @@ def write(tmp_path: Path, document: dict, name: str = "params.yaml") -> Path:
 
 def built(params: Params) -> dict[str, object]:
     """Every dataclass the sections turn into, by name."""
-    retarget, section = params.retarget.build(), params.simulate_section()
+    retarget = params.retarget.build()
     return {
         "IngestParams": params.ingest.build(),
         "MetricsParams": params.metrics.build(),
@@ -66,8 +66,9 @@ def built(params: Params) -> dict[str, object]:
         "HumanParams": params.human.build(),
         "TrainParams": params.train.build(),
         "EvalParams": params.evaluate_policy.build(),
-        "RolloutParams": RolloutParams(robot=section.robot, max_physics_dt_s=section.max_physics_dt_s,
-                                       start_offset_m=section.start_offset_m),
+        "RolloutParams": RolloutParams(robot=params.robot.build(),
+                                       max_physics_dt_s=params.rollout.max_physics_dt_s,
+                                       start_offset_m=params.rollout.start_offset_m),
     }
 
 
