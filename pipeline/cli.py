@@ -187,6 +187,18 @@ def cmd_query(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_compare_stores(args: argparse.Namespace) -> int:
+    from pipeline.store import compare_views
+
+    doc = compare_views(args.before, args.after, rtol=args.rtol)
+    for view, d in doc.items():
+        verdict = "equal" if d["equal"] else "DIFFERENT"
+        print(f"{view}: {verdict} ({d['rows_before']} / {d['rows_after']} rows, max relative difference "
+              f"{d['max_relative_difference']:.1e})", file=sys.stderr)
+    print(json_text(doc), end="")
+    return 0 if all(d["equal"] for d in doc.values()) else 1
+
+
 def cmd_add_subject(args: argparse.Namespace) -> int:
     from pipeline.commands.add_subject import NewTrial, Registry, add_subject
 
@@ -232,6 +244,13 @@ def add_results_commands(commands: argparse._SubParsersAction) -> None:
     q.add_argument("--format", choices=("table", "csv", "json"), default="table")
     q.add_argument("--db", type=Path, help="store file (default: params store.path)")
     q.set_defaults(func=cmd_query)
+
+    cmp = commands.add_parser("compare-stores", help="are two results stores' paper tables, SPM clusters and "
+                              "harness table equal? (exit 1 when not)")
+    cmp.add_argument("before", type=Path)
+    cmp.add_argument("after", type=Path)
+    cmp.add_argument("--rtol", type=float, default=1e-9, help="relative tolerance (default: %(default)s)")
+    cmp.set_defaults(func=cmd_compare_stores)
 
     rep = commands.add_parser("report", help="write reports/<subject>/report.md, summary.md and index.html")
     rep.add_argument("subjects", nargs="*", help="subjects to report (default: all in params)")
