@@ -4,7 +4,10 @@
 model configurations (`sim.motion.retarget`), their velocities and a per-frame gait phase.
 `periodic_cycle` averages the kept steady strides into one periodic stride for policy training
 (the imitation target of an adversarial motion prior, Peng et al. 2021), and `Reference` is what
-`reference.npz` holds. Everything here is a pure function of arrays and a MuJoCo model.
+`reference.npz` holds. `fit_metrics` and `cycle_summary` measure how well the retargeted trials and
+the cycle reproduce the recording (marker fit, joint angles against the real `.mot` angles, stride
+length and speed against the real strides): the `reference` stage's metrics file. Everything here
+is a pure function of arrays and a MuJoCo model.
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ import pandas as pd
 
 from ingest.filtering import lowpass
 from ingest.process import ProcessedTrial
+from ingest.trial import JOINTS, SIDES
 from sim.errors import SimulationError
 from sim.motion.retarget import ROOT_JOINT, MarkerFit, RetargetParams, joint_angles, retarget
 
@@ -275,6 +279,78 @@ def cycle_from_trials(model: mujoco.MjModel, trials: list[RetargetedTrial], stri
     cycle = periodic_cycle(model, segments, p.cycle_samples, p.cycle_side)
     return (floor_aligned(model, cycle) if p.floor_align else cycle), used
 
+
+
+# -- fit metrics: the retargeted motion against the recording --------------------------------------
+
+def angle_errors(model: mujoco.MjModel, trial: RetargetedTrial,
+                 real: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Per-frame retargeted-minus-real sagittal angles (deg) for hip, knee, ankle of both sides."""
+    sim = joint_angles(model, trial.qpos)
+    return {f"{j}_{s}": sim[f"{j}_{s}"] - real[f"{j}_{s}"]
+            for j in JOINTS for s in SIDES if f"{j}_{s}" in sim and f"{j}_{s}" in real}
+
+
+def _rms(x: np.ndarray) -> float:
+    x = x[np.isfinite(x)]
+    return float(np.sqrt(np.mean(x ** 2))) if len(x) else float("nan")
+
+
+def angle_summary(errors: dict[str, list[np.ndarray]]) -> dict[str, dict[str, float]]:
+    """Per joint: RMS of the raw difference, the constant offset (mean difference, e.g. differing
+    neutral-pose definitions) and the RMS once that offset is removed."""
+    out = {}
+    for name, parts in errors.items():
+        e = np.concatenate(parts)
+        offset = float(np.nanmean(e))
+        out[name] = {"rms_deg": round(_rms(e), 3), "offset_deg": round(offset, 3),
+                     "rms_offset_removed_deg": round(_rms(e - offset), 3)}
+    return out
+
+
+def fit_metrics(subject_id: str, model: mujoco.MjModel, trials: list[RetargetedTrial],
+                real: dict[str, dict[str, np.ndarray]], main_condition: str) -> dict:
+    """Marker and angle fit per trial and pooled over the trials of `main_condition`; `real` holds
+    each trial's recorded angles by trial id."""
+    per_trial, pooled_err, pooled_rms = {}, {}, []
+    n_frames = sum(len(t.time_s) for t in trials)
+    for t in trials:
+        errs = angle_errors(model, t, real[t.trial])
+        per_trial[t.trial] = {
+            "condition": t.condition, "n_frames": len(t.time_s),
+            "marker_rms_m": round(t.fit.overall_rms_m, 5),
+            "marker_rms_max_frame_m": round(float(np.nanmax(t.fit.rms_m)), 5),
+            "markers_rms_m": {n: round(float(v), 5) for n, v in zip(t.fit.marker_names, t.fit.marker_rms_m,
+                                                                  strict=True)},
+            "angles": angle_summary({k: [v] for k, v in errs.items()}),
+        }
+        if t.condition == main_condition:
+            pooled_rms.append(t.fit.rms_m)
+            for k, v in errs.items():
+                pooled_err.setdefault(k, []).append(v)
+    ik_s = sum(t.ik_s for t in trials)
+    rms = np.concatenate(pooled_rms)
+    return {
+        "subject": subject_id, "condition": main_condition, "n_frames": n_frames,
+        "ik_frames_per_s": round(n_frames / ik_s, 1),
+        "marker_rms_m": round(float(np.sqrt(np.nanmean(rms ** 2))), 5),
+        "angles": angle_summary(pooled_err),
+        "trials": per_trial,
+    }
+
+
+def cycle_summary(cycle: ReferenceCycle, used: pd.DataFrame) -> dict:
+    """The periodic cycle's stride length and speed against the real strides it was built from."""
+    real_length = float(used["stride_length_m"].mean())
+    real_speed = float(used["gait_speed_mps"].mean())
+    return {
+        "n_strides": cycle.n_strides, "side": cycle.side, "period_s": round(cycle.period_s, 4),
+        "floor_shift_m": round(cycle.floor_shift_m, 4),
+        "stride_length_m": round(cycle.stride_length_m, 4), "speed_mps": round(cycle.speed_mps, 4),
+        "real_stride_length_m": round(real_length, 4), "real_speed_mps": round(real_speed, 4),
+        "stride_length_rel_error": round(cycle.stride_length_m / real_length - 1, 4),
+        "speed_rel_error": round(cycle.speed_mps / real_speed - 1, 4),
+    }
 
 @dataclass(frozen=True)
 class Reference:

@@ -35,11 +35,6 @@ from sim.rollout.loop import RolloutParams
 NOT_COMPARED = {"TuningParams.walks"}
 
 
-@pytest.fixture(scope="module")
-def params() -> Params:
-    return load_params()
-
-
 def doc() -> dict:
     return yaml.safe_load(PARAMS_FILE.read_text())
 
@@ -186,3 +181,16 @@ def test_paths_build_the_documented_layout(params):
     assert repo_path("/abs/x.duckdb") == Path("/abs/x.duckdb")
     assert repo_relative(REPORTS_ROOT / "s" / "a.png") == "reports/s/a.png"
     assert repo_relative(Path("/elsewhere/a.png")) == "/elsewhere/a.png"
+
+
+def test_retarget_params_reject_unknown_keys():
+    section = load_params().retarget.build()
+    assert section.reference.conditions == ("free",) and section.ik.iterations >= 1
+    doc = yaml.safe_load(PARAMS_FILE.read_text())
+    retarget = doc["retarget"]
+    with pytest.raises(ParamsError, match=r"params\.yaml: retarget: unknown key 'cycle_sample'$"):
+        parse_params({**doc, "retarget": {**retarget, "cycle_sample": 10}})
+    with pytest.raises(ParamsError, match=r"params\.yaml: retarget\.ik: unknown key 'iteration'$"):
+        parse_params({**doc, "retarget": {**retarget, "ik": {**retarget["ik"], "iteration": 3}}})
+    with pytest.raises(ParamsError, match=r"params\.yaml: missing section 'retarget'$"):
+        parse_params({k: v for k, v in doc.items() if k != "retarget"})

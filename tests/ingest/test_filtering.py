@@ -9,7 +9,7 @@ import pytest
 from ingest.filtering import lowpass, magnitude_response
 from ingest.readers import read_trc
 
-SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+SHARED = Path(__file__).resolve().parents[2].parent / "shared" / "data"
 RATE_HZ = 200.0
 
 

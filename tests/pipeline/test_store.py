@@ -16,7 +16,7 @@ from pipeline.stages.metrics import run_metrics
 from pipeline.stages.store import load_results
 from pipeline.store import StoreError, StoreParams, open_store, query, store_results
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SUBJECTS = ("camargo", "opencap4")
 FAST = StoreParams(busy_timeout_s=1.0, retry_interval_s=0.05)
 

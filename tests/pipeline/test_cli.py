@@ -11,7 +11,7 @@ import pytest
 
 from pipeline.cli import main
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 DATA = Path(os.environ.get("GAITLOOP_MIRROR", ROOT.parent / "shared" / "data"))
 CAMARGO_TRC = DATA / "camargo2021_levelground" / "MarkerData" / "levelground_ccw_fast_01_01.trc"
 ID_COLUMNS = ["subject", "source", "condition", "trial"]

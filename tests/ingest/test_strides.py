@@ -10,7 +10,7 @@ from ingest.manifest import Manifest
 from ingest.process import IngestParams, process_subject
 from ingest.subject import load_subject
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")

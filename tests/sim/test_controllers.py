@@ -6,7 +6,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pipeline.params import load_params
 from sim.errors import SimulationError
 from sim.motion.replay import ReplayHuman
 from sim.motion.synthetic import WalkParams, capsule_world, synthetic_walk
@@ -49,8 +48,7 @@ class RecordingAdaptive(Adaptive):
 
 
 @pytest.fixture(scope="module")
-def setup():
-    params = load_params()
+def setup(params):
     return params.robot.build(), params.rollout.replay.build(), params.robot.controller_specs()
 
 
@@ -70,7 +68,7 @@ def test_registry_by_name_and_import_path():
     assert resolve("feedforward_p") is FeedForwardP
 
 
-def test_registry_errors_name_the_controller():
+def test_registry_errors_name_the_controller(params):
     with pytest.raises(SimulationError, match="controller 'nope': unknown"):
         resolve("nope")
     with pytest.raises(SimulationError, match="cannot import"):
@@ -78,12 +76,12 @@ def test_registry_errors_name_the_controller():
     with pytest.raises(SimulationError, match="not a Controller subclass"):
         resolve("numpy:ndarray")
     with pytest.raises(SimulationError, match="lacks 'class'"):
-        make_controller({"gains": {}}, robot_info(load_params().robot.build(), 100.0))
+        make_controller({"gains": {}}, robot_info(params.robot.build(), 100.0))
 
 
-def test_pid_signs():
+def test_pid_signs(params):
     pid = PID({"kp_x": 2, "ki_x": 0, "kd_x": 0, "kp_y": 3, "ki_y": 0, "kd_y": 0}, robot_info(
-        load_params().robot.build(), 100.0))
+        params.robot.build(), 100.0))
     pid.reset()
     s = RobotSensors(0.0, np.array([0.1, -0.05, 0]), np.zeros(3), np.zeros(3), 0.0, 0.0)
     cmd = pid.step(s)

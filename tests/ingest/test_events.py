@@ -21,7 +21,7 @@ from ingest.process import IngestParams, process_trial
 from ingest.readers import read_mot, read_trc
 from ingest.subject import load_subject
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 WALKING_SPEED_MPS = 1.0  # forward walking: within 1 s of the pelvis moving faster than this
 
 

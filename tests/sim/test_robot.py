@@ -6,7 +6,6 @@ import mujoco
 import numpy as np
 import pytest
 
-from pipeline.params import load_params
 from sim.motion.synthetic import capsule_world
 from sim.robot.harness import AXES, HarnessIndex, harness_wrench, wrench_from_sensors
 from sim.robot.mrba import SENSOR_WIDTH, SENSORS, BaseDrive, RobotIndex, attach_robot, lock_arm
@@ -15,8 +14,8 @@ MASS_KG = 75.0
 
 
 @pytest.fixture(scope="module")
-def robot():
-    return load_params().robot.build()
+def robot(params):
+    return params.robot.build()
 
 
 def world(robot, gravity: bool = True):

@@ -13,7 +13,7 @@ from ingest.manifest import Manifest
 from ingest.process import IngestParams, clean_markers, landmarks, process_trial, trial_path
 from ingest.subject import load_subject
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 PARAMS = IngestParams.from_dict(yaml.safe_load((ROOT / "params.yaml").read_text())["ingest"])
 
 

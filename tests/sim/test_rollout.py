@@ -12,7 +12,6 @@ import pandas as pd
 import pytest
 
 from ingest.strides import kept_stride_runs
-from pipeline.params import load_params
 from sim.errors import SimulationError
 from sim.motion.reference import load_reference
 from sim.motion.replay import Motion, ReplayHuman, interpolate_qpos, scripted_fall, with_lead_in
@@ -25,8 +24,7 @@ WALK = WalkParams(duration_s=6.0)
 
 
 @pytest.fixture(scope="module")
-def setup():
-    params = load_params()
+def setup(params):
     fall = params.rollout.fall_test
     return params.robot.build(), params.rollout.replay.build(), params.robot.controller_specs(), fall
 
@@ -154,20 +152,3 @@ def test_lead_in_starts_at_rest_and_joins_the_bout():
     k = np.searchsorted(t, 0.0)
     assert abs(x[k] - x[k - 1]) < 0.03  # continuous at the bout start (one 10 ms sample at ~1.2 m/s)
     np.testing.assert_array_equal(led.qpos[k:], walk.qpos)
-
-
-def test_camargo_simulate_reproduces_the_paper_table1_ordering(camargo_model, tmp_path):
-    """`simulate camargo` (replay human, straight bouts, every seed): the adaptive controller has
-    lower mean |e_x|, mean |e_y| and harness force RMS than the PID (ICRA 2025 Table I), both tuned
-    by the same procedure on synthetic walks only; no rollout unstable or warned, no fall."""
-    from pipeline.stages.simulate import run_simulate
-
-    root = camargo_model.parent.parent
-    doc = run_simulate("camargo", load_params(), root, tmp_path, progress=False)
-    assert doc["unstable"] == 0 and doc["warnings"] == []
-    pid, adaptive = doc["conditions"]["pid"], doc["conditions"]["adaptive"]
-    assert pid["falls"] == adaptive["falls"] == 0
-    for key in ("mean_abs_e_x_cm", "mean_abs_e_y_cm", "harness_force_rms_n"):
-        assert adaptive[key] < pid[key], key
-    assert 1.0 < pid["mean_abs_e_x_cm"] < 15.0
-    assert (tmp_path / "camargo" / "robot_tracking.png").stat().st_size > 10_000

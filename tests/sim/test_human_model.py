@@ -18,7 +18,6 @@ from ingest.process import landmarks, process_trial
 from ingest.readers import read_markers
 from ingest.static import read_static_trial, scaling_roles
 from ingest.subject import load_subject
-from pipeline.params import load_params
 from sim.body.human import (
     FOOT_BIT,
     actuator_dofs,
@@ -38,8 +37,9 @@ SUBJECTS = {"camargo": (74.8, 1.80), "opencap4": (62.6, 1.68)}
 
 
 @pytest.fixture(scope="module")
-def params():
-    return load_params().human.build()
+def hp(params):
+    """The `human` section: scaling and model parameters."""
+    return params.human.build()
 
 
 @pytest.fixture(scope="module")
@@ -48,12 +48,12 @@ def manifest():
 
 
 @pytest.fixture(scope="module", params=sorted(SUBJECTS))
-def human(request, params, manifest, tmp_path_factory):
+def human(request, hp, manifest, tmp_path_factory):
     """(subject, body, model) with the model reloaded from its saved MJCF, as the stage writes it."""
     subject = load_subject(request.param)
-    body = scale_subject(subject, read_static_trial(subject, manifest), params)
+    body = scale_subject(subject, read_static_trial(subject, manifest), hp)
     path = tmp_path_factory.mktemp(request.param) / "human.xml"
-    path.write_text(build_human(body, params).to_xml())
+    path.write_text(build_human(body, hp).to_xml())
     return subject, body, load_human_model(path)
 
 
@@ -64,7 +64,7 @@ def static_data(model):
     return data
 
 
-def test_dof_motor_and_body_layout(human):
+def test_dof_motor_and_body_layout(human, hp):
     subject, _, model = human
     assert (model.nv, model.nu, model.nq) == (27, 21, 33)
     assert model.joint("root").type[0] == mujoco.mjtJoint.mjJNT_FREE
@@ -79,7 +79,7 @@ def test_dof_motor_and_body_layout(human):
     dofs, gears = actuator_dofs(model)
     assert sorted(dofs) == list(range(6, 27))  # one motor per actuated DoF
     assert np.all(model.actuator_ctrlrange == [-1, 1])
-    limits = load_params().human.build().torque_limit_nm_per_kg
+    limits = hp.torque_limit_nm_per_kg
     assert gears[list(dofs).index(model.joint("knee_l").dofadr[0])] == pytest.approx(
         limits["knee"] * subject.mass_kg, rel=1e-5)
     assert gears[list(dofs).index(model.joint("hip_r").dofadr[0] + 1)] == pytest.approx(
@@ -110,7 +110,7 @@ def test_standing_height_within_two_percent(human):
     assert abs(standing_height(model, upright) / subject.height_m - 1) < 0.02
 
 
-def raw_joint_centres(subject, manifest, params) -> dict[str, np.ndarray]:
+def raw_joint_centres(subject, manifest, hp) -> dict[str, np.ndarray]:
     """Hip (Harrington 2007), knee and ankle centres straight from the static file, lab frame."""
     table = read_markers(manifest.resolve(subject.static.markers))
     xyz = up_to_z(table.xyz_m, subject.format.up_axis)
@@ -124,7 +124,7 @@ def raw_joint_centres(subject, manifest, params) -> dict[str, np.ndarray]:
     out = {"hip_l": hjc["left"][0], "hip_r": hjc["right"][0]}
     left = (m["asis_left"] - m["asis_right"]) / np.linalg.norm(m["asis_left"] - m["asis_right"])
     for s, side, sign in (("l", "left", 1.0), ("r", "right", -1.0)):
-        widths = {"knee": params.knee_width_per_height, "ankle": params.ankle_width_per_height}
+        widths = {"knee": hp.knee_width_per_height, "ankle": hp.ankle_width_per_height}
         for joint, width in widths.items():
             if f"{joint}_medial_{side}" in m:
                 out[f"{joint}_{s}"] = (m[f"{joint}_{side}"] + m[f"{joint}_medial_{side}"]) / 2
@@ -133,9 +133,9 @@ def raw_joint_centres(subject, manifest, params) -> dict[str, np.ndarray]:
     return out
 
 
-def test_thigh_and_shank_match_static_joint_centres(human, manifest, params):
+def test_thigh_and_shank_match_static_joint_centres(human, manifest, hp):
     subject, _, model = human
-    jc = raw_joint_centres(subject, manifest, params)
+    jc = raw_joint_centres(subject, manifest, hp)
     data = static_data(model)
     for s in "lr":
         pos = {b: data.xpos[model.body(f"{b}_{s}").id] for b in ("thigh", "shank", "foot")}
@@ -192,7 +192,7 @@ def test_upright_at_qpos0_feet_flat_in_the_static_pose(human):
     assert np.abs(bottoms).max() < 0.01  # flat on the floor to within 1 cm
 
 
-def test_static_pose_joint_angles_equal_the_static_ik(human, params):
+def test_static_pose_joint_angles_equal_the_static_ik(human, hp):
     """Static calibration (`human.neutral: static_ik`): the model's joint angles in its static pose
     are the dataset's own IK angles of that pose (opencap4: static1_ik.mot; camargo: the median of
     the walking IK over the quiet-standing window), read here independently of sim.body.scaling. The
@@ -218,7 +218,7 @@ def test_static_pose_joint_angles_equal_the_static_ik(human, params):
         if name.startswith("ankle"):
             continue
         assert sim[name][0] == pytest.approx(np.median(real[name][keep]), abs=1e-3), name
-    share = float(np.dot(params.subtalar_axis, params.talocrural_axis))
+    share = float(np.dot(hp.subtalar_axis, hp.talocrural_axis))
     assert share == pytest.approx(-0.31, abs=0.01)
     for s, side in (("l", "left"), ("r", "right")):
         subtalar = np.degrees(np.median(mot.table[f"subtalar_angle_{s}"].to_numpy(float)[keep]))  # radians
@@ -230,11 +230,11 @@ def test_static_pose_joint_angles_equal_the_static_ik(human, params):
         axis = data.xaxis[model.joint(f"knee_{s}").id]
         assert abs(axis[1]) > np.cos(np.radians(25)), (s, axis)  # medial-lateral, pointing left
         assert axis[1] > 0
-def test_stands_five_seconds_on_both_feet_with_body_weight(human, params):
+def test_stands_five_seconds_on_both_feet_with_body_weight(human, hp):
     subject, _, model = human
     data = static_data(model)
     qref = data.qpos.copy()
-    kp, kd = pose_hold_gains(model, params)
+    kp, kd = pose_hold_gains(model, hp)
     n = round(5.0 / model.opt.timestep)
     last = round(1.0 / model.opt.timestep)
     floor = model.geom("floor").id
@@ -292,16 +292,16 @@ def test_calcaneus_angle_is_the_twist_about_the_talocrural_axis():
     assert abs(calcaneus_dorsiflexion_deg(5.0, 10.0, h, side / np.linalg.norm(side)) - 5.0) < 0.2
 
 
-def test_errors_name_the_problem(params, manifest, tmp_path):
+def test_errors_name_the_problem(hp, manifest, tmp_path):
     subject = load_subject("opencap4")
     with pytest.raises(SubjectError, match="no static trial"):
         read_static_trial(dataclasses.replace(subject, static=None), manifest)
     static = read_static_trial(subject, manifest)
     with pytest.raises(ScalingError, match="unknown anthropometry table 'nope'"):
-        scale_subject(subject, static, dataclasses.replace(params, anthropometry="nope"))
+        scale_subject(subject, static, dataclasses.replace(hp, anthropometry="nope"))
     missing = dataclasses.replace(subject, markerset={**subject.markerset, "heel_left": "NoSuchMarker"})
     with pytest.raises(ScalingError, match=r"heel_left \(NoSuchMarker\)"):
-        scale_subject(missing, read_static_trial(missing, manifest), params)
+        scale_subject(missing, read_static_trial(missing, manifest), hp)
     with pytest.raises(SimulationError, match="no human model here"):
         load_human_model(tmp_path / "absent.xml")
     bad = tmp_path / "bad.xml"
@@ -310,17 +310,16 @@ def test_errors_name_the_problem(params, manifest, tmp_path):
         load_human_model(bad)
 
 
-def test_retargeted_walk_runs_through_ingest_like_the_recording(params, manifest):
+def test_retargeted_walk_runs_through_ingest_like_the_recording(params, hp, manifest):
     """opencap4 walking1: real markers -> marker IK on the model -> virtual-marker Trial ->
     `process_trial`: the same kinematic gait events (within 40 ms) and stride length (3 cm)."""
-    all_params = load_params()
-    ip = all_params.ingest.build()
+    ip = params.ingest.build()
     ip = dataclasses.replace(ip, events=dataclasses.replace(ip.events, method="kinematic"))
     subject = load_subject("opencap4")
-    body = scale_subject(subject, read_static_trial(subject, manifest), params)
-    model = build_human(body, params).compile()
+    body = scale_subject(subject, read_static_trial(subject, manifest), hp)
+    model = build_human(body, hp).compile()
     real = process_trial(load_trial(subject, subject.trials[0], manifest), subject.markerset, ip)
-    fit = retarget(model, real.trial.markers, all_params.retarget.build().ik)
+    fit = retarget(model, real.trial.markers, params.retarget.build().ik)
     trial = trial_from_qpos(model, fit.qpos, real.trial.rate_hz, subject.id, "free", "walking1",
                             t0_s=real.trial.time_s[0])
     sim = process_trial(trial, subject.markerset, ip)
@@ -337,21 +336,21 @@ def test_retargeted_walk_runs_through_ingest_like_the_recording(params, manifest
     assert (sim.cycles["source"] == "sim").all()
 
 
-def test_lower_body_marker_set_falls_back_to_ratios(params, manifest):
+def test_lower_body_marker_set_falls_back_to_ratios(hp, manifest):
     """opencap4 with only its main (lower-body landmark) marker set: knee and ankle centres from
     the lateral markers land within 2 cm of the lateral-medial midpoints (the width ratio is
     opencap4's own, so this checks the medial direction), trunk and arms from stature ratios, and
     the model keeps its layout, mass and height."""
     subject = load_subject("opencap4")
     static = read_static_trial(subject, manifest)
-    full = scale_subject(subject, static, params)
-    lower = scale_subject(subject, dataclasses.replace(static, roles=dict(subject.markerset)), params)
+    full = scale_subject(subject, static, hp)
+    lower = scale_subject(subject, dataclasses.replace(static, roles=dict(subject.markerset)), hp)
     for joint in ("knee_l", "knee_r", "ankle_l", "ankle_r"):
         assert full.length_sources[joint] == "markers"
         assert lower.length_sources[joint] == "lateral marker + width ratio"
         assert np.linalg.norm(full.joint_centres[joint] - lower.joint_centres[joint]) < 0.02
     assert lower.length_sources["neck"] == lower.length_sources["elbow_l"] == "height ratio"
-    model = build_human(lower, params).compile()
+    model = build_human(lower, hp).compile()
     assert (model.nv, model.nu) == (27, 21)
     assert model.body_mass.sum() == pytest.approx(subject.mass_kg, rel=1e-6)
     assert standing_height(model, static_data(model)) == pytest.approx(subject.height_m, abs=0.005)

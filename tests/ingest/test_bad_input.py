@@ -21,7 +21,7 @@ from ingest.manifest import Manifest, Source, sha256_of
 from ingest.process import IngestParams, process_subject, process_trial
 from ingest.subject import FileFormat, Subject, TrialSpec, load_subject
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 CAMARGO_TRC = "camargo2021_levelground/MarkerData/levelground_ccw_fast_01_01.trc"
 CAMARGO_MOT = "camargo2021_levelground/IK/levelground_ccw_fast_01_01_ik.mot"
 UNREACHABLE_URL = "http://127.0.0.1:9/gaitloop-missing"  # refused at once: no network wait

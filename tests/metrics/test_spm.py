@@ -10,7 +10,6 @@ from ingest.process import process_subject
 from ingest.subject import load_subject
 from metrics import SpmParams, spm_tables, spm_test
 from metrics.errors import MetricsError
-from pipeline.params import load_params
 
 
 def test_anova1_matches_spm1d_on_weather_dataset():
@@ -54,9 +53,9 @@ def test_too_few_cycles_and_identical_curves_are_skipped_not_raised():
 
 
 @pytest.fixture(scope="module")
-def opencap4_cycles() -> pd.DataFrame:
+def opencap4_cycles(params) -> pd.DataFrame:
     t = process_subject(
-        load_subject("opencap4"), Manifest.load(), load_params().ingest.build(), progress=False
+        load_subject("opencap4"), Manifest.load(), params.ingest.build(), progress=False
     )
     return t.cycles
 

@@ -17,7 +17,7 @@ from ingest.process import IngestParams, process_trial
 from ingest.readers import read_c3d, read_csv, read_markers, read_mot, read_trc
 from ingest.subject import FileFormat, TrialSpec, load_subject
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 CAMARGO_TRC = "camargo2021_levelground/MarkerData/levelground_ccw_fast_01_01.trc"
 CAMARGO_MOT = "camargo2021_levelground/IK/levelground_ccw_fast_01_01_ik.mot"
 OPENCAP_STATIC = "opencap_labval_subject4/MarkerData/static1.trc"

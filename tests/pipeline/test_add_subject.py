@@ -14,7 +14,7 @@ from ingest.subject import load_subject
 from pipeline.cli import main
 from pipeline.commands.add_subject import NewTrial, Registry, add_subject
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 DATA = Path(os.environ.get("GAITLOOP_MIRROR", ROOT.parent / "shared" / "data"))
 OC = DATA / "opencap_labval_subject4"
 

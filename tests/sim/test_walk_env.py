@@ -13,8 +13,6 @@ import pytest
 import torch
 from gymnasium.utils.env_checker import check_env
 
-from pipeline.params import load_params
-from pipeline.paths import POLICIES_ROOT, policy_dir
 from sim.body.human_params import joint_kind
 from sim.learn.amp import AMP, style_reward
 from sim.learn.policy_human import PolicyHuman
@@ -25,8 +23,7 @@ from sim.rollout.loop import RolloutParams, rollout
 
 
 @pytest.fixture(scope="module")
-def setup(camargo_model):
-    params = load_params()
+def setup(params, camargo_model):
     tp, ev = params.train.build(), params.evaluate_policy.build()
     cycle = load_reference(camargo_model / "reference.npz").cycle
     return params, tp, ev, cycle
@@ -132,10 +129,10 @@ def test_short_training_run_checkpoints_and_resumes(tmp_path, setup, camargo_mod
 
 
 @pytest.mark.parametrize("subject", ["camargo", "opencap4"])
-def test_committed_policy_walks_through_the_rollout_engine(setup, subject):
+def test_committed_policy_walks_through_the_rollout_engine(setup, policies_root, subject):
     """Each example subject's committed policy walks 3 s on the body it was trained on."""
     params, tp, _, _ = setup
-    folder = policy_dir(POLICIES_ROOT, subject)
+    folder = policies_root / subject
     model, norm = load_policy(folder)
     body, cycle = load_body(folder)  # the body the policy was trained on
     env = make_walk_env(body, cycle, tp.env)
@@ -174,7 +171,7 @@ def test_training_can_start_from_another_subjects_policy(tmp_path, setup, camarg
               init_from=tmp_path / "missing")
 
 
-def test_real_gait_in_the_model_matches_the_dataset_curves(camargo_model):
+def test_real_gait_in_the_model_matches_the_dataset_curves(params, camargo_model):
     """The SPM reference of evaluate-policy: camargo's free walking retargeted onto its model and
     processed like a simulation gives about as many cycles as the real recording, close to the
     dataset's own IK curves (the residual is the model's joint definitions and its virtual markers)."""
@@ -184,7 +181,6 @@ def test_real_gait_in_the_model_matches_the_dataset_curves(camargo_model):
     from metrics.policy_checks import curves, spm_check
     from sim.rollout.batch import reference_cycles
 
-    params = load_params()
     model = mujoco.MjModel.from_xml_path(str(camargo_model / "human.xml"))
     cycles = reference_cycles(model, load_reference(camargo_model / "reference.npz"), "camargo",
                               load_subject("camargo").markerset, params.ingest.build())

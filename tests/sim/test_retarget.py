@@ -3,7 +3,8 @@
 Solver tests run on a small MjSpec body (free root, ball hips, hinge knees) built here; the
 must-show tests retarget the real subjects onto their scaled models (camargo: a 2-s slice of the
 free-walking trial; opencap4: one free walk) and compare with the recorded markers and `.mot`
-angles.
+angles (the fit metrics of sim.motion.reference). The `reference` stage that writes them:
+tests/pipeline/test_reference_stage.py.
 """
 
 from __future__ import annotations
@@ -216,19 +217,17 @@ SLICES = {"camargo": ("levelground_ccw_fast_01_01", (5.0, 7.0)), "opencap4": ("w
 
 
 @pytest.fixture(scope="module", params=sorted(SLICES))
-def real_fit(request):
+def real_fit(request, params):
     """(model, retargeted trial, processed trial, kept strides) of one real subject's free walk."""
     from ingest.canonical import load_trial
     from ingest.manifest import Manifest
     from ingest.process import process_trial
     from ingest.static import read_static_trial
     from ingest.subject import load_subject
-    from pipeline.params import load_params
     from sim.body.human import build_human
     from sim.body.scaling import scale_subject
     from sim.motion.reference import retarget_trial
 
-    params = load_params()
     hp = params.human.build()
     section = params.retarget.build()
     manifest = Manifest.load()
@@ -256,7 +255,7 @@ def test_real_walk_sagittal_angles_match_the_mot_angles(real_fit):
     OpenSim model share their zeros (the model's ankle hinge carries the calcaneus, so its static
     angle includes the static subtalar angle's share; without that share opencap4's ankle, whose
     static subtalar angle is -13 to -15 deg, is off by about -7 deg when walking)."""
-    from pipeline.stages.reference import angle_errors, angle_summary
+    from sim.motion.reference import angle_errors, angle_summary
 
     subject, model, rt, processed, _ = real_fit
     real = processed.trial.angles
@@ -278,7 +277,7 @@ def test_real_walk_sagittal_angles_match_the_mot_angles(real_fit):
         assert np.sqrt(np.nanmean((thigh_sim - thigh_real) ** 2)) <= MAX_ANGLE_RMS_DEG, (subject, side)
 
 
-def test_real_walk_periodic_cycle_matches_the_kept_strides(real_fit):
+def test_real_walk_periodic_cycle_matches_the_kept_strides(real_fit, params):
     from sim.motion.reference import cycle_from_trials, left_right_shift, lowest_foot_z
 
     subject, model, rt, processed, p = real_fit
@@ -287,10 +286,8 @@ def test_real_walk_periodic_cycle_matches_the_kept_strides(real_fit):
         from ingest.manifest import Manifest
         from ingest.process import process_trial
         from ingest.subject import load_subject
-        from pipeline.params import load_params
         from sim.motion.reference import retarget_trial
 
-        params = load_params()
         subj, manifest = load_subject(subject), Manifest.load()
         spec = next(s for s in subj.trials if s.id == "walking2")
         other = process_trial(load_trial(subj, spec, manifest), subj.markerset, params.ingest.build())
@@ -321,55 +318,3 @@ def test_real_walk_periodic_cycle_matches_the_kept_strides(real_fit):
     # left and right legs consistent: the left leg repeats the right's pattern half a cycle later
     for joint, lr in left_right_shift(model, cycle).items():
         assert 0.4 <= lr["best_shift"] <= 0.6, (subject, joint, lr)
-
-
-def test_reference_stage_writes_npz_json_and_figure(tmp_path):
-    """`python -m pipeline reference opencap4` on a scaled model written like the scale stage's."""
-    from ingest.manifest import Manifest
-    from ingest.static import read_static_trial
-    from ingest.subject import load_subject
-    from pipeline.cli import main
-    from pipeline.params import load_params
-    from sim.body.human import build_human
-    from sim.body.scaling import scale_subject
-    from sim.motion.reference import load_reference
-
-    hp = load_params().human.build()
-    subject = load_subject("opencap4")
-    xml = build_human(scale_subject(subject, read_static_trial(subject, Manifest.load()), hp), hp).to_xml()
-    (tmp_path / "opencap4" / "model").mkdir(parents=True)
-    (tmp_path / "opencap4" / "model" / "human.xml").write_text(xml)
-    argv = ["reference", "opencap4", "--root", str(tmp_path), "--reports", str(tmp_path / "reports")]
-    assert main(argv) == 0
-    ref = load_reference(tmp_path / "opencap4" / "model" / "reference.npz")
-    model = mujoco.MjModel.from_xml_string(xml)
-    assert ref.qpos.shape == (len(ref.time_s), model.nq) and ref.qvel.shape == (len(ref.time_s), model.nv)
-    assert set(ref.trial) == {"walking1", "walking2", "walking4"} and set(ref.condition) == {"free"}
-    ph = ref.phase[np.isfinite(ref.phase)]
-    assert len(ph) > 100 and ph.min() >= 0 and ph.max() < 1
-    assert np.all(np.diff(ref.motion("walking1")[0]) > 0)
-    assert ref.cycle.qpos.shape == (100, model.nq) and ref.cycle.n_strides == 2
-    doc = __import__("json").loads((tmp_path / "opencap4" / "model" / "reference.json").read_text())
-    assert doc["marker_rms_m"] <= MAX_MARKER_RMS_M
-    assert set(doc["angles"]) == {f"{j}_{s}" for j in ("hip_flexion", "knee_flexion", "ankle_dorsiflexion")
-                                  for s in ("left", "right")}
-    assert abs(doc["cycle"]["speed_rel_error"]) <= MAX_CYCLE_REL_ERROR
-    assert (tmp_path / "reports" / "opencap4" / "retarget.png").stat().st_size > 10_000
-    assert not list((tmp_path / "opencap4" / "model").glob(".*tmp"))
-
-
-def test_retarget_params_reject_unknown_keys():
-    import yaml
-
-    from pipeline.params import PARAMS_FILE, ParamsError, load_params, parse_params
-
-    section = load_params().retarget.build()
-    assert section.reference.conditions == ("free",) and section.ik.iterations >= 1
-    doc = yaml.safe_load(PARAMS_FILE.read_text())
-    retarget = doc["retarget"]
-    with pytest.raises(ParamsError, match=r"params\.yaml: retarget: unknown key 'cycle_sample'$"):
-        parse_params({**doc, "retarget": {**retarget, "cycle_sample": 10}})
-    with pytest.raises(ParamsError, match=r"params\.yaml: retarget\.ik: unknown key 'iteration'$"):
-        parse_params({**doc, "retarget": {**retarget, "ik": {**retarget["ik"], "iteration": 3}}})
-    with pytest.raises(ParamsError, match=r"params\.yaml: missing section 'retarget'$"):
-        parse_params({k: v for k, v in doc.items() if k != "retarget"})
