@@ -13,7 +13,7 @@ import pandas as pd
 
 from metrics.groups import GROUP, with_identity
 
-ROBOT_COLUMNS = ("trial", "time_s", "e_x_m", "e_y_m", "fall", "locked")
+NEEDED_ROBOT_COLUMNS = ("trial", "time_s", "e_x_m", "e_y_m", "fall", "locked")  # of sim.rollout.loop.ROBOT_COLUMNS
 COLUMNS = [*GROUP, "n_trials", "n_samples", "mean_abs_ex_cm", "sd_abs_ex_cm", "mean_abs_ey_cm",
            "sd_abs_ey_cm", "max_abs_ex_cm", "max_abs_ey_cm", "fall_rate"]
 
@@ -26,7 +26,7 @@ def following(robot: pd.DataFrame, exclude_locked: bool = True) -> pd.DataFrame:
 def compliance_table(robot: pd.DataFrame, exclude_locked: bool = True) -> pd.DataFrame:
     """One row per subject/source/human_mode/condition: mean and SD of |e_x|, |e_y| (cm) over the
     following samples, their maxima, and the share of trials (trial, seed) with a fall."""
-    robot = with_identity(robot, "robot table", ROBOT_COLUMNS)
+    robot = with_identity(robot, "robot table", NEEDED_ROBOT_COLUMNS)
     rows = []
     for key, g in robot.groupby(GROUP, sort=True):
         runs = g.groupby(["trial", "seed"])["fall"].any()
