@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed-stamp
 export DVC_NO_ANALYTICS := 1
 export MPLBACKEND := Agg
 
-.PHONY: run test lint bench clean-venv render-deps
+.PHONY: run test lint bench clean-venv render-deps browser-deps
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -21,10 +21,16 @@ render-deps:
 	@ldconfig -p | grep -q -e libEGL_mesa -e libOSMesa || \
 		(apt-get update -qq && apt-get install -y -qq libosmesa6)
 
+# The report test loads reports/index.html in a real browser (tests/pipeline/test_report.py): Debian's
+# chromium is installed when it is missing, so the test runs everywhere, CI included.
+browser-deps:
+	@command -v chromium >/dev/null || \
+		(apt-get update -qq && apt-get install -y -qq --no-install-recommends chromium >/dev/null)
+
 run: $(STAMP) render-deps
 	PATH="$(CURDIR)/$(BIN):$$PATH" $(BIN)/dvc repro
 
-test: $(STAMP)
+test: $(STAMP) render-deps browser-deps
 	$(BIN)/ruff check .
 	$(BIN)/python -m pytest
 
