@@ -19,6 +19,7 @@ from ingest.events import EventParams, detect_events, force_plate_events, kinema
 from ingest.filtering import lowpass
 from ingest.gaps import fill_rigid, fill_short
 from ingest.kinematics import marker_angles
+from ingest.phases import PhaseParams, motion_phases
 from ingest.strides import StrideParams, segment_strides
 from ingest.trial import SIDES, Trial
 
@@ -41,6 +42,7 @@ class IngestParams:
     n_points: int = 101
     events: EventParams = field(default_factory=EventParams)
     strides: StrideParams = field(default_factory=StrideParams)
+    phases: PhaseParams = field(default_factory=PhaseParams)
 
     @classmethod
     def from_dict(cls, d: dict) -> IngestParams:
@@ -56,6 +58,7 @@ class IngestParams:
             n_points=int(d["cycles"]["n_points"]),
             events=EventParams(**d["events"]),
             strides=StrideParams(**d["strides"]),
+            phases=PhaseParams(**d["phases"]),
         )
 
 
@@ -115,6 +118,17 @@ def trial_path(lm: dict[str, np.ndarray], rate_hz: float, p: IngestParams) -> Pe
     facing = (lm["asis_left"] + lm["asis_right"] - lm["psis_left"] - lm["psis_right"]) / 2
     return pelvis_path(pelvis, facing, rate_hz, p.smooth_hz, p.min_walk_speed_mps,
                        p.max_yaw_rate_deg_s, p.max_facing_angle_deg)
+
+
+def walk_phases(trial: Trial, markerset: dict[str, str], p: IngestParams) -> np.ndarray:
+    """Phase label per frame (standing, start, steady, speed_change, turn, stop) from the trial's
+    gap-filled, filtered pelvis path (`ingest.phases`)."""
+    clean = clean_markers(trial, markerset, p)
+    lm = landmarks(clean, markerset)
+    if lm is None:
+        missing = sorted(set(markerset.values()) - set(clean.markers))
+        raise IngestError(trial.origin, f"no pelvis path: markers {', '.join(missing)} are missing")
+    return motion_phases(trial_path(lm, clean.rate_hz, p), clean.rate_hz, p.phases)
 
 
 def process_trial(trial: Trial, markerset: dict[str, str], p: IngestParams) -> ProcessedTrial:

@@ -37,6 +37,7 @@ from sim.motion.replay import ReplayParams
 from sim.motion.retarget import RetargetParams
 from sim.motion.synthetic import WalkParams
 from sim.robot.mrba import RobotParams
+from sim.rollout.scenarios import ProfileParams, Segment
 from sim.rollout.tuning import TuningParams
 
 if TYPE_CHECKING:
@@ -157,6 +158,14 @@ class CyclesSchema(Schema):
     n_points: int
 
 
+class PhasesSchema(Schema):
+    standing_speed_mps: float
+    steady_fraction: float
+    turn_rate_deg_s: float
+    speed_change_mps2: float
+    min_speed_change_s: float
+
+
 class IngestSchema(Schema):
     filter: FilterSchema
     gaps: GapsSchema
@@ -164,6 +173,7 @@ class IngestSchema(Schema):
     events: EventsSchema
     strides: StridesSchema
     cycles: CyclesSchema
+    phases: PhasesSchema
 
     def build(self) -> IngestParams:
         return IngestParams.from_dict(self.model_dump())
@@ -549,6 +559,58 @@ class EvaluatePolicySchema(Schema):
         return EvalParams(**self.model_dump(exclude={"checks"}))
 
 
+# scenarios
+
+class ProfileSchema(Schema):
+    start_s: Annotated[float, Field(gt=0.0)]
+    stop_s: Annotated[float, Field(gt=0.0)]
+    speed_change_s: Annotated[float, Field(gt=0.0)]
+    turn_rate_deg_s: Annotated[float, Field(gt=0.0)]
+    turn_speed_fraction: Annotated[float, Field(gt=0.0)]
+
+    def build(self) -> ProfileParams:
+        return ProfileParams(**self.model_dump())
+
+
+class SegmentSchema(Schema):
+    """One scenario segment: exactly one of stand_s, walk_s, walk_m, turn_deg, stop."""
+
+    stand_s: Annotated[float, Field(ge=0.0)] | None = None
+    walk_s: Annotated[float, Field(gt=0.0)] | None = None
+    walk_m: Annotated[float, Field(gt=0.0)] | None = None
+    speed: Annotated[float, Field(gt=0.0)] = 1.0
+    turn_deg: float | None = None
+    stop: bool = False
+
+    @model_validator(mode="after")
+    def _one_kind(self) -> SegmentSchema:
+        n = sum(v is not None for v in (self.stand_s, self.walk_s, self.walk_m, self.turn_deg)) + self.stop
+        if n != 1:
+            raise ValueError("a segment is exactly one of stand_s, walk_s, walk_m, turn_deg, stop: true")
+        return self
+
+
+SCENARIO_NAMES = ("walk_10m", "speed_change", "turn_90", "turnaround_180", "steady")
+
+
+class ScenariosSchema(Schema):
+    profile: ProfileSchema
+    commands: dict[str, list[SegmentSchema]]
+
+    @model_validator(mode="after")
+    def _named(self) -> ScenariosSchema:
+        missing = [n for n in SCENARIO_NAMES if n not in self.commands]
+        if missing:
+            raise ValueError(f"missing scenario(s) {', '.join(missing)} (every subject walks "
+                             f"{', '.join(SCENARIO_NAMES)})")
+        return self
+
+    def build(self) -> dict[str, list[Segment]]:
+        """Scenario name -> its segments."""
+        return {name: [Segment(**s.model_dump()) for s in segments]
+                for name, segments in self.commands.items()}
+
+
 class Params(Schema):
     """The whole params.yaml."""
 
@@ -563,6 +625,7 @@ class Params(Schema):
     human: HumanSchema
     train: TrainSchema
     evaluate_policy: EvaluatePolicySchema
+    scenarios: ScenariosSchema
 
     _path: Path = PrivateAttr(default=PARAMS_FILE)
 

@@ -61,6 +61,8 @@ def built(params: Params) -> dict[str, object]:
         "HumanParams": params.human.build(),
         "TrainParams": params.train.build(),
         "EvalParams": params.evaluate_policy.build(),
+        "PolicyChecks": params.evaluate_policy.checks.build(),
+        "ProfileParams": params.scenarios.profile.build(),
         "RolloutParams": RolloutParams(robot=params.robot.build(),
                                        max_physics_dt_s=params.rollout.max_physics_dt_s,
                                        start_offset_m=params.rollout.start_offset_m),
@@ -194,3 +196,14 @@ def test_retarget_params_reject_unknown_keys():
         parse_params({**doc, "retarget": {**retarget, "ik": {**retarget["ik"], "iteration": 3}}})
     with pytest.raises(ParamsError, match=r"params\.yaml: missing section 'retarget'$"):
         parse_params({k: v for k, v in doc.items() if k != "retarget"})
+
+
+def test_a_scenario_segment_of_two_kinds_is_refused_with_its_key_path(tmp_path):
+    doc = yaml.safe_load(PARAMS_FILE.read_text())
+    doc["scenarios"]["commands"]["walk_10m"][1] = {"walk_m": 10.0, "turn_deg": 90.0}
+    with pytest.raises(ParamsError, match=r"scenarios\.commands\.walk_10m\[1\]: .*exactly one of"):
+        parse_params(doc, tmp_path / "params.yaml")
+    del doc["scenarios"]["commands"]["turn_90"]
+    doc["scenarios"]["commands"]["walk_10m"][1] = {"walk_m": 10.0}
+    with pytest.raises(ParamsError, match="missing scenario.*turn_90"):
+        parse_params(doc, tmp_path / "params.yaml")
