@@ -1,3 +1,4 @@
 """`python -m pipeline bench`: speed and memory targets as ratios measured in one run."""
 
-SECTIONS = ("ingest", "retarget", "human", "store", "rollout", "train")  # bench.json sections, in run order
+# bench.json sections, in run order
+SECTIONS = ("ingest", "retarget", "human", "store", "rollout", "policy_rollout", "train")

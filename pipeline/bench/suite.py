@@ -134,7 +134,8 @@ def run_ingest_bench(p: IngestParams, repeat: int) -> dict:
 def run_bench(params: Params, repeat: int = 5, sections: tuple[str, ...] = SECTIONS) -> dict:
     """The benchmark sections asked for, each with its own `targets` and `meets_targets`:
     ingest (`TARGETS`), retarget (`RETARGET_TARGETS`), human (no target: the physical limit that
-    rollouts are compared to), store (`STORE_TARGETS`) and rollout (ratio to raw `mj_step`)."""
+    rollouts are compared to), store (`STORE_TARGETS`), rollout and policy_rollout (ratio to raw
+    `mj_step`), train (ratio to Humanoid-v5)."""
     unknown = sorted(set(sections) - set(SECTIONS))
     if unknown:
         raise ValueError(f"unknown bench sections {unknown} (known: {', '.join(SECTIONS)})")
@@ -150,6 +151,10 @@ def run_bench(params: Params, repeat: int = 5, sections: tuple[str, ...] = SECTI
             from pipeline.bench.store import STORE_TARGETS, time_store
 
             section, targets = time_store(params, min(repeat, 3)), STORE_TARGETS
+        elif name == "policy_rollout":
+            from pipeline.bench.policy_rollout import POLICY_ROLLOUT_TARGETS, time_policy_rollout
+
+            section, targets = time_policy_rollout(params, min(repeat, 3)), POLICY_ROLLOUT_TARGETS
         elif name == "train":
             from pipeline.bench.train import TRAIN_TARGETS, time_training
 
