@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ingest.bouts import PelvisPath
+from ingest.filtering import finite_runs
 
 
 @dataclass(frozen=True)
@@ -33,12 +34,6 @@ class PhaseParams:
     min_speed_change_s: float = 0.3
 
 
-def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
-    """(first, last) index of each run of True."""
-    edges = np.diff(np.r_[0, mask.astype(int), 0])
-    return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1, strict=True))
-
-
 def motion_phases(path: PelvisPath, rate_hz: float, p: PhaseParams = PhaseParams()) -> np.ndarray:
     """One phase label per sample of `path` (see the module docstring)."""
     speed = np.asarray(path.speed_mps, float)
@@ -47,16 +42,16 @@ def motion_phases(path: PelvisPath, rate_hz: float, p: PhaseParams = PhaseParams
     moving = speed >= p.standing_speed_mps
     turning = moving & (np.abs(heading_rate) > p.turn_rate_deg_s)
     phase = np.full(len(speed), "standing", dtype=object)
-    for a, b in _runs(moving):
-        seg = slice(a, b + 1)
+    for a, b in finite_runs(moving):
+        seg = slice(a, b)
         straight = ~turning[seg]
         v = speed[seg]
         steady = float(np.median(v[straight])) if straight.any() else float(np.median(v))
         fast = np.flatnonzero(v >= p.steady_fraction * steady)
         changing = np.abs(accel[seg]) > p.speed_change_mps2
-        for c0, c1 in _runs(changing):
-            if (c1 - c0 + 1) / rate_hz < p.min_speed_change_s:
-                changing[c0:c1 + 1] = False
+        for c0, c1 in finite_runs(changing):
+            if (c1 - c0) / rate_hz < p.min_speed_change_s:
+                changing[c0:c1] = False
         labels = np.where(changing, "speed_change", "steady").astype(object)
         labels[turning[seg]] = "turn"
         if len(fast):

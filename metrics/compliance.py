@@ -58,11 +58,12 @@ def compliance_headline(robot: pd.DataFrame, exclude_locked: bool = True) -> dic
         return {}
     comp = compliance_table(robot, exclude_locked)
     harness = harness_table(robot, exclude_locked)
-    force = harness[harness["quantity"] == "f_norm"]
+    force = harness[harness["quantity"] == "f_norm"].set_index(GROUP)["rms"]
     out = {}
-    for row, (_, f) in zip(comp.itertuples(), force.iterrows(), strict=True):
+    for row in comp.itertuples(index=False):
+        rms = float(force[tuple(getattr(row, g) for g in GROUP)])
         out[str(row.condition)] = {"mean_abs_e_x_cm": round(float(row.mean_abs_ex_cm), 3),
                                    "mean_abs_e_y_cm": round(float(row.mean_abs_ey_cm), 3),
-                                   "harness_force_rms_n": round(float(f["rms"]), 3),
+                                   "harness_force_rms_n": round(rms, 3),
                                    "falls": int(round(row.fall_rate * row.n_trials))}
     return out

@@ -32,6 +32,7 @@ from metrics.policy_checks import PolicyChecks
 from pipeline.paths import PARAMS_FILE, repo_path
 from pipeline.store import StoreParams
 from sim.body.human_params import HumanParams
+from sim.errors import SimulationError
 from sim.motion.reference import ReferenceParams
 from sim.motion.replay import ReplayParams
 from sim.motion.retarget import RetargetParams
@@ -584,9 +585,10 @@ class SegmentSchema(Schema):
 
     @model_validator(mode="after")
     def _one_kind(self) -> SegmentSchema:
-        n = sum(v is not None for v in (self.stand_s, self.walk_s, self.walk_m, self.turn_deg)) + self.stop
-        if n != 1:
-            raise ValueError("a segment is exactly one of stand_s, walk_s, walk_m, turn_deg, stop: true")
+        try:
+            Segment(**self.model_dump()).kind  # noqa: B018 (the library's own check)
+        except SimulationError as exc:
+            raise ValueError(str(exc)) from None
         return self
 
 

@@ -10,13 +10,11 @@ once per policy step through stable-baselines3 today.
 
 from __future__ import annotations
 
-import time
-
-import mujoco
 import numpy as np
 
 from ingest.subject import load_subject
 from pipeline import paths
+from pipeline.bench.rollout import raw_step_s
 from pipeline.params import Params
 from sim.rollout.batch import RolloutJob, Worker
 
@@ -39,12 +37,8 @@ def time_policy_rollout(params: Params, repeat: int = 3, duration_s: float = 10.
     for seed in range(repeat):
         out = worker.run(RolloutJob("adaptive", seed, f"bench_seed{seed}", PolicyWalk(duration_s)),
                          keep_result=True)
-        model, result = out.world, out.result
-        data = mujoco.MjData(model)
-        mujoco.mj_setState(model, data, result.initial_state, mujoco.mjtState.mjSTATE_INTEGRATION)
-        start = time.perf_counter()
-        mujoco.mj_step(model, data, nstep=result.n_physics_steps)
-        raws.append(time.perf_counter() - start)
+        result = out.result
+        raws.append(raw_step_s(out.world, result))
         walls.append(result.wall_s)
     walls_a, raws_a = np.array(walls), np.array(raws)
     return {"subject": SUBJECT, "controller": "adaptive", "duration_s": duration_s, "sample_rate_hz": rate_hz,

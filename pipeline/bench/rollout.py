@@ -34,7 +34,7 @@ from sim.motion.replay import Motion, ReplayHuman
 from sim.motion.synthetic import capsule_world, synthetic_walk
 from sim.robot.controllers import make_controller
 from sim.rollout.batch import BatchRunner, RolloutJob
-from sim.rollout.loop import RolloutParams, rollout
+from sim.rollout.loop import RolloutParams, RolloutResult, rollout
 from sim.rollout.world import build_world, robot_info
 
 TARGETS = {"ratio_to_mj_step": 0.8}
@@ -73,17 +73,22 @@ class SyntheticSource:
         return lambda job, seed: HumanRun(ReplayHuman(human.motion, human.p), self.rate_hz)
 
 
+def raw_step_s(model: mujoco.MjModel, result: RolloutResult) -> float:
+    """Seconds of raw `mj_step` for `result`'s physics steps from its initial state, in one call."""
+    data = mujoco.MjData(model)
+    mujoco.mj_setState(model, data, result.initial_state, mujoco.mjtState.mjSTATE_INTEGRATION)
+    start = time.perf_counter()
+    mujoco.mj_step(model, data, nstep=result.n_physics_steps)
+    return time.perf_counter() - start
+
+
 def run_rollout_bench(params: Params, rate_hz: float = 200.0, repeat: int = 9, n_parallel: int = 8) -> dict:
     spec, human, ctrl, p, world = _setup(params, rate_hz)
     model = build_world(spec, human, p)
     walls, raws = [], []
-    d = mujoco.MjData(model)
     for seed in range(repeat):
         result = rollout(spec, human, ctrl, p, seed, model=model)
-        mujoco.mj_setState(model, d, result.initial_state, mujoco.mjtState.mjSTATE_INTEGRATION)
-        start = time.perf_counter()
-        mujoco.mj_step(model, d, nstep=result.n_physics_steps)
-        raws.append(time.perf_counter() - start)
+        raws.append(raw_step_s(model, result))
         walls.append(result.wall_s)
     walls_a, raws_a = np.array(walls), np.array(raws)
     best, raw = float(walls_a.min()), float(raws_a.min())

@@ -30,17 +30,6 @@ from sim.rollout.batch import RolloutOutcome, batch_tables, reference_cycles, ru
 SPM_JOINTS = ("hip_flexion", "knee_flexion")
 
 
-def _kept_cycles(tables: dict[str, pd.DataFrame]) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """(kept strides, cycles of kept strides) of simulated tables."""
-    strides, cycles = tables["strides"], tables["cycles"]
-    kept = strides[strides["kept"]] if not strides.empty else strides
-    if cycles.empty:
-        return kept, cycles
-    ids = set(zip(kept["trial"], kept["side"], kept["stride"], strict=True))
-    rows = [i in ids for i in zip(cycles["trial"], cycles["side"], cycles["stride"], strict=True)]
-    return kept, cycles[rows]
-
-
 def evaluate_policy(subject: str, params: Params, root: Path = paths.PROCESSED_ROOT,
                     policy_root: Path = paths.POLICIES_ROOT, reports: Path = paths.REPORTS_ROOT,
                     progress: bool = True) -> dict:
@@ -65,7 +54,9 @@ def evaluate_policy(subject: str, params: Params, root: Path = paths.PROCESSED_R
     # the policy imitates free walking: its gait is compared with the free-walking strides
     real_kept = real_strides[real_strides["kept"] & (real_strides["condition"] == "free")]
     real_free_cycles = real_cycles[real_cycles["condition"] == "free"]
-    sim_kept, sim_cycles = _kept_cycles(batch_tables(groups["free"]))
+    free = batch_tables(groups["free"])  # cycles exist for kept strides only (ingest.cycles)
+    sim_kept = free["strides"][free["strides"]["kept"]] if not free["strides"].empty else free["strides"]
+    sim_cycles = free["cycles"]
     n_free_ok = sum(not o.fell for o in groups["free"])
     doc: dict = {"subject": subject, "human_mode": "policy"}
     doc["free"] = {"rollouts": len(groups["free"]), "no_fall": n_free_ok,

@@ -247,10 +247,5 @@ def batch_tables(outcomes: Iterable[RolloutOutcome]) -> dict[str, pd.DataFrame]:
     return tables
 
 
-def sample_rate_hz(time_s: np.ndarray) -> float:
-    """The sampling rate of a uniformly sampled time vector (median step)."""
-    return float(1.0 / np.median(np.diff(time_s)))
-
-
 __all__ = ["BatchRunner", "BatchSetup", "DriverSource", "HumanRun", "RolloutJob", "RolloutOutcome", "Worker",
-           "batch_tables", "process_motion", "reference_cycles", "run_batch", "sample_rate_hz"]
+           "batch_tables", "process_motion", "reference_cycles", "run_batch"]

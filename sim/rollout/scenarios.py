@@ -72,10 +72,6 @@ class CommandProfile:
     heading_rad: np.ndarray
     phase: np.ndarray  # str labels from PHASES
 
-    @property
-    def distance_m(self) -> float:
-        return float(np.sum(self.speed_mps[:-1] * np.diff(self.time_s)))
-
     def spans(self) -> list[tuple[str, float, float]]:
         """(phase, start, end) of each run of one phase, in time order."""
         change = np.flatnonzero(self.phase[1:] != self.phase[:-1]) + 1
