@@ -28,7 +28,7 @@ def time_policy_rollout(params: Params, repeat: int = 3, duration_s: float = 10.
     from sim.learn.train import BODY_FILE
 
     folder = paths.policy_dir(paths.POLICIES_ROOT, SUBJECT)
-    source = PolicySource(str(folder), params.train.build().env, rate_hz,
+    source = PolicySource(str(folder), params.train_params().env, rate_hz,
                           params.evaluate_policy.fall_height_fraction)
     setup = params.batch_setup(SUBJECT, load_subject(SUBJECT).markerset, folder / BODY_FILE, source,
                                process=False)

@@ -40,7 +40,7 @@ def _rate(model: PPO, steps: int, callback=None) -> float:
 def time_training(params: Params, subject: str = "camargo", steps: int = 8192, n_envs: int = 2,
                   root: Path = PROCESSED_ROOT) -> dict:
     torch.set_num_threads(1)
-    p = replace(params.train.build(), n_steps=1024)
+    p = replace(params.train_params(), n_steps=1024)
     xml = human_xml(root, subject)
     cycle = load_reference(reference_npz(root, subject)).cycle
     walk = make_vec_env(xml, cycle, p, n_envs, subprocess=False)

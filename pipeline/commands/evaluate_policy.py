@@ -1,9 +1,11 @@
 """Command `evaluate-policy <subject>`: does the trained walking policy walk like its subject?
 
 Seeded walks of the policy human through the batch runner: free walking, walking with each
-controller of `rollout.conditions`, and free walking with a lateral pelvis push. The checks and
-their thresholds are `metrics.policy_checks` with `evaluate_policy.checks` of params.yaml; the SPM
-figure goes to `reports/<subject>/policy_spm.png`.
+controller of `rollout.conditions`, free walking with a lateral pelvis push, and every scenario
+(params `scenarios`) free and with each controller. The checks and their thresholds are
+`metrics.policy_checks` with `evaluate_policy.checks` and `metrics.scenario_checks` with
+`evaluate_policy.scenario_checks` of params.yaml; the SPM figure goes to
+`reports/<subject>/policy_spm.png`.
 """
 
 from __future__ import annotations
@@ -12,20 +14,33 @@ import time
 from pathlib import Path
 
 import mujoco
+import numpy as np
 import pandas as pd
 
+from ingest.canonical import load_trial
+from ingest.manifest import Manifest
+from ingest.process import walk_phases
 from ingest.subject import load_subject
 from metrics.compliance import compliance_headline
 from metrics.plots import policy_spm_figure
 from metrics.policy_checks import curves, enough, gait_check, spm_check
+from metrics.scenario_checks import (
+    ScenarioChecks,
+    speed_changes,
+    standing_at_end,
+    start_time_s,
+    stop_time_s,
+    stride_speed,
+)
 from pipeline import paths
 from pipeline.params import Params
 from pipeline.stages.outputs import write_figure
-from pipeline.stages.simulate import policy_job, policy_setup
+from pipeline.stages.simulate import policy_job, policy_setup, scenario_jobs
 from sim.learn.policy_human import PolicyWalk
-from sim.learn.train import BODY_FILE
+from sim.learn.train import BODY_FILE, load_body
 from sim.motion.reference import load_reference
 from sim.rollout.batch import RolloutOutcome, batch_tables, reference_cycles, run_batch
+from sim.rollout.scenarios import CommandProfile, command_profile
 
 SPM_JOINTS = ("hip_flexion", "knee_flexion")
 
@@ -42,8 +57,12 @@ def evaluate_policy(subject: str, params: Params, root: Path = paths.PROCESSED_R
     jobs += [policy_job(c, s, PolicyWalk(ev.robot_s)) for c in controllers for s in seeds]
     jobs += [policy_job("free", s, PolicyWalk(push_s, ev.push_n * (1 if s % 2 == 0 else -1), ev.push_time_s,
                                               ev.push_duration_s), tag="push") for s in seeds]
-    outcomes = run_batch(policy_setup(subject, params, root, policy_root), jobs, params.rollout.workers,
-                         f"policy rollouts {subject}", progress)
+    sc = params.evaluate_policy.scenario_checks.build()
+    scenario_runs = scenario_jobs(params, ("free", *controllers), sc.seeds)
+    setup = policy_setup(subject, params, root, policy_root)
+    outcomes = run_batch(setup, jobs + scenario_runs, params.rollout.workers, f"policy rollouts {subject}",
+                         progress)
+    outcomes, scenario_outcomes = outcomes[:len(jobs)], outcomes[len(jobs):]
     pushed = [o for o in outcomes if o.job.human.push_n]
     groups: dict[str, list[RolloutOutcome]] = {
         "free": [o for o in outcomes if o.job.condition == "free" and not o.job.human.push_n],
@@ -71,6 +90,12 @@ def evaluate_policy(subject: str, params: Params, root: Path = paths.PROCESSED_R
                   "robot_fall_detections": sum(o.robot_fall_s is not None for o in groups[c])}
     robot = batch_tables([o for c in controllers for o in groups[c]])["robot"]
     doc["compliance"] = compliance_headline(robot, params.metrics.exclude_locked)
+    _, cycle = load_body(paths.policy_dir(policy_root, subject))
+    own_start = own_start_s(subject, params)
+    real_speed = float(real_kept["gait_speed_mps"].mean())
+    doc["scenarios"] = scenario_report(scenario_outcomes, scenario_profiles(params, cycle.speed_mps,
+                                                                             setup.drivers.sample_rate_hz),
+                                       cycle.period_s, own_start, real_speed, sc)
     recovered = sum(not o.fell for o in pushed)
     doc["push"] = {"force_n": ev.push_n, "duration_s": ev.push_duration_s, "at_s": ev.push_time_s,
                    "walk_s": push_s, "rollouts": len(pushed), "recovered": recovered,
@@ -107,9 +132,99 @@ def evaluate_policy(subject: str, params: Params, root: Path = paths.PROCESSED_R
         "free_no_fall": free["pass_no_fall"], "free_speed": free["pass_speed"],
         "free_stride_length": free["pass_stride_length"], "free_knee_peak": free["pass_knee_peak"],
         **{f"{c}_no_fall": doc[c]["pass_no_fall"] for c in controllers}, "push": doc["push"]["pass"],
-        **{f"spm_{j}": spm[j]["pass"] for j in SPM_JOINTS}}
+        **{f"spm_{j}": spm[j]["pass"] for j in SPM_JOINTS},
+        **{f"scenario_{k}": v for k, v in doc["scenarios"]["checks"].items()}}
     doc["wall_s"] = round(time.perf_counter() - start, 1)
     return doc
+
+
+def own_start_s(subject: str, params: Params) -> float | None:
+    """The subject's own gait initiation (s): the median length of a `start` phase that follows
+    quiet standing (over 1 s) in its free-walking recordings (`ingest.process.walk_phases`); None
+    when no recording starts from standing."""
+    subj = load_subject(subject)
+    manifest = Manifest.load()
+    p = params.ingest.build()
+    found = []
+    for spec in subj.trials:
+        if spec.condition != "free":
+            continue
+        trial = load_trial(subj, spec, manifest)
+        phase = walk_phases(trial, subj.markerset, p)
+        t = trial.time_s
+        change = np.flatnonzero(phase[1:] != phase[:-1]) + 1
+        starts, ends = np.r_[0, change], np.r_[change, len(phase)]
+        for i in range(1, len(starts)):
+            before = (phase[starts[i - 1]], t[ends[i - 1] - 1] - t[starts[i - 1]])
+            if phase[starts[i]] == "start" and before[0] == "standing" and before[1] > 1.0:
+                found.append(float(t[ends[i] - 1] - t[starts[i]]))
+    return float(np.median(found)) if found else None
+
+
+def scenario_profiles(params: Params, speed_mps: float, rate_hz: float) -> dict[str, CommandProfile]:
+    """Every scenario's command profile for a person whose preferred speed is `speed_mps`."""
+    profile = params.scenarios.profile.build()
+    return {name: command_profile(name, segs, speed_mps, rate_hz, profile)
+            for name, segs in params.scenarios.build().items()}
+
+
+def scenario_report(outcomes: list[RolloutOutcome], profiles: dict[str, CommandProfile], stride_s: float,
+                    own_start: float | None, real_speed_mps: float, sc: ScenarioChecks) -> dict:
+    """Per scenario and condition: walks, falls, and the scenario checks of issue 11 on the pelvis
+    path (metrics.scenario_checks); `checks` holds the pass flags."""
+    out: dict = {"own_start_s": None if own_start is None else round(own_start, 2)}
+    if own_start is not None:
+        tol = sc.start_tolerance_pct / 100
+        lo, hi = own_start * (1 - tol), own_start * (1 + tol)
+    else:
+        lo, hi = sc.start_range_s
+    out["start_window_s"] = [round(lo, 2), round(hi, 2)]
+    checks: dict[str, bool] = {}
+    by: dict[tuple[str, str], list[RolloutOutcome]] = {}
+    for o in outcomes:
+        by.setdefault((o.job.human.scenario, o.job.condition), []).append(o)
+    for (name, cond), runs in sorted(by.items()):
+        prof = profiles[name]
+        falls = sum(o.human_fall_s is not None or not o.stable for o in runs)
+        row: dict = {"walks": len(runs), "human_falls": falls, "robot_fall_detections":
+                     sum(o.robot_fall_s is not None for o in runs)}
+        checks[f"{name}_{cond}_no_fall"] = enough(len(runs) - falls, len(runs), sc.no_fall_fraction)
+        starts, stops, steady, ends, changes = [], [], [], [], []
+        for o in runs:
+            if o.human_fall_s is not None:
+                continue
+            t = np.arange(len(o.pelvis_xy)) / o.sample_rate_hz
+            v = stride_speed(o.pelvis_xy, o.sample_rate_hz, stride_s)
+            starts.append(start_time_s(t, v, prof.time_s, prof.speed_mps, prof.phase))
+            stops.append(stop_time_s(t, v, prof.time_s, prof.phase, sc.standing_mps))
+            ends.append(standing_at_end(t, v, sc.end_standing_s, sc.standing_mps))
+            cmd = np.interp(t, prof.time_s, (prof.phase == "steady").astype(float)) > 0.5
+            steady.append(float(np.median(v[cmd])) if cmd.any() else np.nan)
+            changes.append(speed_changes(t, v, prof.time_s, prof.speed_mps, prof.phase,
+                                         sc.speed_change_tolerance_pct / 100))
+        row["steady_speed_mps"] = [round(x, 3) for x in steady]
+        if name == "walk_10m" or "start" in prof.phase:
+            row["start_s"] = [None if x is None else round(x, 2) for x in starts]
+            row["stop_s"] = [None if x is None else round(x, 2) for x in stops]
+            row["standing_at_end"] = ends
+        if name == "speed_change":
+            row["speed_changes"] = changes
+        out[f"{name} {cond}"] = row
+        if cond != "free" or not runs or falls == len(runs):
+            continue
+        if name == "walk_10m":
+            checks["walk_10m_standing_at_end"] = all(ends) and len(ends) == len(runs)
+            checks["walk_10m_start_time"] = all(x is not None and lo <= x <= hi for x in starts)
+            err = 100 * (np.nanmedian(steady) / real_speed_mps - 1)
+            row["steady_speed_error_pct"] = round(float(err), 2)
+            checks["walk_10m_steady_speed"] = bool(abs(err) <= sc.steady_speed_tolerance_pct)
+            checks["walk_10m_stop_time"] = all(x is not None and x <= sc.stop_within_s for x in stops)
+        if name == "speed_change":
+            checks["speed_change_reached"] = all(c["reached_after_s"] is not None and
+                                                 c["reached_after_s"] <= sc.speed_change_within_s
+                                                 for run in changes for c in run)
+    out["checks"] = checks
+    return out
 
 
 __all__ = ["evaluate_policy"]

@@ -3,9 +3,10 @@ seed, processed by the same ingest code as the real recordings.
 
 The replay human (default) walks the subject's straight bouts: runs of kept real strides
 (`ingest.strides.kept_stride_runs`), each entered after a lead-in (`sim.motion.replay.with_lead_in`)
-so that every controller meets the bout in the same natural state. `--human policy` runs the trained
-walking policy instead (`evaluate_policy.free_s` / `robot_s` walks). Both go through the one batch
-runner, `sim.rollout.batch`.
+so that every controller meets the bout in the same natural state: the robot-only baseline. `--human
+policy` runs the trained, steerable walking policy through every scenario (params `scenarios`), each
+row tagged with its scenario and commanded phase. Both go through the one batch runner,
+`sim.rollout.batch`.
 
 Outputs in `<root>/<subject>/sim/` (replay) or `sim_policy/` (policy): events, strides, cycles,
 robot.parquet, summary.json; replay also draws `reports/<subject>/robot_tracking.png`.
@@ -20,9 +21,7 @@ import pandas as pd
 
 from ingest.strides import kept_stride_runs
 from ingest.subject import load_subject
-from metrics.compliance import compliance_headline, compliance_table
-from metrics.gait import gait_table
-from metrics.harness import harness_table
+from metrics.compliance import compliance_headline
 from metrics.plots import tracking_figure
 from metrics.tracking import tracking_table
 from pipeline import paths
@@ -32,6 +31,7 @@ from sim.errors import SimulationError
 from sim.motion.reference import load_reference
 from sim.motion.replay import ReplaySegment, ReplaySource
 from sim.rollout.batch import BatchSetup, RolloutJob, RolloutOutcome, batch_tables, run_batch
+from sim.rollout.scenarios import command_profile, phase_at
 
 if TYPE_CHECKING:
     from sim.learn.policy_human import PolicyWalk
@@ -89,8 +89,10 @@ def policy_setup(subject: str, params: Params, root: Path = paths.PROCESSED_ROOT
     npz = paths.reference_npz(root, subject)
     _require(npz, what=f"the policy rollouts of {subject}")
     ref = load_reference(npz)
-    source = PolicySource(str(folder), params.train.build().env, ref.rate_hz(str(ref.trial[0])),
-                          params.evaluate_policy.fall_height_fraction)
+    scenarios = {name: tuple(segs) for name, segs in params.scenarios.build().items()}
+    source = PolicySource(str(folder), params.train_params().env, ref.rate_hz(str(ref.trial[0])),
+                          params.evaluate_policy.fall_height_fraction, scenarios,
+                          params.scenarios.profile.build())
     return params.batch_setup(subject, load_subject(subject).markerset, folder / BODY_FILE, source)
 
 
@@ -129,26 +131,74 @@ def run_simulate(subject: str, params: Params, root: Path = paths.PROCESSED_ROOT
     return summary
 
 
-def run_simulate_policy(subject: str, params: Params, root: Path = paths.PROCESSED_ROOT,
-                        policy_root: Path = paths.POLICIES_ROOT, progress: bool = True) -> dict:
-    """Policy rollouts of every `rollout.conditions` x `rollout.n_seeds` (walks of `evaluate_policy.
-    free_s` / `robot_s`) -> `<root>/<subject>/sim_policy/`, with the metrics tables of that mode."""
+def scenario_jobs(params: Params, conditions: tuple[str, ...] | None = None,
+                  walks: int | None = None, scenarios: tuple[str, ...] | None = None) -> list[RolloutJob]:
+    """One policy-human job per scenario x condition x walk (default: every scenario,
+    `rollout.conditions`, `scenarios.walks(name)` walks); trial id `<scenario>_<condition>_seed<k>`."""
     from sim.learn.policy_human import PolicyWalk
 
-    ev = params.evaluate_policy
-    jobs = [policy_job(c, s, PolicyWalk(ev.free_s if c == "free" else ev.robot_s))
-            for c in params.rollout.conditions for s in range(params.rollout.n_seeds)]
-    outcomes = run_batch(policy_setup(subject, params, root, policy_root), jobs, params.rollout.workers,
-                         f"policy rollouts {subject}", progress)
+    sc = params.scenarios
+    conditions = params.rollout.conditions if conditions is None else conditions
+    names = tuple(sc.commands) if scenarios is None else scenarios
+    return [RolloutJob(c, k, f"{name}_{c}_seed{k}", PolicyWalk(scenario=name))
+            for name in names for c in conditions for k in range(walks or sc.walks(name))]
+
+
+def tag_scenarios(tables: dict[str, pd.DataFrame], jobs: list[RolloutJob], profiles: dict) -> None:
+    """Add `scenario` and the commanded `phase` (sim.rollout.scenarios.phase_at) to the rollout tables
+    in place: robot rows by sample time, strides by the phase they end in (a stride inside one phase
+    has that phase), events by time; cycles get their stride's phase."""
+    scenario_of = {j.trial: j.human.scenario for j in jobs}
+    for name, table in tables.items():
+        if table.empty:
+            tables[name] = table.assign(scenario=pd.Series(dtype=str), phase=pd.Series(dtype=str))
+            continue
+        table["scenario"] = table["trial"].map(scenario_of).astype(str)
+        time_col = {"robot": "time_s", "events": "time_s", "strides": "t_end_s"}.get(name)
+        if time_col is None:
+            continue
+        table["phase"] = ""
+        for scenario, rows in table.groupby("scenario").groups.items():
+            table.loc[rows, "phase"] = phase_at(profiles[scenario], table.loc[rows, time_col].to_numpy(float))
+    keys = ["trial", "seed", "side", "stride"]
+    if not tables["cycles"].empty:
+        tables["cycles"] = tables["cycles"].merge(tables["strides"][[*keys, "phase"]], on=keys, how="left")
+
+
+def run_simulate_policy(subject: str, params: Params, root: Path = paths.PROCESSED_ROOT,
+                        policy_root: Path = paths.POLICIES_ROOT, progress: bool = True) -> dict:
+    """Policy-human rollouts of every scenario x condition x walk -> `<root>/<subject>/sim_policy/`
+    (events, strides, cycles, robot tagged with scenario and phase; summary.json). A subject without
+    a trained policy gets empty tables and a summary that says so."""
+    folder = paths.policy_dir(policy_root, subject)
+    out = paths.sim_policy_dir(root, subject)
+    if not folder.exists():
+        empty = {name: pd.DataFrame() for name in ("events", "strides", "cycles", "robot")}
+        summary = {"human_mode": "policy", "rollouts": 0,
+                   "note": f"no trained policy in {folder}: run `python -m pipeline train {subject}`"}
+        write_outputs(out, empty, {"summary": summary})
+        return summary
+    from sim.learn.train import load_body
+
+    setup = policy_setup(subject, params, root, policy_root)
+    jobs = scenario_jobs(params)
+    outcomes = run_batch(setup, jobs, params.rollout.workers, f"scenario rollouts {subject}", progress)
     tables = batch_tables(outcomes)
+    _, cycle = load_body(folder)
+    rate = setup.drivers.sample_rate_hz
+    profile = params.scenarios.profile.build()
+    profiles = {name: command_profile(name, segs, cycle.speed_mps, rate, profile)
+                for name, segs in params.scenarios.build().items()}
+    tag_scenarios(tables, jobs, profiles)
     exclude = params.metrics.exclude_locked
-    tables["metrics_gait"] = gait_table(tables["strides"])
-    tables["metrics_compliance"] = compliance_table(tables["robot"], exclude)
-    tables["metrics_harness"] = harness_table(tables["robot"], exclude)
-    summary = {"human_mode": "policy", **run_summary(outcomes, tables["robot"], exclude)}
-    write_outputs(paths.sim_policy_dir(root, subject), tables, {"summary": summary})
+    summary = {"human_mode": "policy", **run_summary(outcomes, tables["robot"], exclude),
+               "falls_by_scenario": {f"{name} {c}": sum(o.fell for o in outcomes if o.job.condition == c
+                                                         and o.job.human.scenario == name)
+                                     for name in params.scenarios.commands
+                                     for c in params.rollout.conditions}}
+    write_outputs(out, tables, {"summary": summary})
     return summary
 
 
 __all__ = ["policy_job", "policy_setup", "replay_jobs", "replay_setup", "run_simulate", "run_simulate_policy",
-           "run_summary"]
+           "run_summary", "scenario_jobs", "tag_scenarios"]

@@ -30,7 +30,7 @@ def run_train(subject: str, params: Params, *, n_envs: int | None, threads: int 
               max_wall_s: float | None = None, subprocess: bool | None = None,
               init_from: str | None = None) -> dict:
     """Train `subject`'s policy; `init_from`: another subject whose committed policy is the start."""
-    p = params.train.build()
+    p = params.train_params()
     start = None
     if init_from is not None and not resume:
         start = paths.policy_dir(out_root, init_from)

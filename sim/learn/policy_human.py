@@ -18,7 +18,7 @@ evaluation's 200 N / 0.2 s lateral push); nothing else acts on the body from out
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
@@ -26,16 +26,21 @@ import numpy as np
 from sim.errors import SimulationError
 from sim.learn.walk_env import (
     AMP_SIZE,
+    LEGACY_OBS_SIZE,
     OBS_SIZE,
     BodyIndex,
+    GaitState,
     ReferenceTable,
     WalkEnvParams,
     amp_features,
     observe,
     pd_servo_spec,
+    servo_ranges,
+    start_pose,
 )
 from sim.motion.driver import HumanDriver
 from sim.motion.reference import ReferenceCycle
+from sim.rollout.scenarios import CommandProfile, ProfileParams, Segment, command_profile
 
 
 @dataclass(frozen=True)
@@ -52,16 +57,19 @@ class PolicyHuman(HumanDriver):
 
     `policy(obs) -> action` maps a normalised-or-raw observation (the caller composes any
     normaliser into it) to the 21 residual actions in [-1, 1]. `human_model`: the human alone with
-    its PD servos (`sim.learn.walk_env.make_walk_env(...).model`), for the reference tables."""
+    its PD servos (`sim.learn.walk_env.make_walk_env(...).model`), for the reference tables.
+    `commands`: the scenario's per-sample commands at the rollout's sample rate (its length is the
+    walk's); None walks straight at the cycle's speed for `duration_s`."""
 
     mode = "policy"
 
     def __init__(self, policy, human_model: mujoco.MjModel, cycle: ReferenceCycle, p: WalkEnvParams,
-                 duration_s: float,
-                 start_phase: float = 0.0, push: Push | None = None, fall_height_fraction: float = 0.7,
-                 root: str = "root") -> None:
+                 duration_s: float, start_phase: float = 0.0, push: Push | None = None,
+                 fall_height_fraction: float = 0.7, root: str = "root",
+                 commands: CommandProfile | None = None) -> None:
         self.policy, self.cycle, self.p = policy, cycle, p
-        self.duration_s = float(duration_s)
+        self.commands = commands
+        self.duration_s = float(duration_s if commands is None else commands.time_s[-1])
         self.start_phase, self.push, self.root = float(start_phase) % 1.0, push, root
         self.fall_height_fraction = fall_height_fraction
         k = int(self.start_phase * len(cycle.phase)) % len(cycle.phase)
@@ -69,28 +77,42 @@ class PolicyHuman(HumanDriver):
         self.fall_time_s: float | None = None
         self.ref = ReferenceTable(human_model, cycle)
 
+    @property
+    def standing_start(self) -> bool:
+        return self.commands is not None and self.commands.speed_mps[0] == 0.0
+
     def prepare(self, spec: mujoco.MjSpec) -> None:
         pd_servo_spec(spec, self.p)
 
     def start_pose(self) -> tuple[np.ndarray, float]:
-        q = self.cycle.qpos[self.k0]
-        return np.array([0.0, 0.0, q[2]]), 0.0
+        z = self.ref.stand_height if self.standing_start else self.cycle.qpos[self.k0, 2]
+        return np.array([0.0, 0.0, z]), 0.0
+
+    def _commands_at(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        if self.commands is None:
+            return np.full(len(times), self.ref.speed_mps), np.zeros(len(times))
+        c = self.commands
+        return np.interp(times, c.time_s, c.speed_mps), np.interp(times, c.time_s, c.heading_rad)
 
     def reset(self, model: mujoco.MjModel, data: mujoco.MjData, sample_times_s: np.ndarray) -> None:
         self.idx = BodyIndex(model, self.root)
-        self.lo, self.hi = joint_ranges(model, self.idx)
+        self.lo, self.hi = servo_ranges(model, self.idx.act)
         dt_sample = float(sample_times_s[1] - sample_times_s[0])
         self.every = max(1, int(round(self.p.control_dt_s / dt_sample)))
         self.control_dt = self.every * dt_sample
         self.step_phase = self.control_dt / self.ref.period_s
         self.times = sample_times_s
+        self.speed, self.heading = self._commands_at(sample_times_s)
+        self.gait = GaitState(self.ref, self.p.commands.full_gait_fraction)
+        self.gait.start(self.k0 / self.ref.n, *self._command(0))
         q, d = self.idx.root_q, self.idx.root_d
         self.qslice = slice(q, q + self.idx.nq)
-        data.qpos[self.qslice] = self.cycle.qpos[self.k0]
-        data.qpos[q:q + 2] = 0.0
-        data.qvel[d:d + 6] = self.cycle.qvel[self.k0, :6]
-        data.qvel[self.idx.jdof] = self.cycle.qvel[self.k0, 6:]
-        self.phase = self.k0 / self.ref.n
+        qpos, qvel = np.empty(self.idx.nq), np.empty(6 + len(self.idx.jdof))
+        ctrl = np.empty(len(self.idx.act))
+        start_pose(self.ref, self.k0, self.gait.a, qpos, qvel, ctrl)
+        data.qpos[self.qslice] = qpos
+        data.qvel[d:d + 6] = qvel[:6]
+        data.qvel[self.idx.jdof] = qvel[6:]
         self.amp = np.zeros(AMP_SIZE)
         self.obs = np.zeros(OBS_SIZE, np.float32)
         self.wrench = np.zeros(6)
@@ -98,29 +120,31 @@ class PolicyHuman(HumanDriver):
         self.min_up = float(np.cos(np.radians(self.p.max_tilt_deg)))
         self.qpos = np.zeros((len(sample_times_s), self.idx.nq))
         self.fall_time_s = None
-        # the pelvis path the robot may expect at the start (sim.rollout.world.initial_speed reads `target`)
-        self.target = np.column_stack([self.ref.speed_mps * sample_times_s, np.zeros(len(sample_times_s))])
+        # the commanded pelvis path (sim.rollout.world.initial_speed reads `target` for the robot)
+        step = np.r_[0.0, self.speed[:-1] * dt_sample]
+        self.target = np.column_stack([np.cumsum(step * np.cos(np.r_[0.0, self.heading[:-1]])),
+                                       np.cumsum(step * np.sin(np.r_[0.0, self.heading[:-1]]))])
         mujoco.mj_forward(model, data)
-        data.ctrl[self.idx.act] = self.ref.ctrl[self.k0]
+        data.ctrl[self.idx.act] = ctrl
+
+    def _command(self, k: int) -> tuple[float, float, float]:
+        """(speed, heading, yaw rate) commanded at sample `k` (held after the last sample)."""
+        k = min(k, len(self.speed) - 1)
+        j = min(k + self.every, len(self.speed) - 1)
+        rate = (self.heading[j] - self.heading[k]) / self.control_dt if j > k else 0.0
+        return float(self.speed[k]), float(self.heading[k]), float(rate)
 
     def before_sample(self, model: mujoco.MjModel, data: mujoco.MjData, k: int) -> None:
         if k % self.every == 0:
             amp_features(data, self.idx, self.amp)
-            observe(data, self.idx, self.amp, self.phase, self.ref.speed_mps, self.wrench, self.obs)
+            observe(data, self.idx, self.amp, self.gait, self.wrench, self.obs)
             action = np.clip(np.asarray(self.policy(self.obs), float).reshape(-1), -1.0, 1.0)
-            self.phase = (self.phase + self.step_phase) % 1.0
-            data.ctrl[self.idx.act] = self._targets(action, self.phase)
+            self.gait.advance(self.step_phase, *self._command(k + self.every))
+            data.ctrl[self.idx.act] = self.gait.targets(action, self.p, self.lo, self.hi)
         if self.push is not None:
             t = self.times[k]
             on = self.push.time_s <= t < self.push.time_s + self.push.duration_s
             data.xfrc_applied[self.idx.pelvis, :2] = self.push.force_n if on else (0.0, 0.0)
-
-    def _targets(self, action: np.ndarray, phase: float) -> np.ndarray:
-        k0, k1, f = self.ref.index(phase)
-        g = 1 - f
-        ref = self.ref.ctrl[k0] * g + self.ref.ctrl[k1] * f
-        target = np.clip(ref + self.p.action_scale_rad * action, self.lo, self.hi)
-        return target + self.p.pd_kd_ratio_s * (self.ref.ctrl_vel[k0] * g + self.ref.ctrl_vel[k1] * f)
 
     def record(self, model: mujoco.MjModel, data: mujoco.MjData, k: int) -> None:
         self.qpos[k] = data.qpos[self.qslice]
@@ -132,41 +156,77 @@ class PolicyHuman(HumanDriver):
         return self.qpos
 
 
-def joint_ranges(model: mujoco.MjModel, idx: BodyIndex) -> tuple[np.ndarray, np.ndarray]:
-    """PD-target limits per servo: hinge ranges, +-pi for ball-joint components (as in training)."""
-    j = model.actuator_trnid[idx.act, 0]
-    lo, hi = model.jnt_range[j, 0].copy(), model.jnt_range[j, 1].copy()
-    ball = model.jnt_type[j] != mujoco.mjtJoint.mjJNT_HINGE
-    lo[ball], hi[ball] = -np.pi, np.pi
-    return lo, hi
-
-
-def check_policy_io(n_obs: int, n_act: int) -> None:
+def check_policy_io(folder: str, n_obs: int, n_act: int) -> None:
+    """A policy fits the steered walking human (`OBS_SIZE` observations, 21 actions)."""
     if n_obs != OBS_SIZE or n_act != 21:
-        raise SimulationError("policy", f"policy expects {n_obs} observations / {n_act} actions, the "
-                              f"walking human gives {OBS_SIZE} / 21")
+        hint = " (a straight walker from before steering: retrain with `--init-from`)" \
+            if n_obs == LEGACY_OBS_SIZE else ""
+        raise SimulationError(folder, f"policy expects {n_obs} observations / {n_act} actions, the "
+                              f"walking human gives {OBS_SIZE} / 21{hint}")
+
+
+@dataclass(frozen=True)
+class ActorMlp:
+    """The trained policy's deterministic action as plain numpy: observation normalisation
+    (VecNormalize: (obs - mean) / sqrt(var + eps), clipped), the ReLU MLP and the action layer. The
+    same numbers as stable-baselines3's `predict(deterministic=True)` without its per-call tensor
+    and preprocessing overhead, which cost more than the physics between two policy steps."""
+
+    weights: tuple[np.ndarray, ...]
+    biases: tuple[np.ndarray, ...]
+    obs_mean: np.ndarray
+    obs_scale: np.ndarray  # 1 / sqrt(var + eps)
+    clip_obs: float
+
+    @classmethod
+    def from_sb3(cls, model, norm) -> ActorMlp:
+        import torch
+
+        layers = [m for m in model.policy.mlp_extractor.policy_net if isinstance(m, torch.nn.Linear)]
+        layers.append(model.policy.action_net)
+        n = model.observation_space.shape[0]
+        mean = norm.obs_rms.mean if norm is not None else np.zeros(n)
+        scale = 1.0 / np.sqrt(norm.obs_rms.var + norm.epsilon) if norm is not None else np.ones(n)
+        return cls(tuple(layer.weight.detach().numpy().astype(float) for layer in layers),
+                   tuple(layer.bias.detach().numpy().astype(float) for layer in layers),
+                   np.asarray(mean, float), np.asarray(scale, float),
+                   float(norm.clip_obs) if norm is not None else np.inf)
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        h = np.clip((obs - self.obs_mean) * self.obs_scale, -self.clip_obs, self.clip_obs)
+        last = len(self.weights) - 1
+        for i, (w, b) in enumerate(zip(self.weights, self.biases, strict=True)):
+            h = w @ h + b
+            if i < last:
+                np.maximum(h, 0.0, out=h)
+        return np.clip(h, -1.0, 1.0)
 
 
 @dataclass(frozen=True)
 class PolicyWalk:
-    """One policy-human job: a walk of `duration_s` from a random phase (the seed's), optionally
-    with a lateral pelvis push of `push_n` (signed, world y) at `push_time_s`."""
+    """One policy-human job: a walk of `duration_s` from a random phase (the seed's), or the
+    scenario `scenario` (its commands set the length), optionally with a lateral pelvis push of
+    `push_n` (signed, world y) at `push_time_s`."""
 
-    duration_s: float
+    duration_s: float = 0.0
     push_n: float = 0.0
     push_time_s: float = 0.0
     push_duration_s: float = 0.0
+    scenario: str | None = None
 
 
 @dataclass(frozen=True)
 class PolicySource:
     """Policy humans of one subject for the batch runner (`sim.rollout.batch.DriverSource`): the
-    trained policy in `policy_dir` on its own body, sampled at `sample_rate_hz`."""
+    trained policy in `policy_dir` on its own body, sampled at `sample_rate_hz`; `scenarios` name
+    the command segments a `PolicyWalk` may ask for, `profile` their transitions."""
 
     policy_dir: str
     env: WalkEnvParams
     sample_rate_hz: float
     fall_height_fraction: float
+    scenarios: dict[str, tuple[Segment, ...]] = field(default_factory=dict)
+    profile: ProfileParams = field(default_factory=ProfileParams)
 
     def open(self, world: mujoco.MjSpec):
         import torch
@@ -177,19 +237,26 @@ class PolicySource:
 
         torch.set_num_threads(1)
         model, norm = load_policy(self.policy_dir)
+        check_policy_io(self.policy_dir, model.observation_space.shape[0], model.action_space.shape[0])
         body_xml, cycle = load_body(self.policy_dir)
         pd_model = make_walk_env(str(body_xml), cycle, self.env).model
-
-        def policy(obs: np.ndarray) -> np.ndarray:
-            o = norm.normalize_obs(obs) if norm is not None else obs
-            return model.predict(o, deterministic=True)[0]
+        policy = ActorMlp.from_sb3(model, norm)
 
         def make(walk: PolicyWalk, seed: int) -> HumanRun:
             rng = np.random.default_rng(seed)
             push = Push(walk.push_time_s, (0.0, walk.push_n), walk.push_duration_s) if walk.push_n else None
+            commands = None
+            if walk.scenario is not None:
+                if walk.scenario not in self.scenarios:
+                    raise SimulationError(f"scenario {walk.scenario!r}", f"not in params scenarios "
+                                          f"({', '.join(self.scenarios)})")
+                commands = command_profile(walk.scenario, list(self.scenarios[walk.scenario]),
+                                           cycle.speed_mps,
+                                           self.sample_rate_hz, self.profile)
             human = PolicyHuman(policy, pd_model, cycle, self.env, walk.duration_s,
                                 start_phase=float(rng.random()), push=push,
-                                fall_height_fraction=self.fall_height_fraction)
-            return HumanRun(human, self.sample_rate_hz, warm_speed_mps=cycle.speed_mps)
+                                fall_height_fraction=self.fall_height_fraction, commands=commands)
+            v0 = cycle.speed_mps if commands is None else float(commands.speed_mps[0])
+            return HumanRun(human, self.sample_rate_hz, warm_speed_mps=v0 if v0 > 0 else None)
 
         return make

@@ -33,7 +33,7 @@ from stable_baselines3.common.callbacks import BaseCallback, CallbackList
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor, VecNormalize
 
 from sim.learn.amp import AMP, AMPCallback, AMPParams
-from sim.learn.walk_env import AMP_SIZE, WalkEnv, WalkEnvParams, make_walk_env
+from sim.learn.walk_env import AMP_SIZE, LEGACY_OBS_SIZE, OBS_SIZE, WalkEnv, WalkEnvParams, make_walk_env
 from sim.motion.reference import ReferenceCycle
 
 POLICY_FILE, NORM_FILE, AMP_FILE, PROGRESS_FILE = "policy.zip", "vecnormalize.pkl", "amp.pt", "progress.json"
@@ -60,7 +60,7 @@ class TrainParams:
     target_kl: float = 0.05
     log_std_init: float = -1.0
     net_arch: tuple[int, ...] = (256, 256)
-    checkpoint_steps: int = 1_000_000
+    checkpoint_steps: int = 250_000
     seed: int = 0
     env: WalkEnvParams = field(default_factory=WalkEnvParams)
     amp: AMPParams = field(default_factory=AMPParams)
@@ -183,20 +183,18 @@ def train(model_path: str | Path, cycle: ReferenceCycle, p: TrainParams, out_dir
         for f in (POLICY_FILE, NORM_FILE):
             if not (start_dir / f).exists():
                 raise FileNotFoundError(f"{start_dir / f}: no policy to start from")
-        venv = VecNormalize.load(str(start_dir / NORM_FILE), venv)
-        venv.training = True
-        model = PPO.load(str(start_dir / POLICY_FILE), env=venv, device="cpu")
+        old = PPO.load(str(start_dir / POLICY_FILE), device="cpu")
+        if old.observation_space.shape[0] == LEGACY_OBS_SIZE:  # a straight walker: widen to steering
+            venv, model = widen_policy(old, _load_norm(start_dir), venv, p, cycle.speed_mps)
+        else:
+            venv = VecNormalize.load(str(start_dir / NORM_FILE), venv)
+            venv.training = True
+            model = PPO.load(str(start_dir / POLICY_FILE), env=venv, device="cpu")
         if not prior:
             model.num_timesteps = 0
     else:
         venv = VecNormalize(venv, norm_obs=True, norm_reward=False, clip_obs=10.0, gamma=p.gamma)
-        model = PPO("MlpPolicy", venv, n_steps=p.n_steps, batch_size=p.batch_size, n_epochs=p.n_epochs,
-                    learning_rate=p.learning_rate, gamma=p.gamma, gae_lambda=p.gae_lambda,
-                    clip_range=p.clip_range,
-                    ent_coef=p.ent_coef, max_grad_norm=p.max_grad_norm, target_kl=p.target_kl, seed=p.seed,
-                    device="cpu", verbose=0,
-                    policy_kwargs={"net_arch": {"pi": list(p.net_arch), "vf": list(p.net_arch)},
-                                   "activation_fn": torch.nn.ReLU, "log_std_init": p.log_std_init})
+        model = new_ppo(venv, p)
     ref_env = make_walk_env(model_path, cycle, p.env)
     rng = np.random.default_rng(p.seed)
     amp = AMP(2 * AMP_SIZE, p.amp, lambda n: ref_env.ref.amp_pairs(rng, n, ref_env.step_phase), seed=p.seed)
@@ -244,6 +242,64 @@ def train(model_path: str | Path, cycle: ReferenceCycle, p: TrainParams, out_dir
     return rec
 
 
+def new_ppo(venv: VecNormalize, p: TrainParams) -> PPO:
+    """A fresh PPO with the params' settings on `venv`."""
+    return PPO("MlpPolicy", venv, n_steps=p.n_steps, batch_size=p.batch_size, n_epochs=p.n_epochs,
+               learning_rate=p.learning_rate, gamma=p.gamma, gae_lambda=p.gae_lambda, clip_range=p.clip_range,
+               ent_coef=p.ent_coef, max_grad_norm=p.max_grad_norm, target_kl=p.target_kl, seed=p.seed,
+               device="cpu", verbose=0,
+               policy_kwargs={"net_arch": {"pi": list(p.net_arch), "vf": list(p.net_arch)},
+                              "activation_fn": torch.nn.ReLU, "log_std_init": p.log_std_init})
+
+
+# observation slots whose statistics steering changes: (mean, std) to normalise them with from now on
+# (yaw sin / cos relative to the commanded heading, commanded speed in cycle speeds, amplitude, yaw rate)
+STEERING_STATS = {7: (0.0, 0.5), 8: (0.8, 0.3), 72: (0.7, 0.4), 73: (0.0, 0.5)}
+UNTRAINED_SLOTS = range(65, 72)  # commanded speed and harness wrench: constant in straight-walk training
+
+
+def widen_policy(old: PPO, old_norm: VecNormalize, venv: VecMonitor, p: TrainParams,
+                 speed_mps: float) -> tuple[VecNormalize, PPO]:
+    """A steering policy that acts exactly as the straight walker `old` on its own observations:
+    the first layers get the new inputs with zero weights, the inputs that straight walking held
+    constant (commanded speed, wrench) lose their never-trained weights, and slots given new
+    normalisation statistics (`STEERING_STATS`) have their weights and biases rescaled so the
+    network sees the same pre-activations (z_old = (m_new - m_old) / s_old + s_new / s_old z_new)."""
+    n_old = old.observation_space.shape[0]
+    norm = VecNormalize(venv, norm_obs=True, norm_reward=False, clip_obs=10.0, gamma=p.gamma)
+    m_old = old_norm.obs_rms.mean.astype(float)
+    s_old = np.sqrt(old_norm.obs_rms.var.astype(float) + old_norm.epsilon)
+    mean, std = np.zeros(OBS_SIZE), np.ones(OBS_SIZE)
+    mean[:n_old], std[:n_old] = m_old, s_old
+    stats = {**STEERING_STATS, 65: (speed_mps, 0.4 * speed_mps)}
+    for i, (m, sd) in stats.items():
+        mean[i], std[i] = m, sd
+    norm.obs_rms.mean, norm.obs_rms.var = mean, std ** 2 - norm.epsilon
+    norm.obs_rms.count = 1e5  # new statistics adapt, without swamping the old ones at once
+    model = new_ppo(norm, p)
+    state = {k: v.clone() for k, v in old.policy.state_dict().items()}
+    for net in ("policy_net", "value_net"):
+        w_key, b_key = f"mlp_extractor.{net}.0.weight", f"mlp_extractor.{net}.0.bias"
+        w_old, b = state[w_key], state[b_key]
+        w = torch.zeros((w_old.shape[0], OBS_SIZE), dtype=w_old.dtype)
+        w[:, :n_old] = w_old
+        for i in stats:
+            if i < n_old and i not in UNTRAINED_SLOTS:
+                w[:, i] = w_old[:, i] * float(std[i] / s_old[i])
+                b = b + w_old[:, i] * float((mean[i] - m_old[i]) / s_old[i])
+        w[:, list(UNTRAINED_SLOTS)] = 0.0
+        state[w_key], state[b_key] = w, b
+    model.policy.load_state_dict(state)
+    return norm, model
+
+
+def _load_norm(folder: Path) -> VecNormalize:
+    import pickle
+
+    with (folder / NORM_FILE).open("rb") as f:
+        return pickle.load(f)
+
+
 def save_body(out_dir: str | Path, model_path: str | Path, cycle: ReferenceCycle) -> None:
     """Keep the human model and reference cycle a policy was trained on beside it: a policy is bound
     to that body (joint frames, segment lengths) and is evaluated on it."""
@@ -266,13 +322,8 @@ def load_policy(out_dir: str | Path) -> tuple[PPO, VecNormalize | None]:
     """The trained PPO policy and its observation normaliser (for `PolicyHuman`)."""
     out = Path(out_dir)
     model = PPO.load(str(out / POLICY_FILE), device="cpu")
-    norm = None
-    if (out / NORM_FILE).exists():
-        import pickle
-        with (out / NORM_FILE).open("rb") as f:
-            norm = pickle.load(f)
-    return model, norm
+    return model, (_load_norm(out) if (out / NORM_FILE).exists() else None)
 
 
 __all__ = ["AMP_FILE", "BODY_FILE", "CYCLE_FILE", "NORM_FILE", "POLICY_FILE", "PROGRESS_FILE", "TrainParams",
-           "load_body", "load_policy", "make_vec_env", "save_body", "train"]
+           "load_body", "load_policy", "make_vec_env", "new_ppo", "save_body", "train", "widen_policy"]

@@ -7,20 +7,27 @@ range), so the PD law runs in MuJoCo's C step and implicit integration handles i
 joint's three servos act on the components of its exponential-map (axis-angle) coordinates, which is
 MuJoCo's ball-joint actuator length. Target = reference(phase) + `action_scale_rad` x action.
 
+The human is steered (sim/learn/steering.py): every step has a command, forward speed and heading;
+the reference is the cycle time-warped to the commanded speed and blended with quiet standing by
+the gait amplitude. Training draws random command profiles (stand, start, walk, turn, change speed,
+stop); a rollout passes a scenario's profile.
+
 Observation (the human's own state only, heading-relative): pelvis height, pelvis orientation without
-yaw (two rotation-matrix columns), yaw (sin, cos) relative to the walking direction, pelvis linear and
-angular velocity, the 21 joint coordinates and 21 joint velocities, feet relative to the pelvis,
-gait phase (sin, cos), target speed and a 6-slot harness wrench (zeros when no robot is attached).
+yaw (two rotation-matrix columns), yaw (sin, cos) relative to the commanded heading, pelvis linear
+and angular velocity, the 21 joint coordinates and 21 joint velocities, feet relative to the pelvis,
+gait phase (sin, cos), commanded speed, a 6-slot harness wrench (zeros when no robot is attached),
+gait amplitude and commanded yaw rate.
 
 Reward = w_imit x imitation (DeepMimic exponentials of pose, joint velocity, feet, pelvis height
-and velocity errors) + w_task x task (speed along the walking direction, no lateral drift). The
-adversarial style reward (sim/learn/amp.py) is added to the rollout buffer by the training callback; the
-env returns the AMP transition features in `info["amp"]`.
+and velocity errors against the steered reference) + w_task x task (speed along the commanded
+heading, no lateral drift, times a heading term). The adversarial style reward (sim/learn/amp.py)
+is added to the rollout buffer by the training callback; the env returns the AMP transition
+features in `info["amp"]`.
 
-Reference-state initialisation at a random phase, early termination when the pelvis drops or the
-trunk tilts, and random horizontal pushes on the pelvis (magnitude, duration and interval in params)
-for robustness. Everything in a step is preallocated numpy on MuJoCo's arrays; the physics runs
-`n_substeps` steps in one `mj_step` call.
+Reference-state initialisation (quiet standing, or walking at a random phase), early termination
+when the pelvis drops or the trunk tilts, and random horizontal pushes on the pelvis (magnitude,
+duration and interval in params) for robustness. Everything in a step is preallocated numpy on
+MuJoCo's arrays; the physics runs `n_substeps` steps in one `mj_step` call.
 """
 
 from __future__ import annotations
@@ -34,13 +41,23 @@ import numpy as np
 
 from sim.body.human_params import joint_kind
 from sim.errors import SimulationError
+from sim.learn.steering import (
+    CommandSampling,
+    SteeredReference,
+    blend_qpos,
+    gait_amplitude,
+    sample_commands,
+    standing_pose,
+)
 from sim.motion.reference import ReferenceCycle
+from sim.rollout.scenarios import CommandProfile, ProfileParams
 
 SIDE_SUFFIXES = ("l", "r")  # the model's side suffixes (foot_l, foot_r)
 HUMAN_ACTUATORS = ("lumbar_x", "lumbar_y", "lumbar_z", "hip_l_x", "hip_l_y", "hip_l_z", "hip_r_x", "hip_r_y",
                    "hip_r_z", "shoulder_l_x", "shoulder_l_y", "shoulder_l_z", "shoulder_r_x", "shoulder_r_y",
                    "shoulder_r_z", "knee_l", "knee_r", "ankle_l", "ankle_r", "elbow_l", "elbow_r")
-OBS_SIZE = 72
+OBS_SIZE = 74
+LEGACY_OBS_SIZE = 72  # the straight-walking policies before steering (no amplitude, no yaw rate)
 AMP_SIZE = 61
 
 
@@ -68,6 +85,9 @@ class WalkEnvParams:
     push_duration_s: float = 0.2
     push_interval_s: tuple[float, float] = (1.0, 3.0)
     push_probability: float = 0.5           # share of episodes with pushes
+    heading_scale: float = 2.0              # task x exp(-scale (1 - cos heading error))
+    commands: CommandSampling = field(default_factory=CommandSampling)
+    profile: ProfileParams = field(default_factory=ProfileParams)  # the scenarios' transitions
 
     @classmethod
     def from_dict(cls, d: dict) -> WalkEnvParams:
@@ -75,9 +95,14 @@ class WalkEnvParams:
         unknown = set(d) - known
         if unknown:
             raise KeyError(f"train.env: unknown key {sorted(unknown)[0]!r}")
-        out = {}
+        out: dict = {}
         for k, v in d.items():
-            if isinstance(v, dict):
+            if k == "commands":
+                out[k] = CommandSampling(**{a: (tuple(float(x) for x in b) if isinstance(b, list | tuple)
+                                                 else float(b)) for a, b in v.items()})
+            elif k == "profile":
+                out[k] = v if isinstance(v, ProfileParams) else ProfileParams(**v)
+            elif isinstance(v, dict):
                 out[k] = {str(a): float(b) for a, b in v.items()}
             elif isinstance(v, list | tuple):
                 out[k] = tuple(float(x) for x in v)
@@ -106,10 +131,15 @@ def pd_servo_spec(spec: mujoco.MjSpec, p: WalkEnvParams) -> None:
         act.forcerange = [-limit, limit]
 
 
+AMP_LEVELS = (0.0, 0.25, 0.5, 0.75, 1.0)  # gait amplitudes of the AMP reference transitions
+AMP_LEVEL_WEIGHTS = (0.2, 0.1, 0.1, 0.1, 0.5)  # standing, start / stop blends, walking
+
+
 class ReferenceTable:
     """The periodic reference cycle turned into lookup tables on the model: actuator coordinates
     (`ctrl`), joint velocities, feet relative to the pelvis, pelvis height and velocity, and AMP
-    features, each (N, .) at phase k/N."""
+    features, each (N, .) at phase k/N; plus quiet standing (`stand_*`) and the AMP features of the
+    standing-to-walking blend at the gait amplitudes `AMP_LEVELS` (sim/learn/steering.py)."""
 
     def __init__(self, model: mujoco.MjModel, cycle: ReferenceCycle) -> None:
         data = mujoco.MjData(model)
@@ -118,20 +148,32 @@ class ReferenceTable:
         self.qpos, self.qvel = cycle.qpos.copy(), cycle.qvel.copy()
         self.ctrl = np.empty((n, model.nu))
         self.feet = np.empty((n, 6))
-        self.amp = np.empty((n, AMP_SIZE))
         idx = BodyIndex(model)
-        for k in range(n):
-            data.qpos[:], data.qvel[:] = cycle.qpos[k], cycle.qvel[k]
-            mujoco.mj_forward(model, data)
-            self.ctrl[k] = data.actuator_length
-            self.feet[k] = feet_in_heading(data, idx)
-            amp_features(data, idx, self.amp[k])
+        self.stand_qpos = standing_pose(model, idx.feet)
+        data.qpos[:], data.qvel[:] = self.stand_qpos, 0.0
+        mujoco.mj_forward(model, data)
+        self.stand_ctrl = data.actuator_length.copy()
+        self.stand_feet = feet_in_heading(data, idx)
+        self.stand_height = float(self.stand_qpos[2])
+        self.amp_levels = np.empty((len(AMP_LEVELS), n, AMP_SIZE))
+        for i, a in enumerate(AMP_LEVELS):
+            for k in range(n):
+                data.qpos[:] = blend_qpos(model, self.stand_qpos, cycle.qpos[k], a)
+                data.qvel[:] = cycle.qvel[k] * a  # speed ratio = amplitude: joints a^2, root a
+                data.qvel[6:] *= a
+                mujoco.mj_forward(model, data)
+                amp_features(data, idx, self.amp_levels[i, k])
+                if a == 1.0:
+                    self.ctrl[k] = data.actuator_length
+                    self.feet[k] = feet_in_heading(data, idx)
+        self.amp = self.amp_levels[-1]
         # actuator-coordinate velocity of the cycle (periodic central differences)
         diff = np.roll(self.ctrl, -1, axis=0) - np.roll(self.ctrl, 1, axis=0)
         self.ctrl_vel = diff / (2 * self.period_s / n)
         self.height = cycle.qpos[:, 2].copy()
         self.root_vel = cycle.qvel[:, :3].copy()
         self.joint_vel = cycle.qvel[:, 6:].copy()
+        self.steered = SteeredReference(self, self.stand_ctrl, self.stand_feet, self.stand_height)
 
     def index(self, phase: float) -> tuple[int, int, float]:
         """(k, k + 1 mod N, fraction) for linear interpolation at `phase` in [0, 1)."""
@@ -140,15 +182,19 @@ class ReferenceTable:
         return k % self.n, (k + 1) % self.n, x - k
 
     def amp_pairs(self, rng: np.random.Generator, size: int, step_phase: float) -> np.ndarray:
-        """`size` reference transitions (features at phase and phase + `step_phase`), (size, 2 x AMP)."""
+        """`size` reference transitions (features at phase and phase + the step's phase advance at
+        the amplitude's speed ratio), drawn over the gait amplitudes by `AMP_LEVEL_WEIGHTS`,
+        (size, 2 x AMP)."""
+        level = rng.choice(len(AMP_LEVELS), size, p=AMP_LEVEL_WEIGHTS)
         ph = rng.random(size)
-        return np.hstack([self._interp(self.amp, ph), self._interp(self.amp, ph + step_phase)])
+        rate = np.asarray(AMP_LEVELS)[level]
+        return np.hstack([self._interp(level, ph), self._interp(level, ph + step_phase * rate)])
 
-    def _interp(self, table: np.ndarray, phase: np.ndarray) -> np.ndarray:
+    def _interp(self, level: np.ndarray, phase: np.ndarray) -> np.ndarray:
         x = (phase % 1.0) * self.n
         k = x.astype(int) % self.n
         f = (x - np.floor(x))[:, None]
-        return table[k] * (1 - f) + table[(k + 1) % self.n] * f
+        return self.amp_levels[level, k] * (1 - f) + self.amp_levels[level, (k + 1) % self.n] * f
 
 
 class BodyIndex:
@@ -225,12 +271,14 @@ def amp_features(data: mujoco.MjData, idx: BodyIndex, out: np.ndarray) -> None:
 
 class WalkEnv(gym.Env):
     """The walking task on one subject (module docstring). `model` must already carry the PD servos
-    (`pd_servo_spec`); `cycle` is the subject's periodic reference cycle."""
+    (`pd_servo_spec`); `cycle` is the subject's periodic reference cycle. `reset(options=...)` takes
+    `commands` (a `CommandProfile` at the policy rate) for a fixed scenario, `phase` for the start
+    phase and `pushes` to switch the random pushes off; without commands it draws random ones."""
 
     metadata = {"render_modes": []}
 
     def __init__(self, model: mujoco.MjModel, cycle: ReferenceCycle, p: WalkEnvParams,
-                 target_speed_mps: float | None = None, seed: int | None = None) -> None:
+                 seed: int | None = None) -> None:
         if model.nu != 21 or model.nv != 27:
             raise SimulationError("human model", f"expected 27 DoF / 21 motors, got {model.nv} / {model.nu}")
         self.model, self.p = model, p
@@ -239,22 +287,19 @@ class WalkEnv(gym.Env):
         self.dt = self.n_sub * model.opt.timestep
         self.ref = ReferenceTable(model, cycle)
         self.idx = BodyIndex(model)
-        self.target_speed = float(self.ref.speed_mps if target_speed_mps is None else target_speed_mps)
         self.step_phase = self.dt / self.ref.period_s
         self.max_steps = int(round(p.episode_s / self.dt))
         self.min_height = p.min_pelvis_height_fraction * float(self.ref.height.mean())
         self.min_up = float(np.cos(np.radians(p.max_tilt_deg)))
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, (OBS_SIZE,), np.float32)
         self.action_space = gym.spaces.Box(-1.0, 1.0, (model.nu,), np.float32)
-        self.ctrl_lo = model.jnt_range[model.actuator_trnid[:, 0], 0].copy()
-        self.ctrl_hi = model.jnt_range[model.actuator_trnid[:, 0], 1].copy()
-        hinge = model.jnt_type[model.actuator_trnid[:, 0]] == mujoco.mjtJoint.mjJNT_HINGE
-        self.ctrl_lo[~hinge], self.ctrl_hi[~hinge] = -np.pi, np.pi
+        self.ctrl_lo, self.ctrl_hi = servo_ranges(model, np.arange(model.nu))
         self.wrench = np.zeros(6)
         self._obs = np.zeros(OBS_SIZE, np.float32)
         self._amp_prev = np.zeros(AMP_SIZE)
         self._amp_cur = np.zeros(AMP_SIZE)
-        self.phase = 0.0
+        self.gait = GaitState(self.ref, p.commands.full_gait_fraction)
+        self.commands: CommandProfile | None = None
         self.steps = 0
         self.push_force = np.zeros(3)
         self.push_until = -1.0
@@ -262,28 +307,38 @@ class WalkEnv(gym.Env):
         self.pushes = False
         self.np_random, _ = gym.utils.seeding.np_random(seed)
 
+    @property
+    def phase(self) -> float:
+        return self.gait.phase
+
     # -- state ---------------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
-        rng = self.np_random
+        rng, options = self.np_random, options or {}
         d = self.data
         mujoco.mj_resetData(self.model, d)
-        phase = float(options["phase"]) if options and "phase" in options else float(rng.random())
+        self.commands = options.get("commands") or sample_commands(
+            rng, self.ref.speed_mps, self.p.episode_s + 1.0, 1.0 / self.dt, self.p.commands, self.p.profile)
+        phase = float(options["phase"]) if "phase" in options else float(rng.random())
         k = int(phase * self.ref.n) % self.ref.n
-        self.phase = k / self.ref.n
-        d.qpos[:] = self.ref.qpos[k]
-        d.qpos[:2] = 0.0
-        d.qvel[:] = self.ref.qvel[k]
-        d.ctrl[:] = self.ref.ctrl[k]
+        self.gait.start(k / self.ref.n, *self._command(0))
+        start_pose(self.ref, k, self.gait.a, d.qpos, d.qvel, d.ctrl)
         self.steps = 0
-        self.pushes = bool(options.get("pushes", True) if options else True) and \
-            rng.random() < self.p.push_probability
+        self.pushes = bool(options.get("pushes", True)) and rng.random() < self.p.push_probability
         self.next_push = self._draw_interval() if self.pushes else np.inf
         self.push_until = -1.0
         self.wrench[:] = 0.0
         mujoco.mj_forward(self.model, d)
         amp_features(d, self.idx, self._amp_cur)
         return self._observe(), {}
+
+    def _command(self, i: int) -> tuple[float, float, float]:
+        """(speed, heading, yaw rate) of policy step `i` (the last command holds after the profile)."""
+        c = self.commands
+        i = min(i, len(c.time_s) - 1)
+        j = min(i + 1, len(c.time_s) - 1)
+        rate = (c.heading_rad[j] - c.heading_rad[i]) / self.dt if j > i else 0.0
+        return float(c.speed_mps[i]), float(c.heading_rad[i]), float(rate)
 
     def _draw_interval(self) -> float:
         lo, hi = self.p.push_interval_s
@@ -303,26 +358,15 @@ class WalkEnv(gym.Env):
         else:
             d.xfrc_applied[self.idx.pelvis, :3] = 0.0
 
-    def targets(self, action: np.ndarray, phase: float) -> np.ndarray:
-        """Servo inputs for the step that ends at `phase`: the reference's actuator coordinates there
-        plus the scaled residual (clipped to the joint ranges), plus kd/kp x the reference joint
-        velocity, so the affine servo acts as kp (q* - q) + kd (q*' - q')."""
-        k0, k1, f = self.ref.index(phase)
-        g = 1 - f
-        ref = self.ref.ctrl[k0] * g + self.ref.ctrl[k1] * f
-        target = np.clip(ref + self.p.action_scale_rad * np.asarray(action, dtype=float),
-                         self.ctrl_lo, self.ctrl_hi)
-        return target + self.p.pd_kd_ratio_s * (self.ref.ctrl_vel[k0] * g + self.ref.ctrl_vel[k1] * f)
-
     def step(self, action):
         d = self.data
-        d.ctrl[:] = self.targets(action, self.phase + self.step_phase)
+        self.gait.advance(self.step_phase, *self._command(self.steps + 1))
+        d.ctrl[:] = self.gait.targets(action, self.p, self.ctrl_lo, self.ctrl_hi)
         if self.pushes:
             self._push()
         self._amp_prev[:] = self._amp_cur
         mujoco.mj_step(self.model, d, nstep=self.n_sub)
         self.steps += 1
-        self.phase = (self.phase + self.step_phase) % 1.0
         amp_features(d, self.idx, self._amp_cur)
         reward, terms = self._reward()
         fallen = self.fallen()
@@ -336,55 +380,118 @@ class WalkEnv(gym.Env):
                     or not np.isfinite(d.qacc).all())
 
     def _reward(self) -> tuple[float, np.ndarray]:
-        d, ref, p = self.data, self.ref, self.p
-        k0, k1, f = ref.index(self.phase)
-        g = 1 - f
-        e_pose = float(np.sum((d.actuator_length - (ref.ctrl[k0] * g + ref.ctrl[k1] * f)) ** 2))
-        e_vel = float(np.sum((d.qvel[6:] - (ref.joint_vel[k0] * g + ref.joint_vel[k1] * f)) ** 2))
-        e_feet = float(np.sum((self._amp_cur[-6:] - (ref.feet[k0] * g + ref.feet[k1] * f)) ** 2))
-        e_h = float((d.qpos[2] - (ref.height[k0] * g + ref.height[k1] * f)) ** 2)
-        rv = ref.root_vel[k0] * g + ref.root_vel[k1] * f
-        e_rv = float((d.qvel[0] - rv[0]) ** 2 + (d.qvel[1] - rv[1]) ** 2)
-        s, w = p.imitation_scales, p.imitation_weights
-        terms = np.array([np.exp(-s["pose"] * e_pose), np.exp(-s["velocity"] * e_vel),
-                          np.exp(-s["feet"] * e_feet), np.exp(-s["height"] * e_h),
-                          np.exp(-s["root_velocity"] * e_rv),
-                          np.exp(-p.task_scale * ((d.qvel[0] - self.target_speed) ** 2 + d.qvel[1] ** 2))])
+        d, p, g = self.data, self.p, self.gait
+        ctrl, _, joint_vel, feet, height, root_vel = g.reference
+        e_pose = float(np.sum((d.actuator_length - ctrl) ** 2))
+        e_vel = float(np.sum((d.qvel[6:] - joint_vel) ** 2))
+        e_feet = float(np.sum((self._amp_cur[-6:] - feet) ** 2))
+        e_h = float((d.qpos[2] - height) ** 2)
+        ch, sh = np.cos(g.heading), np.sin(g.heading)
+        v_fwd = ch * d.qvel[0] + sh * d.qvel[1]
+        v_lat = -sh * d.qvel[0] + ch * d.qvel[1]
+        e_rv = float((v_fwd - root_vel[0]) ** 2 + (v_lat - root_vel[1]) ** 2)
+        c, s = _heading(d.xmat[self.idx.pelvis])
+        heading_error = 1.0 - (c * ch + s * sh)
+        sc, w = p.imitation_scales, p.imitation_weights
+        terms = np.array([np.exp(-sc["pose"] * e_pose), np.exp(-sc["velocity"] * e_vel),
+                          np.exp(-sc["feet"] * e_feet), np.exp(-sc["height"] * e_h),
+                          np.exp(-sc["root_velocity"] * e_rv),
+                          np.exp(-p.task_scale * ((v_fwd - g.speed) ** 2 + v_lat ** 2)
+                                 - p.heading_scale * heading_error)])
         imitation = (w["pose"] * terms[0] + w["velocity"] * terms[1] + w["feet"] * terms[2]
                      + w["height"] * terms[3] + w["root_velocity"] * terms[4])
         return float(p.w_imitation * imitation + p.w_task * terms[5]), terms
 
     def _observe(self) -> np.ndarray:
-        observe(self.data, self.idx, self._amp_cur, self.phase, self.target_speed, self.wrench, self._obs)
+        observe(self.data, self.idx, self._amp_cur, self.gait, self.wrench, self._obs)
         return self._obs.copy()
 
 
-def observe(data: mujoco.MjData, idx: BodyIndex, amp: np.ndarray, phase: float, target_speed_mps: float,
+class GaitState:
+    """Where the steered reference is: phase, and the command it was advanced with (speed, heading,
+    yaw rate) with its gait amplitude and speed ratio (sim/learn/steering.py). One per walking human,
+    in training and in rollouts alike."""
+
+    def __init__(self, ref: ReferenceTable, full_gait_fraction: float) -> None:
+        self.ref, self.full = ref, float(full_gait_fraction)
+        self.phase = self.speed = self.heading = self.yaw_rate = self.a = self.rate = 0.0
+        self.reference = ref.steered.at(0.0, 0.0, 0.0)
+
+    def _set(self, speed: float, heading: float, yaw_rate: float) -> None:
+        self.speed, self.heading, self.yaw_rate = speed, heading, yaw_rate
+        self.rate = speed / self.ref.speed_mps
+        self.a = gait_amplitude(speed, self.ref.speed_mps, self.full)
+
+    def start(self, phase: float, speed: float, heading: float, yaw_rate: float) -> None:
+        self.phase = phase % 1.0
+        self._set(speed, heading, yaw_rate)
+        self.reference = self.ref.steered.at(self.phase, self.a, self.rate)
+
+    def advance(self, step_phase: float, speed: float, heading: float, yaw_rate: float) -> None:
+        """One policy step: the phase moves by `step_phase` x the commanded speed ratio."""
+        self._set(speed, heading, yaw_rate)
+        self.phase = (self.phase + step_phase * self.rate) % 1.0
+        self.reference = self.ref.steered.at(self.phase, self.a, self.rate)
+
+    def targets(self, action: np.ndarray, p: WalkEnvParams, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+        """Servo inputs: the reference's actuator coordinates plus the scaled residual (clipped to
+        the joint ranges), plus kd/kp x the reference velocity, so the affine servo acts as
+        kp (q* - q) + kd (q*' - q')."""
+        ctrl, ctrl_vel = self.reference[0], self.reference[1]
+        target = np.clip(ctrl + p.action_scale_rad * np.asarray(action, dtype=float), lo, hi)
+        return target + p.pd_kd_ratio_s * ctrl_vel
+
+
+def start_pose(ref: ReferenceTable, k: int, a: float, qpos: np.ndarray, qvel: np.ndarray,
+               ctrl: np.ndarray) -> None:
+    """Initial human state (in place, the human's own slices): quiet standing when the gait
+    amplitude is 0, else the cycle at sample `k` (reference-state initialisation), at x = y = 0."""
+    if a == 0.0:
+        qpos[:], qvel[:], ctrl[:] = ref.stand_qpos, 0.0, ref.stand_ctrl
+    else:
+        qpos[:], qvel[:], ctrl[:] = ref.qpos[k], ref.qvel[k], ref.ctrl[k]
+    qpos[:2] = 0.0
+
+
+def servo_ranges(model: mujoco.MjModel, act: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """PD-target limits of servos `act`: hinge ranges, +-pi for ball-joint components."""
+    j = model.actuator_trnid[act, 0]
+    lo, hi = model.jnt_range[j, 0].copy(), model.jnt_range[j, 1].copy()
+    ball = model.jnt_type[j] != mujoco.mjtJoint.mjJNT_HINGE
+    lo[ball], hi[ball] = -np.pi, np.pi
+    return lo, hi
+
+
+def observe(data: mujoco.MjData, idx: BodyIndex, amp: np.ndarray, gait: GaitState,
             wrench: np.ndarray, out: np.ndarray) -> None:
     """The policy observation (module docstring) into `out` (OBS_SIZE,), from the current AMP
-    features `amp` of the state in `data`."""
+    features `amp` of the state in `data` and the command in `gait`."""
     c, s = _heading(data.xmat[idx.pelvis])
+    ch, sh = np.cos(gait.heading), np.sin(gait.heading)
     out[0:7] = amp[0:7]
-    out[7], out[8] = s, c
+    out[7], out[8] = s * ch - c * sh, c * ch + s * sh  # yaw relative to the commanded heading
     out[9:15] = amp[7:13]
     nu = len(idx.act)
     out[15:15 + 2 * nu] = amp[13:13 + 2 * nu]
     out[15 + nu:15 + 2 * nu] *= 0.1  # joint velocities to O(1)
     out[57:63] = amp[-6:]
-    out[63], out[64] = np.sin(2 * np.pi * phase), np.cos(2 * np.pi * phase)
-    out[65] = target_speed_mps
+    out[63], out[64] = np.sin(2 * np.pi * gait.phase), np.cos(2 * np.pi * gait.phase)
+    out[65] = gait.speed
     out[66:72] = wrench * 0.01
+    out[72], out[73] = gait.a, gait.yaw_rate
 
 
-def make_walk_env(model_path: str | Path, cycle: ReferenceCycle, p: WalkEnvParams, seed: int | None = None,
-                  target_speed_mps: float | None = None) -> WalkEnv:
+def make_walk_env(model_path: str | Path, cycle: ReferenceCycle, p: WalkEnvParams,
+                  seed: int | None = None) -> WalkEnv:
     """Compile the human at `model_path` with PD servos and wrap it in a `WalkEnv`."""
     spec = mujoco.MjSpec.from_file(str(model_path))
     pd_servo_spec(spec, p)
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
     model = spec.compile()
-    return WalkEnv(model, cycle, p, target_speed_mps=target_speed_mps, seed=seed)
+    return WalkEnv(model, cycle, p, seed=seed)
 
 
-__all__ = ["AMP_SIZE", "HUMAN_ACTUATORS", "OBS_SIZE", "BodyIndex", "ReferenceTable", "WalkEnv",
-           "WalkEnvParams", "amp_features", "feet_in_heading", "make_walk_env", "observe", "pd_servo_spec"]
+__all__ = ["AMP_LEVELS", "AMP_SIZE", "HUMAN_ACTUATORS", "LEGACY_OBS_SIZE", "OBS_SIZE", "BodyIndex",
+           "GaitState",
+           "ReferenceTable", "WalkEnv", "WalkEnvParams", "amp_features", "feet_in_heading", "make_walk_env",
+           "observe", "pd_servo_spec", "servo_ranges", "start_pose"]

@@ -94,6 +94,8 @@ class RolloutOutcome:
     sim_s: float
     distance_m: float
     robot: pd.DataFrame
+    pelvis_xy: np.ndarray | None = None   # (n, 2) the human's root position per recorded sample
+    sample_rate_hz: float = 0.0
     tables: dict[str, pd.DataFrame] = field(default_factory=dict)
     skipped: str | None = None
     result: RolloutResult | None = None  # kept only when asked (render): world qpos is large
@@ -144,6 +146,7 @@ class Worker:
             robot_fall_s=result.fall_time_s, human_fall_s=human_fall, wall_s=result.wall_s,
             sim_s=result.n_physics_steps * result.physics_dt_s,
             distance_m=float(result.human_qpos[-1, 0] - result.human_qpos[0, 0]), robot=result.robot,
+            pelvis_xy=result.human_qpos[:, :2].copy(), sample_rate_hz=run.sample_rate_hz,
             result=result if keep_result else None, world=world if keep_result else None,
             human=run if keep_result else None)
         if not self.setup.process:

@@ -148,6 +148,13 @@ def command_profile(name: str, segments: list[Segment], preferred_speed_mps: flo
     return CommandProfile(name, time, np.asarray(b.speed), np.asarray(b.heading), np.asarray(b.phase))
 
 
+def phase_at(profile: CommandProfile, times_s: np.ndarray) -> np.ndarray:
+    """The commanded phase label at each of `times_s` (the last command sample at or before it;
+    times past the profile keep its last label)."""
+    k = np.searchsorted(profile.time_s, np.asarray(times_s, float) + 1e-9, side="right") - 1
+    return profile.phase[np.clip(k, 0, len(profile.phase) - 1)]
+
+
 def phase_agreement(commanded: np.ndarray, measured: np.ndarray, tolerance_samples: int = 0) -> dict:
     """Per commanded phase, the share of its samples whose measured phase (`ingest.phases`) agrees;
     a transition's label may be off by `tolerance_samples` (the motion lags its command)."""
@@ -162,4 +169,5 @@ def phase_agreement(commanded: np.ndarray, measured: np.ndarray, tolerance_sampl
     return {ph: round(float(ok[commanded == ph].mean()), 3) for ph in PHASES if (commanded == ph).any()}
 
 
-__all__ = ["PHASES", "CommandProfile", "ProfileParams", "Segment", "command_profile", "phase_agreement"]
+__all__ = ["PHASES", "CommandProfile", "ProfileParams", "Segment", "command_profile", "phase_agreement",
+           "phase_at"]

@@ -62,6 +62,7 @@ def built(params: Params) -> dict[str, object]:
         "TrainParams": params.train.build(),
         "EvalParams": params.evaluate_policy.build(),
         "PolicyChecks": params.evaluate_policy.checks.build(),
+        "ScenarioChecks": params.evaluate_policy.scenario_checks.build(),
         "ProfileParams": params.scenarios.profile.build(),
         "RolloutParams": RolloutParams(robot=params.robot.build(),
                                        max_physics_dt_s=params.rollout.max_physics_dt_s,

@@ -1,0 +1,56 @@
+"""Which simulated cycles enter the paper's tables: sampled like the paper.
+
+Wang, Chan et al. (ICRA 2025) walk 10 m from standing, several walks per condition, and analyse a
+fixed number of complete gait cycles from each walk. `paper_strides` keeps, per walk (trial, seed)
+and side, the `cycles_per_walk` kept strides nearest the middle of the walk's steady phase (start
+and stop transitions left out), so every condition contributes the same number of cycles from the
+same part of the walk.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from metrics.errors import MetricsError
+
+
+def paper_strides(strides: pd.DataFrame, cycles_per_walk: int, phase: str = "steady") -> pd.DataFrame:
+    """Rows of `strides` (with `kept`, `phase`, `t_start_s`, `t_end_s`) chosen as in the paper:
+    per trial, seed and side, the `cycles_per_walk` kept strides in `phase` around its middle."""
+    missing = [c for c in ("trial", "seed", "side", "kept", "phase", "t_start_s", "t_end_s")
+               if c not in strides.columns]
+    if missing:
+        raise MetricsError("strides table", f"cannot sample like the paper: missing columns {missing}")
+    pool = strides[strides["kept"].astype(bool) & (strides["phase"] == phase)]
+    chosen = []
+    for _, g in pool.groupby(["condition", "trial", "seed", "side"], sort=True):
+        mid = 0.5 * (g["t_start_s"].min() + g["t_end_s"].max())
+        centre = 0.5 * (g["t_start_s"] + g["t_end_s"])
+        order = np.argsort(np.abs(centre.to_numpy(float) - mid), kind="stable")[:cycles_per_walk]
+        chosen.append(g.iloc[np.sort(order)])
+    return pd.concat(chosen) if chosen else strides.iloc[0:0]
+
+
+def restrict_cycles(cycles: pd.DataFrame, strides: pd.DataFrame) -> pd.DataFrame:
+    """The cycles of `strides` (matched on trial, seed, side, stride)."""
+    keys = ["condition", "trial", "seed", "side", "stride"]
+    return cycles.merge(strides[keys].drop_duplicates(), on=keys, how="inner")
+
+
+
+def paper_inputs(tables: dict[str, pd.DataFrame], scenario: str, cycles_per_walk: int
+                 ) -> dict[str, pd.DataFrame]:
+    """Policy-human tables (strides, cycles, robot with `scenario` and `phase`) reduced to what the
+    paper's tables read: the walks of `scenario`; strides and cycles sampled by `paper_strides`;
+    robot samples of the walk itself (quiet standing before and after left out)."""
+    strides, cycles, robot = tables["strides"], tables["cycles"], tables["robot"]
+    if strides.empty:
+        return {"strides": strides, "cycles": cycles, "robot": robot}
+    chosen = paper_strides(strides[strides["scenario"] == scenario], cycles_per_walk)
+    if not robot.empty:
+        robot = robot[(robot["scenario"] == scenario) & (robot["phase"] != "standing")]
+    return {"strides": chosen, "cycles": restrict_cycles(cycles, chosen), "robot": robot}
+
+
+__all__ = ["paper_inputs", "paper_strides", "restrict_cycles"]

@@ -1,0 +1,156 @@
+"""Steering the walking human: commands (speed, heading) and the reference they imply.
+
+A command is a forward speed and a heading (world yaw) per policy step, from a scenario
+(`sim.rollout.scenarios.command_profile`) or, in training, from `sample_commands`, which strings
+random scenario segments together (stand, start, walk at a speed, turn, stop) so one policy learns
+every transition the scenarios ask for.
+
+The imitation reference under a command (`SteeredReference`) is the subject's periodic cycle,
+time-warped to the commanded speed (the phase advances at speed / stride length: the stride length
+is kept, the cadence follows) and blended from and to a quiet standing pose by the gait amplitude
+`a` (0 standing, 1 walking; a smoothstep of the commanded speed over `full_gait_fraction` of the
+cycle's speed). The standing pose is the body's anatomical neutral (every joint coordinate zero:
+upright, arms down) with the feet on the floor. Where a subject's recording has no start or stop,
+this is the issue's "cycle time-warped to the commanded speed and blended from and to the static
+pose"; Camargo's own start, turn and stop segments are not yet used as reference (they would need
+the whole trial retargeted, not only the cycle).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from sim.rollout.scenarios import CommandProfile, ProfileParams, Segment, command_profile
+
+
+@dataclass(frozen=True)
+class CommandSampling:
+    """Random training commands (params `train.env.commands`): episode starts, segment lengths,
+    speeds (x the cycle's speed) and turn angles."""
+
+    standing_start_probability: float = 0.5   # else the episode starts walking at a random phase
+    speed_range: tuple[float, float] = (0.6, 1.3)
+    walk_s_range: tuple[float, float] = (1.5, 4.0)
+    stand_s_range: tuple[float, float] = (0.5, 2.0)
+    turn_deg_range: tuple[float, float] = (30.0, 180.0)
+    event_probabilities: tuple[float, float, float] = (0.35, 0.35, 0.3)  # turn, speed change, stop
+    full_gait_fraction: float = 0.5            # gait amplitude reaches 1 at this x the cycle's speed
+
+
+def sample_commands(rng: np.random.Generator, speed_mps: float, duration_s: float, rate_hz: float,
+                    s: CommandSampling, profile: ProfileParams) -> CommandProfile:
+    """A random command profile of at least `duration_s`: segments drawn from `s`, built by the
+    scenarios' own `command_profile` (same transitions as the evaluated scenarios)."""
+    segments: list[Segment] = []
+    standing = rng.random() < s.standing_start_probability
+    if standing:
+        segments.append(Segment(stand_s=float(rng.uniform(*s.stand_s_range))))
+    speed = float(rng.uniform(*s.speed_range)) if standing else 1.0
+    segments.append(Segment(walk_s=float(rng.uniform(*s.walk_s_range)), speed=speed))
+    total = 0.0
+    while total < duration_s:
+        event = rng.choice(3, p=np.asarray(s.event_probabilities) / sum(s.event_probabilities))
+        if event == 0:
+            angle = float(rng.uniform(*s.turn_deg_range)) * (1 if rng.random() < 0.5 else -1)
+            segments.append(Segment(turn_deg=angle))
+        elif event == 1:
+            speed = float(rng.uniform(*s.speed_range))
+        else:
+            segments += [Segment(stop=True), Segment(stand_s=float(rng.uniform(*s.stand_s_range)))]
+            speed = float(rng.uniform(*s.speed_range))
+        segments.append(Segment(walk_s=float(rng.uniform(*s.walk_s_range)), speed=speed))
+        total = len(command_profile("training", segments, speed_mps, rate_hz, profile).time_s) / rate_hz
+    return command_profile("training", segments, speed_mps, rate_hz, profile)
+
+
+def gait_amplitude(speed_mps: float, cycle_speed_mps: float, full_gait_fraction: float) -> float:
+    """0 standing .. 1 walking: a smoothstep of the commanded speed (module docstring)."""
+    x = min(max(speed_mps / (full_gait_fraction * cycle_speed_mps), 0.0), 1.0)
+    return x * x * (3 - 2 * x)
+
+
+def standing_pose(model: mujoco.MjModel, foot_bodies: np.ndarray) -> np.ndarray:
+    """qpos of quiet standing: root upright facing +x, every joint coordinate at zero (anatomical
+    neutral), the lowest geom of the feet (`foot_bodies` and their children) on the floor."""
+    data = mujoco.MjData(model)
+    q = model.qpos0.copy()
+    q[:3] = 0.0, 0.0, 1.0
+    q[3:7] = 1.0, 0.0, 0.0, 0.0
+    data.qpos[:] = q
+    mujoco.mj_forward(model, data)
+    feet = np.isin(model.geom_bodyid, _subtree(model, foot_bodies))
+    lowest = min(_geom_bottom(model, data, g) for g in np.flatnonzero(feet))
+    q[2] = 1.0 - lowest
+    return q
+
+
+def blend_qpos(model: mujoco.MjModel, q0: np.ndarray, q1: np.ndarray, a: float) -> np.ndarray:
+    """(1 - a) q0 + a q1 joint by joint: positions and hinges linearly, quaternions (free-joint
+    orientation, ball joints) by normalised linear interpolation on the short arc."""
+    if a in (0.0, 1.0):
+        return (q1 if a == 1.0 else q0).copy()
+    out = (1 - a) * q0 + a * q1
+    free, ball = int(mujoco.mjtJoint.mjJNT_FREE), int(mujoco.mjtJoint.mjJNT_BALL)
+    for j in range(model.njnt):
+        kind, adr = int(model.jnt_type[j]), int(model.jnt_qposadr[j])
+        if kind in (free, ball):
+            s = adr + 3 if kind == free else adr
+            p, r = q0[s:s + 4], q1[s:s + 4]
+            r = r if p @ r >= 0 else -r
+            quat = (1 - a) * p + a * r
+            out[s:s + 4] = quat / np.linalg.norm(quat)
+    return out
+
+
+def _subtree(model: mujoco.MjModel, roots: np.ndarray) -> np.ndarray:
+    ids = set(int(r) for r in roots)
+    for b in range(model.nbody):
+        parent = int(model.body_parentid[b])
+        if parent in ids:
+            ids.add(b)
+    return np.array(sorted(ids))
+
+
+def _geom_bottom(model: mujoco.MjModel, data: mujoco.MjData, g: int) -> float:
+    """Lowest world z of geom `g` (sphere, capsule, box or ellipsoid; others by bounding sphere)."""
+    size, r = model.geom_size[g], data.geom_xmat[g].reshape(3, 3)
+    kind, g_type = int(model.geom_type[g]), mujoco.mjtGeom
+    z = data.geom_xpos[g, 2]
+    if kind == int(g_type.mjGEOM_SPHERE):
+        return float(z - size[0])
+    if kind == int(g_type.mjGEOM_CAPSULE):
+        return float(z - abs(r[2, 2]) * size[1] - size[0])
+    if kind in (int(g_type.mjGEOM_BOX), int(g_type.mjGEOM_ELLIPSOID)):
+        return float(z - np.abs(r[2, :]) @ size[:3])
+    return float(z - model.geom_rbound[g])
+
+
+class SteeredReference:
+    """The reference under a command: cycle tables (`sim.learn.walk_env.ReferenceTable`) blended
+    with the standing pose by the gait amplitude and time-warped by the speed ratio."""
+
+    def __init__(self, table, stand_ctrl: np.ndarray, stand_feet: np.ndarray, stand_height: float) -> None:
+        self.table = table
+        self.stand_ctrl, self.stand_feet, self.stand_height = stand_ctrl, stand_feet, float(stand_height)
+
+    def at(self, phase: float, a: float, rate: float) -> tuple[np.ndarray, np.ndarray, np.ndarray,
+                                                                np.ndarray, float, np.ndarray]:
+        """(servo coordinates, their velocity, joint velocities, feet, pelvis height, root xy
+        velocity in the heading frame) at `phase`, gait amplitude `a`, speed ratio `rate`."""
+        t = self.table
+        k0, k1, f = t.index(phase)
+        g = 1 - f
+        ctrl = (1 - a) * self.stand_ctrl + a * (t.ctrl[k0] * g + t.ctrl[k1] * f)
+        ctrl_vel = (a * rate) * (t.ctrl_vel[k0] * g + t.ctrl_vel[k1] * f)
+        joint_vel = (a * rate) * (t.joint_vel[k0] * g + t.joint_vel[k1] * f)
+        feet = (1 - a) * self.stand_feet + a * (t.feet[k0] * g + t.feet[k1] * f)
+        height = (1 - a) * self.stand_height + a * (t.height[k0] * g + t.height[k1] * f)
+        root_vel = rate * (t.root_vel[k0, :2] * g + t.root_vel[k1, :2] * f)
+        return ctrl, ctrl_vel, joint_vel, feet, height, root_vel
+
+
+__all__ = ["CommandSampling", "SteeredReference", "blend_qpos", "gait_amplitude", "sample_commands",
+           "standing_pose"]

@@ -1,0 +1,108 @@
+"""The steerable walking human: commands, the steered reference, standing, and the warm start
+that turns a straight walker into a steering policy without changing what it does."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import mujoco
+import numpy as np
+import pytest
+from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+from sim.learn.steering import blend_qpos, gait_amplitude, sample_commands
+from sim.learn.train import STEERING_STATS, UNTRAINED_SLOTS, make_vec_env, new_ppo, widen_policy
+from sim.learn.walk_env import LEGACY_OBS_SIZE, OBS_SIZE, make_walk_env
+from sim.motion.reference import load_reference
+from sim.rollout.scenarios import PHASES, command_profile
+
+
+@pytest.fixture(scope="module")
+def cycle(camargo_model):
+    return load_reference(camargo_model / "reference.npz").cycle
+
+
+@pytest.fixture(scope="module")
+def env(params, camargo_model, cycle):
+    return make_walk_env(camargo_model / "human.xml", cycle, params.train_params().env, seed=0)
+
+
+def test_random_commands_cover_every_transition(params, cycle):
+    tp = params.train_params()
+    rng = np.random.default_rng(0)
+    seen: set[str] = set()
+    for _ in range(40):
+        prof = sample_commands(rng, cycle.speed_mps, tp.env.episode_s, 1 / tp.env.control_dt_s,
+                               tp.env.commands, tp.env.profile)
+        assert prof.time_s[-1] >= tp.env.episode_s
+        lo, hi = tp.env.commands.speed_range
+        assert prof.speed_mps.max() <= hi * cycle.speed_mps + 1e-9 and prof.speed_mps.min() >= 0.0
+        seen |= set(prof.phase.tolist())
+    assert seen == set(PHASES)
+
+
+def test_quiet_standing_start_stands_on_the_floor(env):
+    stand = command_profile("stand", [], env.ref.speed_mps, 1 / env.dt)  # standing only
+    env.reset(seed=0, options={"commands": stand, "pushes": False})
+    assert env.gait.a == 0.0 and np.allclose(env.data.qvel, 0.0)
+    mujoco.mj_forward(env.model, env.data)
+    feet = np.isin(env.model.geom_bodyid, env.idx.feet) | np.isin(
+        env.model.body_parentid[env.model.geom_bodyid], env.idx.feet)
+    lowest = min(env.data.geom_xpos[g, 2] - env.model.geom_rbound[g] for g in np.flatnonzero(feet))
+    assert lowest < 0.01  # the bounding spheres reach the floor (the exact bottom is at z = 0)
+    _, terms = env._reward()
+    assert terms[0] > 0.999 and terms[3] > 0.999  # pose and pelvis height on the standing reference
+    phase = env.gait.phase
+    env.step(np.zeros(21))
+    assert env.gait.phase == phase  # no commanded speed: the cycle does not advance
+
+
+def test_gait_follows_the_commanded_speed(env):
+    assert gait_amplitude(0.0, 1.8, 0.5) == 0.0 and gait_amplitude(0.9, 1.8, 0.5) == 1.0
+    assert 0.0 < gait_amplitude(0.3, 1.8, 0.5) < 1.0
+    env.gait.start(0.2, env.ref.speed_mps, 0.0, 0.0)
+    env.gait.advance(0.01, 0.5 * env.ref.speed_mps, 0.3, 0.0)
+    assert env.gait.phase == pytest.approx(0.205)  # half the speed: half the phase advance (stride kept)
+    assert env.gait.reference[5][0] == pytest.approx(
+        0.5 * np.interp(0.205, np.arange(env.ref.n) / env.ref.n, env.ref.root_vel[:, 0]), rel=0.02)
+
+
+def test_blend_keeps_unit_quaternions_and_its_ends(env):
+    q0, q1 = env.ref.stand_qpos, env.ref.qpos[10]
+    assert np.array_equal(blend_qpos(env.model, q0, q1, 0.0), q0)
+    assert np.array_equal(blend_qpos(env.model, q0, q1, 1.0), q1)
+    mid = blend_qpos(env.model, q0, q1, 0.5)
+    for j in range(env.model.njnt):
+        kind, adr = env.model.jnt_type[j], env.model.jnt_qposadr[j]
+        if kind == mujoco.mjtJoint.mjJNT_BALL:
+            assert np.linalg.norm(mid[adr:adr + 4]) == pytest.approx(1.0)
+
+
+def test_widened_policy_acts_like_the_straight_walker(params, camargo_model, cycle):
+    """A 72-input policy with trained-looking normalisation statistics, widened to 74 inputs, gives
+    the same actions on the observations it knew, whatever the new slots hold."""
+    tp = replace(params.train_params(), net_arch=(32, 32), n_steps=64, batch_size=64)
+    legacy_env = make_walk_env(camargo_model / "human.xml", cycle, tp.env)
+    from gymnasium import spaces
+
+    legacy_env.observation_space = spaces.Box(-np.inf, np.inf, (LEGACY_OBS_SIZE,), np.float32)
+    rng = np.random.default_rng(1)
+    old_norm = VecNormalize(DummyVecEnv([lambda: legacy_env]), norm_obs=True, norm_reward=False)
+    old_norm.obs_rms.mean = rng.normal(size=LEGACY_OBS_SIZE)
+    old_norm.obs_rms.var = rng.uniform(0.01, 2.0, LEGACY_OBS_SIZE)
+    old_norm.obs_rms.var[list(UNTRAINED_SLOTS)] = 0.0  # constant in straight walking
+    old = new_ppo(old_norm, tp)
+    norm, model = widen_policy(old, old_norm, make_vec_env(camargo_model / "human.xml", cycle, tp, 1, False),
+                               tp, cycle.speed_mps)
+    norm.training = False
+    for _ in range(20):
+        obs = old_norm.obs_rms.mean + rng.normal(size=LEGACY_OBS_SIZE) * np.sqrt(old_norm.obs_rms.var) * 0.5
+        obs[list(UNTRAINED_SLOTS)] = old_norm.obs_rms.mean[list(UNTRAINED_SLOTS)]
+        for i, (m, s) in STEERING_STATS.items():
+            if i < LEGACY_OBS_SIZE:  # stay inside both normalisations' clip range
+                obs[i] = old_norm.obs_rms.mean[i] + 0.1 * np.sqrt(old_norm.obs_rms.var[i])
+        new_obs = np.r_[obs, rng.normal(size=OBS_SIZE - LEGACY_OBS_SIZE)]
+        new_obs[65] = cycle.speed_mps + rng.normal() * 0.3  # the commanded speed now varies
+        a_old = old.predict(old_norm.normalize_obs(obs.astype(np.float32)), deterministic=True)[0]
+        a_new = model.predict(norm.normalize_obs(new_obs.astype(np.float32)), deterministic=True)[0]
+        assert np.allclose(a_old, a_new, atol=1e-4)
