@@ -56,14 +56,15 @@ class PolicyHuman(HumanDriver):
     """The trained walking policy driving the scaled human (module docstring).
 
     `policy(obs) -> action` maps a normalised-or-raw observation (the caller composes any
-    normaliser into it) to the 21 residual actions in [-1, 1]. `human_model`: the human alone with
-    its PD servos (`sim.learn.walk_env.make_walk_env(...).model`), for the reference tables.
+    normaliser into it) to the 21 residual actions in [-1, 1]. `ref`: the reference tables of the
+    human alone with its PD servos (`sim.learn.walk_env.make_walk_env(...).ref`; built once per
+    worker, shared by its walks).
     `commands`: the scenario's per-sample commands at the rollout's sample rate (its length is the
     walk's); None walks straight at the cycle's speed for `duration_s`."""
 
     mode = "policy"
 
-    def __init__(self, policy, human_model: mujoco.MjModel, cycle: ReferenceCycle, p: WalkEnvParams,
+    def __init__(self, policy, ref: ReferenceTable, cycle: ReferenceCycle, p: WalkEnvParams,
                  duration_s: float, start_phase: float = 0.0, push: Push | None = None,
                  fall_height_fraction: float = 0.7, root: str = "root",
                  commands: CommandProfile | None = None) -> None:
@@ -75,7 +76,7 @@ class PolicyHuman(HumanDriver):
         k = int(self.start_phase * len(cycle.phase)) % len(cycle.phase)
         self.k0 = k
         self.fall_time_s: float | None = None
-        self.ref = ReferenceTable(human_model, cycle)
+        self.ref = ref
 
     @property
     def standing_start(self) -> bool:
@@ -239,7 +240,7 @@ class PolicySource:
         model, norm = load_policy(self.policy_dir)
         check_policy_io(self.policy_dir, model.observation_space.shape[0], model.action_space.shape[0])
         body_xml, cycle = load_body(self.policy_dir)
-        pd_model = make_walk_env(str(body_xml), cycle, self.env).model
+        ref = make_walk_env(str(body_xml), cycle, self.env).ref
         policy = ActorMlp.from_sb3(model, norm)
 
         def make(walk: PolicyWalk, seed: int) -> HumanRun:
@@ -253,7 +254,7 @@ class PolicySource:
                 commands = command_profile(walk.scenario, list(self.scenarios[walk.scenario]),
                                            cycle.speed_mps,
                                            self.sample_rate_hz, self.profile)
-            human = PolicyHuman(policy, pd_model, cycle, self.env, walk.duration_s,
+            human = PolicyHuman(policy, ref, cycle, self.env, walk.duration_s,
                                 start_phase=float(rng.random()), push=push,
                                 fall_height_fraction=self.fall_height_fraction, commands=commands)
             v0 = cycle.speed_mps if commands is None else float(commands.speed_mps[0])

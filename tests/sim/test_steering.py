@@ -98,7 +98,7 @@ def test_widened_policy_acts_like_the_straight_walker(params, camargo_model, cyc
     for _ in range(20):
         obs = old_norm.obs_rms.mean + rng.normal(size=LEGACY_OBS_SIZE) * np.sqrt(old_norm.obs_rms.var) * 0.5
         obs[list(UNTRAINED_SLOTS)] = old_norm.obs_rms.mean[list(UNTRAINED_SLOTS)]
-        for i, (m, s) in STEERING_STATS.items():
+        for i in STEERING_STATS:
             if i < LEGACY_OBS_SIZE:  # stay inside both normalisations' clip range
                 obs[i] = old_norm.obs_rms.mean[i] + 0.1 * np.sqrt(old_norm.obs_rms.var[i])
         new_obs = np.r_[obs, rng.normal(size=OBS_SIZE - LEGACY_OBS_SIZE)]

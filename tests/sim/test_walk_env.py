@@ -140,7 +140,7 @@ def test_committed_policy_walks_through_the_rollout_engine(setup, policies_root,
     def policy(obs):
         return model.predict(norm.normalize_obs(obs), deterministic=True)[0]
 
-    human = PolicyHuman(policy, env.model, cycle, tp.env, 3.0, start_phase=0.3)
+    human = PolicyHuman(policy, env.ref, cycle, tp.env, 3.0, start_phase=0.3)
     p = RolloutParams(robot=params.robot.build(), sample_rate_hz=100.0, with_robot=False)
     result = rollout(mujoco.MjSpec.from_file(str(body)), human, None, p, 0)
     assert result.stable and human.fall_time_s is None
