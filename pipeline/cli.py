@@ -148,7 +148,7 @@ def cmd_render(args: argparse.Namespace) -> int:
     from pipeline.commands.render import run_render
 
     path = run_render(args.subject, args.condition, load_params(args.params), args.root or PROCESSED_ROOT,
-                      args.reports or REPORTS_ROOT, args.seed, args.bout)
+                      args.reports or REPORTS_ROOT, args.seed, args.bout, args.scenario)
     print(f"wrote {path}", file=sys.stderr)
     return 0
 
@@ -358,11 +358,13 @@ def build_parser() -> argparse.ArgumentParser:
     evaluate.add_argument("--out", type=Path, help="also write the JSON here")
     evaluate.set_defaults(func=cmd_evaluate_policy)
 
-    render = commands.add_parser("render", help="mp4 of one replay rollout (offscreen MuJoCo)")
+    render = commands.add_parser("render", help="mp4 of one replay or scenario rollout (offscreen MuJoCo)")
     render.add_argument("subject")
     render.add_argument("condition", help="free or a controller name in robot.controllers")
     render.add_argument("--seed", type=int, default=0)
     render.add_argument("--bout", type=int, default=0, help="straight bout index (default: 0)")
+    render.add_argument("--scenario", help="the policy human walking this scenario (params scenarios) "
+                        "instead of a replay bout")
     render.add_argument("--root", type=Path, help="default: data/processed")
     render.add_argument("--reports", type=Path, help="video to <reports>/<subject>/ (default: reports)")
     render.set_defaults(func=cmd_render)
