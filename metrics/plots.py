@@ -138,6 +138,50 @@ def harness_figure(harness: pd.DataFrame, title: str) -> Figure:
     return fig
 
 
+EVENT_ROWS = {"ex_cm": "e_x (cm)", "ey_cm": "e_y (cm)", "force_n": "harness |f| (N)"}
+
+
+def event_figure(traces: pd.DataFrame, events: list[str], title: str) -> Figure:
+    """e_x, e_y and harness |f| around the commanded events (rows), one column per event in
+    `events` (its scenario in the title, time 0 at the command's onset): one line per human mode and
+    controller, mean across runs with its 95 % CI band (`metrics.phases.event_traces`)."""
+    fig, axes = plt.subplots(len(EVENT_ROWS), max(len(events), 1), figsize=(4.2 * max(len(events), 1), 7.2),
+                             sharex=True, squeeze=False)
+    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    groups = sorted(set(zip(traces["human_mode"], traces["condition"], strict=True)))
+    for j, event in enumerate(events):
+        sel = traces[traces["event"] == event]
+        scenarios = ", ".join(sorted(set(sel["scenario"])))
+        axes[0][j].set_title(f"{event} ({scenarios})" if scenarios else event, fontsize=10)
+        if not (sel["n_runs"] > 0).any():
+            why = "no run has this event" if sel.empty else "no following samples\n(every run fell before)"
+            mid = axes[1][j]
+            mid.text(0.5, 0.5, why, ha="center", va="center", fontsize=9, transform=mid.transAxes)
+        for k, (mode, cond) in enumerate(groups):
+            g = sel[(sel["human_mode"] == mode) & (sel["condition"] == cond)].sort_values("t_s")
+            if g.empty:
+                continue
+            label, c = f"{mode} {cond} (n={int(g['n_runs'].max())})", colors[k % len(colors)]
+            for ax, q in zip(axes[:, j], EVENT_ROWS, strict=True):
+                mean, ci = g[f"{q}_mean"], g[f"{q}_ci95"].fillna(0)
+                ax.plot(g["t_s"], mean, color=c, label=label, linewidth=1.2)
+                ax.fill_between(g["t_s"], mean - ci, mean + ci, color=c, alpha=0.2, lw=0)
+    for ax in axes.flat:
+        ax.axvline(0.0, color="k", linestyle=":", linewidth=0.8)
+        ax.grid(alpha=0.3)
+        if not traces.empty:
+            ax.set_xlim(traces["t_s"].min(), traces["t_s"].max())
+    for ax, name in zip(axes[:, 0], EVENT_ROWS.values(), strict=True):
+        ax.set_ylabel(name)
+    for ax in axes[-1]:
+        ax.set_xlabel("Time from the command (s)")
+    if axes[0][0].get_legend_handles_labels()[0]:
+        axes[0][0].legend(fontsize=7, loc="best")
+    fig.suptitle(title)
+    fig.tight_layout()
+    return fig
+
+
 POLICY_SPM_STYLES = {"real (dataset IK)": ("0.5", "--"), "real (same model)": ("k", "-"),
                      "policy (rollout means)": ("tab:blue", "-")}
 

@@ -28,7 +28,9 @@ from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError,
 from ingest.errors import GaitloopError
 from ingest.process import IngestParams
 from metrics import JOINTS, SpmParams
+from metrics.phases import EventWindow
 from metrics.policy_checks import PolicyChecks
+from metrics.scenario_checks import ScenarioChecks
 from pipeline.paths import PARAMS_FILE, repo_path
 from pipeline.store import StoreParams
 from sim.body.human_params import HumanParams
@@ -71,6 +73,7 @@ class MetricsParams:
     joints: tuple[str, ...] = JOINTS
     tracking_rate_hz: float = 20.0
     spm: SpmParams = field(default_factory=SpmParams)
+    events: EventWindow = field(default_factory=EventWindow)
 
 
 @dataclass(frozen=True)
@@ -78,6 +81,9 @@ class ReportParams:
     """The `report` section of params.yaml."""
 
     dpi: int = 110
+    # event -> the scenario its column of the phase-aligned figure is drawn from
+    event_scenarios: dict[str, str] = field(default_factory=lambda: {"start": "walk_10m", "turn": "turn_90",
+                                                                     "stop": "walk_10m"})
 
 
 @dataclass(frozen=True)
@@ -189,11 +195,24 @@ class SpmSchema(Schema):
     reference_condition: str
 
 
+class EventWindowSchema(Schema):
+    names: tuple[str, ...]
+    window_s: Pair
+    step_s: Annotated[float, Field(gt=0.0)]
+
+    @model_validator(mode="after")
+    def _window(self) -> EventWindowSchema:
+        if not self.window_s[0] < 0.0 < self.window_s[1]:
+            raise ValueError(f"window_s: must run from before to after the event (got {list(self.window_s)})")
+        return self
+
+
 class MetricsSchema(Schema):
     pool_sides: bool
     exclude_locked: bool
     joints: tuple[str, ...]
     tracking_rate_hz: float
+    events: EventWindowSchema
     spm: SpmSchema
 
     def build(self) -> MetricsParams:
@@ -201,7 +220,8 @@ class MetricsSchema(Schema):
         spm = SpmParams(alpha=s.alpha, test=s.test, min_cycles=s.min_cycles,
                         reference_condition=s.reference_condition, pool_sides=self.pool_sides,
                         joints=self.joints)
-        return MetricsParams(self.pool_sides, self.exclude_locked, self.joints, self.tracking_rate_hz, spm)
+        return MetricsParams(self.pool_sides, self.exclude_locked, self.joints, self.tracking_rate_hz, spm,
+                             EventWindow(**self.events.model_dump()))
 
 
 class StoreSchema(Schema):
@@ -215,9 +235,10 @@ class StoreSchema(Schema):
 
 class ReportSchema(Schema):
     dpi: int
+    event_scenarios: dict[str, str]
 
     def build(self) -> ReportParams:
-        return ReportParams(self.dpi)
+        return ReportParams(self.dpi, dict(self.event_scenarios))
 
 
 # retarget
@@ -469,6 +490,16 @@ class ImitationSchema(Schema):
     root_velocity: float
 
 
+class CommandsSchema(Schema):
+    standing_start_probability: Annotated[float, Field(ge=0.0, le=1.0)]
+    speed_range: Pair
+    walk_s_range: Pair
+    stand_s_range: Pair
+    turn_deg_range: Pair
+    event_probabilities: tuple[float, float, float]
+    full_gait_fraction: Annotated[float, Field(gt=0.0, le=1.0)]
+
+
 class EnvSchema(Schema):
     control_dt_s: float
     action_scale_rad: float
@@ -487,6 +518,8 @@ class EnvSchema(Schema):
     push_duration_s: float
     push_interval_s: Pair
     push_probability: float
+    heading_scale: float
+    commands: CommandsSchema
 
 
 class AmpSchema(Schema):
@@ -544,6 +577,22 @@ class PolicyChecksSchema(Schema):
         return PolicyChecks(**self.model_dump())
 
 
+class ScenarioChecksSchema(Schema):
+    seeds: Annotated[int, Field(ge=1)]
+    no_fall_fraction: Annotated[float, Field(ge=0.0, le=1.0)]
+    start_tolerance_pct: float
+    start_range_s: Pair
+    steady_speed_tolerance_pct: float
+    stop_within_s: float
+    standing_mps: float
+    end_standing_s: float
+    speed_change_tolerance_pct: float
+    speed_change_within_s: float
+
+    def build(self) -> ScenarioChecks:
+        return ScenarioChecks(**self.model_dump())
+
+
 class EvaluatePolicySchema(Schema):
     n_seeds: int
     free_s: float
@@ -555,9 +604,10 @@ class EvaluatePolicySchema(Schema):
     spm_min_real_cycles: int
     push_recovery_s: float
     checks: PolicyChecksSchema
+    scenario_checks: ScenarioChecksSchema
 
     def build(self) -> EvalParams:
-        return EvalParams(**self.model_dump(exclude={"checks"}))
+        return EvalParams(**self.model_dump(exclude={"checks", "scenario_checks"}))
 
 
 # scenarios
@@ -595,7 +645,15 @@ class SegmentSchema(Schema):
 SCENARIO_NAMES = ("walk_10m", "speed_change", "turn_90", "turnaround_180", "steady")
 
 
+class PaperSamplingSchema(Schema):
+    scenario: str
+    walks: Annotated[int, Field(ge=1)]
+    cycles_per_walk: Annotated[int, Field(ge=1)]
+
+
 class ScenariosSchema(Schema):
+    paper: PaperSamplingSchema
+    seeds: Annotated[int, Field(ge=1)]
     profile: ProfileSchema
     commands: dict[str, list[SegmentSchema]]
 
@@ -605,7 +663,13 @@ class ScenariosSchema(Schema):
         if missing:
             raise ValueError(f"missing scenario(s) {', '.join(missing)} (every subject walks "
                              f"{', '.join(SCENARIO_NAMES)})")
+        if self.paper.scenario not in self.commands:
+            raise ValueError(f"paper.scenario: no scenario {self.paper.scenario!r} in commands")
         return self
+
+    def walks(self, name: str) -> int:
+        """Walks per condition of scenario `name` in `dvc repro`."""
+        return self.paper.walks if name == self.paper.scenario else self.seeds
 
     def build(self) -> dict[str, list[Segment]]:
         """Scenario name -> its segments."""
@@ -647,6 +711,14 @@ class Params(Schema):
     def path(self) -> Path:
         """The file these params were read from."""
         return self._path
+
+    def train_params(self) -> TrainParams:
+        """`train` with the scenarios' transition timing in its env: training commands and the
+        evaluated scenarios share one profile."""
+        from dataclasses import replace
+
+        p = self.train.build()
+        return replace(p, env=replace(p.env, profile=self.scenarios.profile.build()))
 
     def batch_setup(self, subject: str, markerset: dict[str, str], human_xml: str | Path,
                     drivers: DriverSource, process: bool = True) -> BatchSetup:

@@ -10,6 +10,7 @@ Layout, relative to the repository root (each root can be moved by a command's `
     data/processed/<subject>/sim_policy/  policy-human rollouts (simulate --human policy)
     data/metrics/<subject>/               metric tables and provenance (metrics)
     data/policies/<subject>/              the trained walking policy (train)
+    data/paper/wang2025.yaml              the reference paper's published Tables I-III (report)
     data/results.duckdb                   the results store (params store.path; relative paths in params
                                           are taken from the repository root)
     reports/<subject>/                    figures, videos and report.md of one subject
@@ -29,6 +30,7 @@ DATA_ROOT = REPO_ROOT / "data"
 PROCESSED_ROOT = DATA_ROOT / "processed"
 METRICS_ROOT = DATA_ROOT / "metrics"
 POLICIES_ROOT = DATA_ROOT / "policies"
+PAPER_FILE = DATA_ROOT / "paper" / "wang2025.yaml"
 STORE_FILE = DATA_ROOT / "results.duckdb"
 REPORTS_ROOT = REPO_ROOT / "reports"
 BENCH_REPORT = REPORTS_ROOT / "bench.json"

@@ -17,7 +17,8 @@ condition); their curves and clusters to the test's version. Base tables are `re
 `run_groups` records, for every store run, each group it stored and the version that group resolved
 to; `latest_versions` (and every `latest_<name>` view) holds the groups of each subject's last run,
 so a condition that a subject no longer has drops out of the latest views while its old versions
-stay queryable. `paper_table1..3`, `spm_clusters`, `subject_summary` are described in README.md.
+stay queryable. `paper_table1..3`, `phase_compliance`, `event_aligned`, `spm_clusters`,
+`subject_summary` are described in README.md.
 """
 
 from __future__ import annotations
@@ -64,6 +65,13 @@ SCHEMAS: dict[str, str] = {
                  "human_mode_b VARCHAR, condition_b VARCHAR, test VARCHAR, statistic VARCHAR, n_a BIGINT, "
                  "n_b BIGINT, alpha DOUBLE, zstar DOUBLE, df1 DOUBLE, df2 DOUBLE, h0_rejected BOOLEAN, "
                  "n_clusters BIGINT, min_p DOUBLE, status VARCHAR, reason VARCHAR",
+    "phases": f"{_GROUP_DDL}, scenario VARCHAR, phase VARCHAR, n_runs BIGINT, n_samples BIGINT, "
+              "falls BIGINT, "
+              "abs_ex_cm_mean DOUBLE, abs_ex_cm_ci95 DOUBLE, abs_ey_cm_mean DOUBLE, abs_ey_cm_ci95 DOUBLE, "
+              "force_rms_n_mean DOUBLE, force_rms_n_ci95 DOUBLE",
+    "event_traces": f"{_GROUP_DDL}, scenario VARCHAR, event VARCHAR, t_s DOUBLE, n_runs BIGINT, "
+                    "ex_cm_mean DOUBLE, ex_cm_ci95 DOUBLE, ey_cm_mean DOUBLE, ey_cm_ci95 DOUBLE, "
+                    "force_n_mean DOUBLE, force_n_ci95 DOUBLE",
     "spm_curves": "test_id VARCHAR, pct DOUBLE, value DOUBLE",
     "spm_clusters": "test_id VARCHAR, cluster BIGINT, start_pct DOUBLE, end_pct DOUBLE, extent_pct DOUBLE, "
                     "p DOUBLE",
@@ -182,6 +190,12 @@ def _views() -> list[str]:
              "n_strides"]),
         "CREATE OR REPLACE VIEW paper_table3 AS " + real_sim(
             "stability", ["subject", "condition", "side", "joint"], ["intercycle_sd_deg", "n_cycles"]),
+        "CREATE OR REPLACE VIEW phase_compliance AS SELECT subject, human_mode, condition, scenario, phase, "
+        "n_runs, falls, abs_ex_cm_mean, abs_ex_cm_ci95, abs_ey_cm_mean, abs_ey_cm_ci95, force_rms_n_mean, "
+        "force_rms_n_ci95, version_id FROM latest_phases ORDER BY subject, scenario, phase, condition",
+        "CREATE OR REPLACE VIEW event_aligned AS SELECT subject, human_mode, condition, scenario, event, "
+        "t_s, n_runs, ex_cm_mean, ex_cm_ci95, ey_cm_mean, ey_cm_ci95, force_n_mean, force_n_ci95, version_id "
+        "FROM latest_event_traces ORDER BY subject, scenario, event, condition, t_s",
         "CREATE OR REPLACE VIEW spm_clusters AS SELECT t.subject, t.comparison, t.side, t.joint, t.source_a, "
         "t.human_mode_a, t.condition_a, t.source_b, t.human_mode_b, t.condition_b, t.test, t.statistic, "
         "t.zstar, c.cluster, c.start_pct, c.end_pct, c.extent_pct, c.p, t.version_id FROM latest_spm_tests t "

@@ -1,7 +1,10 @@
 """Stage `metrics <subject>`: a subject's real and simulated tables -> metric tables.
 
 Inputs: `<root>/<subject>/real/{strides,cycles}.parquet` and, once simulated,
-`<root>/<subject>/sim/{strides,cycles,robot}.parquet` (root: data/processed). Outputs in
+`<root>/<subject>/sim/{strides,cycles,robot}.parquet` (replay human) and `sim_policy/` (policy human
+in every scenario; root: data/processed). The policy human enters the paper's tables as the paper
+sampled its walks (`metrics.sampling.paper_inputs`: `scenarios.paper`), and every scenario's robot
+rows give the per-phase table and the traces around the commanded events (`metrics.phases`). Outputs in
 `<out_root>/<subject>/` (data/metrics): one parquet per metric table (`TABLES`), `metrics.json`
 (headline numbers, a DVC metrics file) and `provenance.json` (params hash and input hashes, read
 by the store stage). They live outside data/processed so that the store stage can depend on
@@ -30,15 +33,25 @@ from metrics import (
     stability_table,
 )
 from metrics.errors import MetricsError
+from metrics.phases import event_traces, phase_table
+from metrics.sampling import paper_inputs
 from metrics.tracking import TRACKING_COLUMNS, tracking_table
 from pipeline.params import MetricsParams, Params
-from pipeline.paths import METRICS_ROOT, PROCESSED_ROOT, metrics_dir, real_dir, sim_dir, subject_dir
+from pipeline.paths import (
+    METRICS_ROOT,
+    PROCESSED_ROOT,
+    metrics_dir,
+    real_dir,
+    sim_dir,
+    sim_policy_dir,
+    subject_dir,
+)
 from pipeline.stages.outputs import write_outputs
 
 TABLES = ("gait", "stability", "rom", "kinematics", "compliance", "harness", "tracking", "spm_tests",
-          "spm_curves", "spm_clusters")
-SOURCES = ("real", "sim")
-SOURCE_DIRS = {"real": real_dir, "sim": sim_dir}  # each source's folder under <root>/<subject>/
+          "spm_curves", "spm_clusters", "phases", "event_traces")
+SOURCES = ("real", "sim", "sim_policy")
+SOURCE_DIRS = {"real": real_dir, "sim": sim_dir, "sim_policy": sim_policy_dir}  # under <root>/<subject>/
 # Sections that do not shape the results; the hash of all others identifies a params version
 # (so a section added later, e.g. for a new controller, counts without editing this list).
 NON_RESULT_SECTIONS = ("subjects", "store", "report")
@@ -52,24 +65,39 @@ def params_hash(params: Params) -> str:
     return hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
 
-def read_inputs(subject: str, root: Path) -> dict[str, pd.DataFrame]:
-    """strides, cycles and robot tables of both sources, concatenated (robot may be empty)."""
-    found = {name: [] for name in ("strides", "cycles", "robot")}
+def read_inputs(subject: str, root: Path, paper: tuple[str, int] | None = None) -> dict[str, pd.DataFrame]:
+    """strides, cycles and robot tables of every source, concatenated (robot may be empty), plus
+    `scenario_robot`: the policy human's robot rows of every scenario. `paper`: (scenario, cycles per
+    walk) the policy human's rows are sampled with for the paper's tables (`paper_inputs`)."""
+    found: dict[str, list[pd.DataFrame]] = {name: [] for name in ("strides", "cycles", "robot")}
+    scenario_robot = pd.DataFrame()
     for source in SOURCES:
+        tables = {}
         for name in found:
             path = SOURCE_DIRS[source](root, subject) / f"{name}.parquet"
             if path.is_file():
-                found[name].append(pd.read_parquet(path))
+                tables[name] = pd.read_parquet(path)
+        if source == "sim_policy" and tables:
+            scenario_robot = tables.get("robot", pd.DataFrame())
+            if paper is not None and not tables.get("strides", pd.DataFrame()).empty:
+                tables = paper_inputs(tables, *paper)
+            tables = {k: v.drop(columns=["scenario", "phase"], errors="ignore") for k, v in tables.items()}
+        for name, df in tables.items():
+            if not df.empty:
+                found[name].append(df)
     if not found["cycles"]:
         raise MetricsError(str(subject_dir(root, subject)),
                            "no real/ or sim/ cycles.parquet: run ingest first")
-    return {name: pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
-            for name, frames in found.items()}
+    out = {name: pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
+           for name, frames in found.items()}
+    out["scenario_robot"] = scenario_robot
+    return out
 
 
 def compute(inputs: dict[str, pd.DataFrame], p: MetricsParams) -> dict[str, pd.DataFrame]:
     """Every metric table of one subject."""
     cycles, strides, robot = inputs["cycles"], inputs["strides"], inputs["robot"]
+    scenario_robot = inputs.get("scenario_robot", pd.DataFrame())
     spm = spm_tables(cycles, p.spm)
     has_robot = not robot.empty
     return {
@@ -83,6 +111,8 @@ def compute(inputs: dict[str, pd.DataFrame], p: MetricsParams) -> dict[str, pd.D
         "spm_tests": spm.tests,
         "spm_curves": spm.curves,
         "spm_clusters": spm.clusters,
+        "phases": phase_table(scenario_robot, p.exclude_locked),
+        "event_traces": event_traces(scenario_robot, p.events, p.exclude_locked),
     }
 
 
@@ -127,7 +157,8 @@ def run_metrics(subject: str, params: Params, root: Path = PROCESSED_ROOT,
     p = params.metrics.build()
     root = Path(root)
     try:
-        tables = compute(read_inputs(subject, root), p)
+        paper = params.scenarios.paper
+        tables = compute(read_inputs(subject, root, (paper.scenario, paper.cycles_per_walk)), p)
     except (KeyError, ValueError) as exc:
         raise MetricsError(str(subject_dir(root, subject)), f"cannot compute metrics ({exc})") from None
     folder = metrics_dir(out_root, subject)

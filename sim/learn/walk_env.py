@@ -173,6 +173,9 @@ class ReferenceTable:
         self.height = cycle.qpos[:, 2].copy()
         self.root_vel = cycle.qvel[:, :3].copy()
         self.joint_vel = cycle.qvel[:, 6:].copy()
+        # gait starts from (and a stop ends at) the cycle's pose nearest quiet standing: the legs
+        # passing each other, so the first step leaves from a pose one blend away from standing
+        self.start_phase = float(np.argmin(np.linalg.norm(self.ctrl - self.stand_ctrl, axis=1))) / n
         self.steered = SteeredReference(self, self.stand_ctrl, self.stand_feet, self.stand_height)
 
     def index(self, phase: float) -> tuple[int, int, float]:
@@ -423,14 +426,17 @@ class GaitState:
         self.a = gait_amplitude(speed, self.ref.speed_mps, self.full)
 
     def start(self, phase: float, speed: float, heading: float, yaw_rate: float) -> None:
-        self.phase = phase % 1.0
+        """Start at `phase`; standing (no commanded speed) waits at the cycle's start phase."""
         self._set(speed, heading, yaw_rate)
+        self.phase = self.ref.start_phase if self.a == 0.0 else phase % 1.0
         self.reference = self.ref.steered.at(self.phase, self.a, self.rate)
 
     def advance(self, step_phase: float, speed: float, heading: float, yaw_rate: float) -> None:
-        """One policy step: the phase moves by `step_phase` x the commanded speed ratio."""
+        """One policy step: the phase moves by `step_phase` x the commanded speed ratio; while
+        standing it waits at the cycle's start phase (the reference is the standing pose then)."""
         self._set(speed, heading, yaw_rate)
-        self.phase = (self.phase + step_phase * self.rate) % 1.0
+        phase = (self.phase + step_phase * self.rate) % 1.0
+        self.phase = self.ref.start_phase if self.a == 0.0 else phase
         self.reference = self.ref.steered.at(self.phase, self.a, self.rate)
 
     def targets(self, action: np.ndarray, p: WalkEnvParams, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:

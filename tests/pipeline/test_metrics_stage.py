@@ -57,7 +57,8 @@ def test_params_hash_ignores_only_non_result_sections():
     raw = {k: raw[k] for k in sorted(raw) if k not in NON_RESULT_SECTIONS}
     assert base == hashlib.sha256(json.dumps(raw, sort_keys=True, default=str).encode()).hexdigest()[:16]
     doc = params.document()
-    assert params_hash(parse_params({**doc, "report": {"dpi": 1}, "subjects": ["x"]})) == base
+    report = {**doc["report"], "dpi": 1}
+    assert params_hash(parse_params({**doc, "report": report, "subjects": ["x"]})) == base
     changed = {**doc, "metrics": {**doc["metrics"], "pool_sides": not doc["metrics"]["pool_sides"]}}
     assert params_hash(parse_params(changed)) != base
     # a new controller counts without editing NON_RESULT_SECTIONS

@@ -64,9 +64,27 @@ def robot(subject: str, condition: str, amp_m: float) -> pd.DataFrame:
     return df
 
 
+def policy_robot(subject: str, condition: str, scenario: str, seed: int, amp_m: float) -> pd.DataFrame:
+    """A policy-human robot log with commanded phases: standing, start at 1 s, steady, a turn at
+    3.5 s (turn_90 only), stop at 4.5 s, standing from 5.5 s."""
+    t = np.arange(0, 6.5, 0.01)
+    phase = np.select([t < 1.0, t < 2.5, t < 3.5, t < 4.5, t < 5.5],
+                      ["standing", "start", "steady", "turn" if scenario == "turn_90" else "steady", "stop"],
+                      "standing")
+    df = pd.DataFrame({"subject": subject, "source": "sim", "human_mode": "policy", "condition": condition,
+                       "trial": f"{scenario}_{condition}_seed{seed}", "seed": seed, "time_s": t,
+                       "e_x_m": amp_m * np.sin(2 * np.pi * t) + 0.001 * seed, "e_y_m": amp_m / 2 * np.cos(t),
+                       "fall": False, "locked": False, "scenario": scenario, "phase": phase})
+    for c in ROBOT_FORCES:
+        df[c] = 100 * df["e_x_m"]
+    return df
+
+
 @pytest.fixture(scope="module")
 def store(tmp_path_factory):
-    """camargo with real tables plus sim-like free/pid tables and robot logs; opencap4 real only."""
+    """camargo with real tables, sim-like replay free/pid tables and robot logs, and a policy human
+    (walk_10m strides and cycles in free/pid/adaptive, robot logs of walk_10m and turn_90 with their
+    phases); opencap4 real only."""
     root = tmp_path_factory.mktemp("report")
     params = load_params()
     rng = np.random.default_rng(1)
@@ -83,6 +101,18 @@ def store(tmp_path_factory):
             pd.concat([robot(sid, "pid", 0.04), robot(sid, "adaptive", 0.02)]).to_parquet(
                 sim / "robot.parquet"
             )
+            policy = root / "processed" / sid / "sim_policy"
+            policy.mkdir()
+            for name in ("strides", "cycles"):
+                t = pd.read_parquet(real / f"{name}.parquet")
+                pd.concat([sim_like(t, c, k, rng).assign(human_mode="policy", seed=seed, scenario="walk_10m",
+                                                        phase="steady")
+                           for k, c in enumerate(("free", "pid", "adaptive")) for seed in (0, 1)]
+                          ).to_parquet(policy / f"{name}.parquet")
+            amplitudes = {"pid": 0.04, "adaptive": 0.02}
+            logs = [policy_robot(sid, c, scenario, seed, amp) for c, amp in amplitudes.items()
+                    for scenario in ("walk_10m", "turn_90") for seed in (0, 1)]
+            pd.concat(logs).to_parquet(policy / "robot.parquet")
         run_metrics(sid, params, root / "processed", root / "metrics")
     db = root / "results.duckdb"
     store_results(db, [load_results(s, root / "metrics") for s in ("camargo", "opencap4")], StoreParams())
@@ -115,12 +145,17 @@ def reports(store, tmp_path_factory):
     return out
 
 
+CAMARGO_FIGURES = ("events", "kinematics_policy", "tracking", "harness", "kinematics", "spm")
+
+
 def test_reports_index_and_figures_resolve(reports):
+    text = (reports / "index.html").read_text()
     page = Links()
-    page.feed((reports / "index.html").read_text())
-    assert page.tables == 4  # subject summary + Tables I-III
-    camargo = {f"camargo/figures/{n}.png" for n in ("kinematics", "spm", "tracking", "harness")}
-    assert set(page.images) == camargo | {f"opencap4/figures/{n}.png" for n in ("kinematics", "spm")}
+    page.feed(text)
+    assert page.tables == 5  # subject summary, Tables I-III, per-phase compliance
+    assert text.index("<img") < text.index("<table")  # figures lead, tables below
+    assert page.images == [f"camargo/figures/{n}.png" for n in CAMARGO_FIGURES] + [
+        f"opencap4/figures/{n}.png" for n in ("kinematics", "spm")]
     assert {"summary.md", "camargo/report.md", "opencap4/report.md"} <= set(page.links)
     for target in page.images + page.links:
         assert (reports / target).is_file(), target
@@ -132,12 +167,48 @@ def test_reports_index_and_figures_resolve(reports):
             if line.startswith("!["):
                 assert (reports / sid / line.split("(")[1].rstrip(")")).is_file()
     assert "No simulated robot runs for this subject yet." in (reports / "opencap4" / "report.md").read_text()
+    md = (reports / "camargo" / "report.md").read_text()
+    for name in ("events", "kinematics_policy"):
+        assert f"![{name}](figures/{name}.png)" in md
+
+
+def test_paper_values_are_shown_with_their_citation(reports):
+    """The published values of Wang, Chan et al. (data/paper/wang2025.yaml) beside Real and Sim."""
+    md, index = (reports / "camargo" / "report.md").read_text(), (reports / "index.html").read_text()
+    for text in (md, index):
+        assert "not retrieved" not in text and "arXiv:2503.05825" in text
+        assert "shown for orientation only" in text
+    assert "| 4.25 / 3.32 | 7.65 / 7.73 |" in md  # Table I, pid: paper real, paper sim
+    assert "| 1.29 ± 0.04 / 1.04 ± 0.02 | 1.17 ± 0.01 / 1.12 ± 0.01 |" in md  # Table II, free
+    assert "| knee_flexion | policy | – | " in md and "| 3.16 | 4.43 |" in md  # Table III, pid
+    assert "<td>0.37 / 0.72</td><td>0.70 / 0.53</td>" in index  # Table I, adaptive
+
+
+def test_phase_table_and_event_traces_match_the_store(store, reports):
+    _, db = store
+    phases = query(db, "select * from phase_compliance where subject = 'camargo' and scenario = 'walk_10m' "
+                       "and phase = 'start' order by condition")
+    assert list(phases["condition"]) == ["adaptive", "pid"] and (phases["n_runs"] == 2).all()
+    md = (reports / "camargo" / "report.md").read_text()
+    for r in phases.itertuples():
+        assert (f"| walk_10m | start | {r.condition} | policy | 0/2 | {r.abs_ex_cm_mean:.2f} ± "
+                f"{r.abs_ex_cm_ci95:.2f} |") in md
+    events = query(db, "select event, scenario, count(*) as n, min(t_s) as t0, max(t_s) as t1 "
+                       "from event_aligned where subject = 'camargo' and condition = 'pid' "
+                       "group by all order by all")
+    # walk_10m: start and stop; turn_90: start, turn, stop; -1 s .. 3 s at 0.05 s (params metrics.events)
+    assert list(zip(events["event"], events["scenario"], strict=True)) == [
+        ("start", "turn_90"), ("start", "walk_10m"), ("stop", "turn_90"), ("stop", "walk_10m"),
+        ("turn", "turn_90")]
+    assert (events["n"] == 81).all() and (events["t0"] == -1.0).all() and (events["t1"] == 3.0).all()
 
 
 def test_table1_numbers_match_the_query(store, reports):
     _, db = store
-    t1 = query(db, "select * from paper_table1 where subject = 'camargo' order by condition")
-    assert list(t1["condition"]) == ["adaptive", "pid"]
+    t1 = query(db, "select * from paper_table1 where subject = 'camargo' order by condition, sim_human_mode")
+    assert list(zip(t1["condition"], t1["sim_human_mode"], strict=True)) == [
+        ("adaptive", "policy"), ("adaptive", "replay"), ("pid", "policy"), ("pid", "replay")]
+    t1 = t1[t1["sim_human_mode"] == "replay"]
     md = (reports / "camargo" / "report.md").read_text()
     amplitude_m = {"pid": 0.04, "adaptive": 0.02}
     for r in t1.itertuples():
@@ -149,7 +220,8 @@ def test_table1_numbers_match_the_query(store, reports):
     t2 = query(db, "select * from paper_table2 where subject = 'camargo' and condition = 'free'").iloc[0]
     assert f"{t2.real_gait_speed_mps_mean:.3f}" in md and f"{t2.sim_gait_speed_mps_mean:.3f}" in md
     tests = query(db, "select comparison, condition_b from latest_spm_tests where subject = 'camargo'")
-    assert {("real_vs_sim", "free"), ("real_vs_sim", "pid"), ("within_source", "pid")} == set(
+    assert {("real_vs_sim", "free"), ("real_vs_sim", "pid"), ("real_vs_sim", "adaptive"),
+            ("within_source", "pid"), ("within_source", "adaptive")} == set(
         zip(tests["comparison"], tests["condition_b"], strict=True)
     )
 
@@ -167,7 +239,10 @@ f.onload = async () => {
   const d = f.contentDocument;
   const imgs = [...d.images];
   await Promise.all(imgs.map(i => i.complete ? 0 : new Promise(r => { i.onload = i.onerror = r; })));
-  const badImages = imgs.filter(i => !(i.complete && i.naturalWidth > 0)).map(i => i.getAttribute("src"));
+  // displayed: loaded, decoded (naturalWidth > 0) and laid out with a visible size on the page
+  const shown = i => i.complete && i.naturalWidth > 0 && i.getBoundingClientRect().width > 0
+    && i.getBoundingClientRect().height > 0 && getComputedStyle(i).visibility !== "hidden";
+  const badImages = imgs.filter(i => !shown(i)).map(i => i.getAttribute("src"));
   const links = [...d.querySelectorAll("a")].map(a => a.href);
   const failed = await Promise.all(links.map(u => fetch(u).then(r => r.ok ? "" : u).catch(() => u)));
   const rows = [...d.querySelectorAll("table")].map(t => t.querySelectorAll("tbody tr").length);
@@ -186,8 +261,11 @@ class QuietHandler(http.server.SimpleHTTPRequestHandler):
 
 @pytest.mark.skipif(shutil.which("chromium") is None, reason="headless Chromium is not installed")
 def test_index_loads_in_headless_chromium(reports, tmp_path):
-    """Serve the reports on localhost and let Chromium load index.html: every image decodes
-    (naturalWidth > 0), every link answers 200, every table has rows."""
+    """Serve the reports on localhost and let Chromium load index.html: every figure (each <img>
+    of the page) is displayed (loaded, naturalWidth > 0, laid out with a size), every link answers
+    200, every table has rows."""
+    page = Links()
+    page.feed((reports / "index.html").read_text())
     (reports / "_check.html").write_text(CHECK_PAGE)
     handler = functools.partial(QuietHandler, directory=str(reports))
     server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
@@ -220,6 +298,6 @@ def test_index_loads_in_headless_chromium(reports, tmp_path):
     match = re.search(r'data-result="([^"]*)"', run.stdout)
     assert match, run.stderr[-2000:]
     result = json.loads(html.unescape(match.group(1)))
-    assert result["bad_images"] == [] and result["images"] == 6
+    assert result["images"] == len(page.images) == len(CAMARGO_FIGURES) + 2 and result["bad_images"] == []
     assert result["links"] >= 3 and result["bad_links"] == []
-    assert len(result["rows"]) == 4 and all(n > 0 for n in result["rows"])
+    assert len(result["rows"]) == page.tables and all(n > 0 for n in result["rows"])
