@@ -210,19 +210,21 @@ def scenario_report(outcomes: list[RolloutOutcome], profiles: dict[str, CommandP
         if name == "speed_change":
             row["speed_changes"] = changes
         out[f"{name} {cond}"] = row
-        if cond != "free" or not runs or falls == len(runs):
+        if cond != "free":
             continue
+        every = len(starts) == len(runs) > 0  # a walk that fell fails every check of its scenario
         if name == "walk_10m":
-            checks["walk_10m_standing_at_end"] = all(ends) and len(ends) == len(runs)
-            checks["walk_10m_start_time"] = all(x is not None and lo <= x <= hi for x in starts)
-            err = 100 * (np.nanmedian(steady) / real_speed_mps - 1)
+            checks["walk_10m_standing_at_end"] = every and all(ends)
+            checks["walk_10m_start_time"] = every and all(x is not None and lo <= x <= hi for x in starts)
+            err = 100 * (np.nanmedian(steady) / real_speed_mps - 1) if steady else float("nan")
             row["steady_speed_error_pct"] = round(float(err), 2)
-            checks["walk_10m_steady_speed"] = bool(abs(err) <= sc.steady_speed_tolerance_pct)
-            checks["walk_10m_stop_time"] = all(x is not None and x <= sc.stop_within_s for x in stops)
+            checks["walk_10m_steady_speed"] = every and bool(abs(err) <= sc.steady_speed_tolerance_pct)
+            checks["walk_10m_stop_time"] = every and all(x is not None and x <= sc.stop_within_s
+                                                         for x in stops)
         if name == "speed_change":
-            checks["speed_change_reached"] = all(c["reached_after_s"] is not None and
-                                                 c["reached_after_s"] <= sc.speed_change_within_s
-                                                 for run in changes for c in run)
+            checks["speed_change_reached"] = every and all(c["reached_after_s"] is not None and
+                                                           c["reached_after_s"] <= sc.speed_change_within_s
+                                                           for run in changes for c in run)
     out["checks"] = checks
     return out
 

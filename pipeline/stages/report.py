@@ -1,9 +1,10 @@
 """Stage `report`: the store's latest results -> Markdown reports, figures and a static index.
 
-Reads the results store (read-only, one query per table in `QUERIES`) and the reference paper's
-published values (`data/paper/wang2025.yaml`, `load_paper`), and writes:
+Reads the results store (read-only, one query per table in `QUERIES`), the reference paper's
+published values (`data/paper/wang2025.yaml`, `load_paper`) and each subject's policy evaluation
+(`data/policies/<subject>/evaluation.json`, when present), and writes:
 - `reports/<subject>/report.md` with Tables I-III (Real, Sim and the paper's published columns),
-  the per-phase compliance table, SPM clusters and the figures of `subject_figures` in
+  the per-phase compliance table, the policy checks, SPM clusters and the figures of `subject_figures` in
   `reports/<subject>/figures/`;
 - `reports/summary.md` and `reports/index.html`: every subject's figures first (`FIGURES`), then the
   tables side by side, linking the per-subject reports.
@@ -14,6 +15,7 @@ published); the store keeps them exact.
 from __future__ import annotations
 
 import html
+import json
 import math
 from collections.abc import Callable
 from pathlib import Path
@@ -35,7 +37,7 @@ from metrics.plots import (
     tracking_figure,
 )
 from pipeline.params import ReportParams
-from pipeline.paths import PAPER_FILE, REPORTS_ROOT, report_dir
+from pipeline.paths import PAPER_FILE, POLICIES_ROOT, REPORTS_ROOT, policy_dir, report_dir
 from pipeline.stages.outputs import replacing, write_figure
 from pipeline.store import StoreError, open_store
 from sim.rollout.scenarios import PHASES
@@ -304,9 +306,33 @@ def _image(name: str) -> list[str]:
     return [f"![{name}](figures/{name}.png)", "", f"*{FIGURES[name]}.*", ""]
 
 
+def policy_check_lines(doc: dict | None) -> list[str]:
+    """The `evaluate-policy` result of the subject's committed policy (its evaluation.json): every
+    check with pass / FAIL, and per scenario and condition the walks, falls and timings."""
+    if doc is None:
+        return ["No `evaluate-policy` result for this subject's policy (run `python -m pipeline "
+                "evaluate-policy <subject> --out data/policies/<subject>/evaluation.json`).", ""]
+    checks = doc.get("checks", {})
+    rows = [[name, "pass" if ok else ("not judged" if ok is None else "FAIL")] for name, ok in checks.items()]
+    lines = [f"{sum(bool(v) for v in checks.values())} of {len(checks)} checks pass.", "",
+             md_table(["check", "result"], rows)]
+    sc = doc.get("scenarios")
+    if sc:
+        lines += [f"Scenario walks (the subject's own start: {sc.get('own_start_s')} s; accepted start "
+                  f"window {sc.get('start_window_s')} s):", ""]
+        rows = [[key, str(v["walks"]), str(v["human_falls"]), str(v.get("start_s", "–")),
+                 str(v.get("stop_s", "–")), str(v.get("steady_speed_mps", "–"))]
+                for key, v in sc.items() if isinstance(v, dict) and "walks" in v]
+        lines += [md_table(["scenario condition", "walks", "human falls", "start (s)", "stop (s)",
+                            "steady speed (m/s)"], rows)]
+    return lines
+
+
 def subject_report(subject: str, data: dict[str, pd.DataFrame], reports: Path = REPORTS_ROOT,
-                   p: ReportParams = ReportParams(), paper: PaperValues | None = None) -> Path:
-    """Write `reports/<subject>/report.md` and its figures; returns the report path."""
+                   p: ReportParams = ReportParams(), paper: PaperValues | None = None,
+                   evaluation: dict | None = None) -> Path:
+    """Write `reports/<subject>/report.md` and its figures; returns the report path. `evaluation`:
+    the evaluate-policy result of its policy, if any."""
     paper = paper or load_paper(PAPER_FILE)
     summary = _of(data["summary"], subject)
     if summary.empty:
@@ -334,6 +360,7 @@ def subject_report(subject: str, data: dict[str, pd.DataFrame], reports: Path = 
 
     title, build = TABLES["phases"]
     lines += [f"## {title}", "", md_table(*build(_of(data["phases"], subject), paper))]
+    lines += ["## Policy human checks (evaluate-policy)", "", *policy_check_lines(evaluation)]
     sections = {"events": "Around the commanded events", "kinematics_policy": "Gait per controller",
                 "kinematics": "Joint kinematics", "spm": "SPM1D", "tracking": "Tracking",
                 "harness": "Harness force and torque"}
@@ -427,13 +454,18 @@ def summary_report(subjects: list[str], data: dict[str, pd.DataFrame], reports: 
     return md_path, html_path
 
 
+def _evaluation(subject: str) -> dict | None:
+    path = policy_dir(POLICIES_ROOT, subject) / "evaluation.json"
+    return json.loads(path.read_text()) if path.is_file() else None
+
+
 def run_report(subjects: list[str], all_subjects: list[str], db: Path, reports: Path = REPORTS_ROOT,
                summary: bool = True, p: ReportParams = ReportParams(),
                busy_timeout_s: float = 10.0) -> list[Path]:
     """Reports of `subjects`, then (with `summary`) the summary and index over `all_subjects`."""
     data = load_report_data(db, busy_timeout_s)
     paper = load_paper(PAPER_FILE)
-    written = [subject_report(s, data, reports, p, paper) for s in subjects]
+    written = [subject_report(s, data, reports, p, paper, _evaluation(s)) for s in subjects]
     if summary:
         written += list(summary_report(all_subjects, data, reports, p, paper))
     return written

@@ -301,3 +301,17 @@ def test_index_loads_in_headless_chromium(reports, tmp_path):
     assert result["images"] == len(page.images) == len(CAMARGO_FIGURES) + 2 and result["bad_images"] == []
     assert result["links"] >= 3 and result["bad_links"] == []
     assert len(result["rows"]) == page.tables and all(n > 0 for n in result["rows"])
+
+
+def test_policy_checks_section_names_every_check():
+    from pipeline.stages.report import policy_check_lines
+
+    doc = {"checks": {"free_no_fall": True, "scenario_walk_10m_free_no_fall": False, "spm_hip_flexion": None},
+           "scenarios": {"own_start_s": 1.54, "start_window_s": [1.07, 2.0],
+                         "walk_10m free": {"walks": 10, "human_falls": 3, "start_s": [1.2], "stop_s": [1.0],
+                                           "steady_speed_mps": [1.8]}, "checks": {}}}
+    text = "\n".join(policy_check_lines(doc))
+    assert "1 of 3 checks pass" in text
+    assert "| scenario_walk_10m_free_no_fall | FAIL |" in text and "| spm_hip_flexion | not judged |" in text
+    assert "| walk_10m free | 10 | 3 |" in text
+    assert "No `evaluate-policy` result" in policy_check_lines(None)[0]
