@@ -10,9 +10,9 @@ time-warped to the commanded speed (the phase advances at speed / stride length:
 is kept, the cadence follows) and blended from and to a quiet standing pose by the gait amplitude
 `a` (0 standing, 1 walking; a smoothstep of the commanded speed over `full_gait_fraction` of the
 cycle's speed). The standing pose is the body's anatomical neutral (every joint coordinate zero:
-upright, arms down) with the feet on the floor. While standing, the cycle waits at its pose nearest
-standing (the legs passing each other), so every start leaves from there and a stop, which blends
-the walking pose out, comes back to it. Where a subject's recording has no start or stop,
+upright, arms down) with the feet on the floor. While standing, the cycle waits where the legs pass
+each other (feet closest fore-aft, mid-swing), so every start leaves from there: the blend lifts
+one foot forward, a first step. Where a subject's recording has no start or stop,
 this is the issue's "cycle time-warped to the commanded speed and blended from and to the static
 pose"; Camargo's own start, turn and stop segments are not yet used as reference (they would need
 the whole trial retargeted, not only the cycle).

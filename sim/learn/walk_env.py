@@ -173,9 +173,10 @@ class ReferenceTable:
         self.height = cycle.qpos[:, 2].copy()
         self.root_vel = cycle.qvel[:, :3].copy()
         self.joint_vel = cycle.qvel[:, 6:].copy()
-        # gait starts from (and a stop ends at) the cycle's pose nearest quiet standing: the legs
-        # passing each other, so the first step leaves from a pose one blend away from standing
-        self.start_phase = float(np.argmin(np.linalg.norm(self.ctrl - self.stand_ctrl, axis=1))) / n
+        # gait starts from (and a stop ends at) the legs passing each other (feet closest fore-aft,
+        # mid-swing): from standing, the blend then lifts one foot forward, a first step; a pose with
+        # the feet apart would need them to slide apart on the floor
+        self.start_phase = float(np.argmin(np.abs(self.feet[:, 0] - self.feet[:, 3]))) / n
         self.steered = SteeredReference(self, self.stand_ctrl, self.stand_feet, self.stand_height)
 
     def index(self, phase: float) -> tuple[int, int, float]:
