@@ -136,7 +136,10 @@ class PolicyHuman(HumanDriver):
         return float(self.speed[k]), float(self.heading[k]), float(rate)
 
     def before_sample(self, model: mujoco.MjModel, data: mujoco.MjData, k: int) -> None:
-        if k % self.every == 0:
+        if k % self.every == 0:  # a policy step; falls are checked at the policy's rate (33 Hz)
+            if self.fall_time_s is None and (data.qpos[self.idx.root_q + 2] < self.min_height
+                                             or data.xmat[self.idx.torso, 8] < self.min_up):
+                self.fall_time_s = float(self.times[k])
             amp_features(data, self.idx, self.amp)
             observe(data, self.idx, self.amp, self.gait, self.wrench, self.obs)
             action = np.clip(np.asarray(self.policy(self.obs), float).reshape(-1), -1.0, 1.0)
@@ -148,10 +151,11 @@ class PolicyHuman(HumanDriver):
             data.xfrc_applied[self.idx.pelvis, :2] = self.push.force_n if on else (0.0, 0.0)
 
     def record(self, model: mujoco.MjModel, data: mujoco.MjData, k: int) -> None:
+        """Not called: the samples come from the world qpos (`from_world_qpos`)."""
         self.qpos[k] = data.qpos[self.qslice]
-        if self.fall_time_s is None and (data.qpos[self.idx.root_q + 2] < self.min_height
-                                         or data.xmat[self.idx.torso, 8] < self.min_up):
-            self.fall_time_s = float(self.times[k])
+
+    def from_world_qpos(self, world_qpos: np.ndarray) -> None:
+        self.qpos = world_qpos[:, self.qslice]
 
     def qpos_samples(self) -> np.ndarray:
         return self.qpos
