@@ -410,6 +410,7 @@ class RolloutSchema(Schema):
     workers: int
     lead_in_s: float
     lead_in_ramp_s: float
+    policy_sample_rate_hz: Annotated[float, Field(gt=0.0)]
     replay: ReplaySchema
     fall_test: FallTestSchema
 

@@ -78,7 +78,7 @@ def replay_jobs(subject: str, params: Params, root: Path = paths.PROCESSED_ROOT,
 def policy_setup(subject: str, params: Params, root: Path = paths.PROCESSED_ROOT,
                  policy_root: Path = paths.POLICIES_ROOT) -> BatchSetup:
     """The batch runner's setup for `subject`'s trained walking policy, on the policy's own body,
-    sampled at the rate of the subject's first retargeted trial."""
+    sampled at `rollout.policy_sample_rate_hz` (its physics step must be the training timestep)."""
     from sim.learn.policy_human import PolicySource  # torch and SB3: only for the policy human
     from sim.learn.train import BODY_FILE, CYCLE_FILE, POLICY_FILE
 
@@ -86,11 +86,8 @@ def policy_setup(subject: str, params: Params, root: Path = paths.PROCESSED_ROOT
     for f in (POLICY_FILE, BODY_FILE, CYCLE_FILE):
         if not (folder / f).exists():
             raise SimulationError(folder / f, f"no trained policy: run `python -m pipeline train {subject}`")
-    npz = paths.reference_npz(root, subject)
-    _require(npz, what=f"the policy rollouts of {subject}")
-    ref = load_reference(npz)
     scenarios = {name: tuple(segs) for name, segs in params.scenarios.build().items()}
-    source = PolicySource(str(folder), params.train_params().env, ref.rate_hz(str(ref.trial[0])),
+    source = PolicySource(str(folder), params.train_params().env, params.rollout.policy_sample_rate_hz,
                           params.evaluate_policy.fall_height_fraction, scenarios,
                           params.scenarios.profile.build())
     return params.batch_setup(subject, load_subject(subject).markerset, folder / BODY_FILE, source)

@@ -145,6 +145,7 @@ class ReferenceTable:
         data = mujoco.MjData(model)
         n = len(cycle.phase)
         self.n, self.period_s, self.speed_mps = n, float(cycle.period_s), float(cycle.speed_mps)
+        self.timestep_s = float(model.opt.timestep)  # the physics step these servos were tuned and trained at
         self.qpos, self.qvel = cycle.qpos.copy(), cycle.qvel.copy()
         self.ctrl = np.empty((n, model.nu))
         self.feet = np.empty((n, 6))
