@@ -96,11 +96,11 @@ class PolicyHuman(HumanDriver):
         return np.interp(times, c.time_s, c.speed_mps), np.interp(times, c.time_s, c.heading_rad)
 
     def reset(self, model: mujoco.MjModel, data: mujoco.MjData, sample_times_s: np.ndarray) -> None:
-        if abs(model.opt.timestep - self.ref.timestep_s) > 1e-9:  # stiff PD servos: one step it knows
-            raise SimulationError("policy human", f"the world steps {model.opt.timestep * 1e3:.3f} ms, "
-                                  f"the policy was trained at {self.ref.timestep_s * 1e3:.3f} ms: sample at a "
-                                  "rate whose period is a whole number of training steps "
-                                  "(rollout.policy_sample_rate_hz)")
+        step_ms, trained_ms = model.opt.timestep * 1e3, self.ref.timestep_s * 1e3
+        if abs(step_ms - trained_ms) > 1e-6:  # stiff PD servos: the policy knows one step only
+            raise SimulationError("policy human", f"the world steps {step_ms:.3f} ms, the policy was trained "
+                                  f"at {trained_ms:.3f} ms: sample at a rate whose period is a whole number "
+                                  "of training steps (rollout.policy_sample_rate_hz)")
         self.idx = BodyIndex(model, self.root)
         self.lo, self.hi = servo_ranges(model, self.idx.act)
         dt_sample = float(sample_times_s[1] - sample_times_s[0])
