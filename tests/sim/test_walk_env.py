@@ -194,3 +194,17 @@ def test_real_gait_in_the_model_matches_the_dataset_curves(params, camargo_model
         assert same["longest_cluster_pct"] < 20 and same["pass"]
         shifted = spm_check(b, b + 15.0)  # a 15-degree offset is significant over the whole cycle
         assert shifted["longest_cluster_pct"] > 90 and not shifted["pass"]
+
+
+def test_policy_human_refuses_a_world_at_another_timestep(setup, policies_root):
+    """The policy's PD servos were trained at the body's 2 ms step: 200 Hz samples would make the
+    world step 1.67 ms, which the policy human refuses rather than walk (and fall) there."""
+    from sim.errors import SimulationError
+
+    params, tp, _, _ = setup
+    body, cycle = load_body(policies_root / "camargo")
+    env = make_walk_env(body, cycle, tp.env)
+    human = PolicyHuman(lambda obs: np.zeros(21), env.ref, cycle, tp.env, 1.0)
+    p = RolloutParams(robot=params.robot.build(), sample_rate_hz=200.0, with_robot=False)
+    with pytest.raises(SimulationError, match="trained at 2.000 ms"):
+        rollout(mujoco.MjSpec.from_file(str(body)), human, None, p, 0)
