@@ -499,6 +499,9 @@ class CommandsSchema(Schema):
     turn_deg_range: Pair
     event_probabilities: tuple[float, float, float]
     full_gait_fraction: Annotated[float, Field(gt=0.0, le=1.0)]
+    start_s_range: Pair
+    stop_s_range: Pair
+    turn_rate_deg_s_range: Pair
 
 
 class EnvSchema(Schema):

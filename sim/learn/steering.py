@@ -20,7 +20,7 @@ the whole trial retargeted, not only the cycle).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import mujoco
 import numpy as np
@@ -40,12 +40,19 @@ class CommandSampling:
     turn_deg_range: tuple[float, float] = (30.0, 180.0)
     event_probabilities: tuple[float, float, float] = (0.35, 0.35, 0.3)  # turn, speed change, stop
     full_gait_fraction: float = 0.5            # gait amplitude reaches 1 at this x the cycle's speed
+    start_s_range: tuple[float, float] = (1.7, 4.0)  # gentler starts, stops and turns than the
+    stop_s_range: tuple[float, float] = (1.4, 3.0)   # scenarios' too, so the policy meets easier
+    turn_rate_deg_s_range: tuple[float, float] = (40.0, 90.0)  # versions of each transition
 
 
 def sample_commands(rng: np.random.Generator, speed_mps: float, duration_s: float, rate_hz: float,
                     s: CommandSampling, profile: ProfileParams) -> CommandProfile:
     """A random command profile of at least `duration_s`: segments drawn from `s`, built by the
-    scenarios' own `command_profile` (same transitions as the evaluated scenarios)."""
+    scenarios' own `command_profile`, with start, stop and turn timing drawn per episode from `s`'s
+    ranges (the scenarios' timing and gentler ones)."""
+    profile = replace(profile, start_s=float(rng.uniform(*s.start_s_range)),
+                      stop_s=float(rng.uniform(*s.stop_s_range)),
+                      turn_rate_deg_s=float(rng.uniform(*s.turn_rate_deg_s_range)))
     segments: list[Segment] = []
     standing = rng.random() < s.standing_start_probability
     if standing:
