@@ -658,6 +658,7 @@ class PaperSamplingSchema(Schema):
 class ScenariosSchema(Schema):
     paper: PaperSamplingSchema
     seeds: Annotated[int, Field(ge=1)]
+    phase_tolerance_s: Annotated[float, Field(ge=0.0)]
     profile: ProfileSchema
     commands: dict[str, list[SegmentSchema]]
 

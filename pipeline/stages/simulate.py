@@ -17,8 +17,10 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+import numpy as np
 import pandas as pd
 
+from ingest.process import IngestParams
 from ingest.strides import kept_stride_runs
 from ingest.subject import load_subject
 from metrics.compliance import compliance_headline
@@ -31,7 +33,7 @@ from sim.errors import SimulationError
 from sim.motion.reference import load_reference
 from sim.motion.replay import ReplaySegment, ReplaySource
 from sim.rollout.batch import BatchSetup, RolloutJob, RolloutOutcome, batch_tables, run_batch
-from sim.rollout.scenarios import command_profile, phase_at
+from sim.rollout.scenarios import command_profile, measured_phases, phase_agreement, phase_at
 
 if TYPE_CHECKING:
     from sim.learn.policy_human import PolicyWalk
@@ -162,6 +164,25 @@ def tag_scenarios(tables: dict[str, pd.DataFrame], jobs: list[RolloutJob], profi
         tables["cycles"] = tables["cycles"].merge(tables["strides"][[*keys, "phase"]], on=keys, how="left")
 
 
+def commanded_vs_measured(outcomes: list[RolloutOutcome], profiles: dict, ingest: IngestParams,
+                          tolerance_s: float) -> dict[str, dict[str, float]]:
+    """Per scenario and commanded phase, the share of samples whose phase read from the simulated
+    pelvis path (`sim.rollout.scenarios.measured_phases`) agrees, within `tolerance_s`, averaged over
+    the walks without a fall (a walk that fell did not do what it was asked)."""
+    shares: dict[str, dict[str, list[float]]] = {}
+    for o in outcomes:
+        if o.fell or o.pelvis_xy is None or len(o.pelvis_xy) < 10:
+            continue
+        name = o.job.human.scenario
+        t = np.arange(len(o.pelvis_xy)) / o.sample_rate_hz
+        measured = measured_phases(o.pelvis_xy, o.sample_rate_hz, ingest)
+        tolerance = int(round(tolerance_s * o.sample_rate_hz))
+        ok = phase_agreement(phase_at(profiles[name], t), measured, tolerance)
+        for phase, share in ok.items():
+            shares.setdefault(name, {}).setdefault(phase, []).append(share)
+    return {name: {ph: round(float(np.mean(v)), 3) for ph, v in by.items()} for name, by in shares.items()}
+
+
 def run_simulate_policy(subject: str, params: Params, root: Path = paths.PROCESSED_ROOT,
                         policy_root: Path = paths.POLICIES_ROOT, progress: bool = True) -> dict:
     """Policy-human rollouts of every scenario x condition x walk -> `<root>/<subject>/sim_policy/`
@@ -187,12 +208,15 @@ def run_simulate_policy(subject: str, params: Params, root: Path = paths.PROCESS
     profiles = {name: command_profile(name, segs, cycle.speed_mps, rate, profile)
                 for name, segs in params.scenarios.build().items()}
     tag_scenarios(tables, jobs, profiles)
+    agreement = commanded_vs_measured(outcomes, profiles, params.ingest.build(),
+                                      params.scenarios.phase_tolerance_s)
     exclude = params.metrics.exclude_locked
     summary = {"human_mode": "policy", **run_summary(outcomes, tables["robot"], exclude),
                "falls_by_scenario": {f"{name} {c}": sum(o.fell for o in outcomes if o.job.condition == c
                                                          and o.job.human.scenario == name)
                                      for name in params.scenarios.commands
-                                     for c in params.rollout.conditions}}
+                                     for c in params.rollout.conditions},
+               "phase_agreement": agreement}
     write_outputs(out, tables, {"summary": summary})
     return summary
 

@@ -25,6 +25,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ingest.bouts import pelvis_path
+from ingest.phases import motion_phases
+from ingest.process import IngestParams
 from sim.errors import SimulationError
 
 PHASES = ("standing", "start", "steady", "speed_change", "turn", "stop")
@@ -155,6 +158,15 @@ def phase_at(profile: CommandProfile, times_s: np.ndarray) -> np.ndarray:
     return profile.phase[np.clip(k, 0, len(profile.phase) - 1)]
 
 
+def measured_phases(xy: np.ndarray, rate_hz: float, p: IngestParams) -> np.ndarray:
+    """Phase labels of a simulated pelvis path (n, 2), read as `ingest.phases` reads a recording
+    (the same smoothing and thresholds); the facing is the direction of travel."""
+    pelvis = np.column_stack([xy, np.zeros(len(xy))])
+    path = pelvis_path(pelvis, np.gradient(pelvis, axis=0), rate_hz, p.smooth_hz, p.min_walk_speed_mps,
+                       p.max_yaw_rate_deg_s, p.max_facing_angle_deg)
+    return motion_phases(path, rate_hz, p.phases)
+
+
 def phase_agreement(commanded: np.ndarray, measured: np.ndarray, tolerance_samples: int = 0) -> dict:
     """Per commanded phase, the share of its samples whose measured phase (`ingest.phases`) agrees;
     a transition's label may be off by `tolerance_samples` (the motion lags its command)."""
@@ -169,5 +181,5 @@ def phase_agreement(commanded: np.ndarray, measured: np.ndarray, tolerance_sampl
     return {ph: round(float(ok[commanded == ph].mean()), 3) for ph in PHASES if (commanded == ph).any()}
 
 
-__all__ = ["PHASES", "CommandProfile", "ProfileParams", "Segment", "command_profile", "phase_agreement",
-           "phase_at"]
+__all__ = ["PHASES", "CommandProfile", "ProfileParams", "Segment", "command_profile", "measured_phases",
+           "phase_agreement", "phase_at"]

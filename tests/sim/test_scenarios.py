@@ -7,7 +7,7 @@ import pytest
 from ingest.bouts import PelvisPath
 from ingest.phases import motion_phases
 from sim.errors import SimulationError
-from sim.rollout.scenarios import Segment, command_profile, phase_agreement
+from sim.rollout.scenarios import Segment, command_profile, measured_phases, phase_agreement
 
 RATE = 100.0
 V = 1.5  # preferred speed, m/s
@@ -57,6 +57,18 @@ def test_a_lagging_follower_is_labelled_like_its_commands(profiles, params):
         path = PelvisPath(np.zeros((len(speed), 2)), speed, heading, np.zeros(len(speed)), speed > 0.3,
                           np.zeros(len(speed), bool))
         agreement = phase_agreement(c.phase, motion_phases(path, RATE, params.ingest.build().phases), 30)
+        for phase, share in agreement.items():
+            assert share >= (0.8 if phase in ("standing", "steady", "turn") else 0.4), (name, agreement)
+
+
+def test_phases_read_from_a_simulated_pelvis_path(profiles, params):
+    """`measured_phases` reads positions (what a rollout records), smoothing them as ingest does: a
+    path that follows walk_10m and turn_90 exactly is labelled like its commands."""
+    for name in ("walk_10m", "turn_90"):
+        c = profiles[name]
+        step = c.speed_mps / RATE
+        xy = np.column_stack([np.cumsum(step * np.cos(c.heading_rad)), np.cumsum(step * np.sin(c.heading_rad))])
+        agreement = phase_agreement(c.phase, measured_phases(xy, RATE, params.ingest.build()), 50)
         for phase, share in agreement.items():
             assert share >= (0.8 if phase in ("standing", "steady", "turn") else 0.4), (name, agreement)
 
