@@ -67,7 +67,7 @@ def test_phases_read_from_a_simulated_pelvis_path(profiles, params):
     for name in ("walk_10m", "turn_90"):
         c = profiles[name]
         step = c.speed_mps / RATE
-        xy = np.column_stack([np.cumsum(step * np.cos(c.heading_rad)), np.cumsum(step * np.sin(c.heading_rad))])
+        xy = np.cumsum(np.column_stack([step * np.cos(c.heading_rad), step * np.sin(c.heading_rad)]), axis=0)
         agreement = phase_agreement(c.phase, measured_phases(xy, RATE, params.ingest.build()), 50)
         for phase, share in agreement.items():
             assert share >= (0.8 if phase in ("standing", "steady", "turn") else 0.4), (name, agreement)
