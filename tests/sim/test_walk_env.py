@@ -20,6 +20,7 @@ from sim.learn.train import load_body, load_policy, train
 from sim.learn.walk_env import AMP_SIZE, OBS_SIZE, make_walk_env
 from sim.motion.reference import load_reference
 from sim.rollout.loop import RolloutParams, rollout
+from sim.rollout.scenarios import Segment, command_profile
 
 
 @pytest.fixture(scope="module")
@@ -56,7 +57,8 @@ def test_servos_keep_the_literature_torque_limits(setup, env):
 
 def test_reference_state_init_and_imitation_reward(env, setup):
     _, _, _, cycle = setup
-    env.reset(seed=0, options={"phase": 0.5, "pushes": False})
+    walking = command_profile("steady", [Segment(walk_s=5.0)], cycle.speed_mps, 1 / env.dt)
+    env.reset(seed=0, options={"phase": 0.5, "pushes": False, "commands": walking})
     k = int(0.5 * len(cycle.phase))
     assert np.allclose(env.data.qpos[2:], cycle.qpos[k, 2:]) and np.allclose(env.data.qpos[:2], 0)
     assert np.allclose(env.data.qvel, cycle.qvel[k])
