@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed-stamp
 export DVC_NO_ANALYTICS := 1
 export MPLBACKEND := Agg
 
-.PHONY: run test lint bench clean-venv render-deps browser-deps
+.PHONY: run test lint bench videos clean-venv render-deps browser-deps
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -36,6 +36,14 @@ test: $(STAMP) render-deps browser-deps
 
 bench: $(STAMP)
 	$(BIN)/python -m pipeline bench
+
+# One walk_10m video of the policy human per subject and condition (reports/<subject>/
+# rollout_walk_10m_<condition>.mp4); about half a minute each, so not part of `make run`.
+VIDEO_SUBJECTS ?= camargo opencap4
+VIDEO_CONDITIONS ?= free pid adaptive
+videos: $(STAMP) render-deps
+	for s in $(VIDEO_SUBJECTS); do for c in $(VIDEO_CONDITIONS); do \
+		$(BIN)/python -m pipeline render $$s $$c --scenario walk_10m || exit 1; done; done
 
 clean-venv:
 	rm -rf $(VENV)

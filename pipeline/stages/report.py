@@ -427,6 +427,12 @@ def summary_report(subjects: list[str], data: dict[str, pd.DataFrame], reports: 
             md += [f"![{s} {name}]({s}/figures/{name}.png)", "", f"*{FIGURES[name]}.*", ""]
             img = f'<img src="{s}/figures/{name}.png" alt="{html.escape(s)} {name}" width="900">'
             body.append(f"<figure>{img}<figcaption>{html.escape(FIGURES[name])}</figcaption></figure>")
+        videos = sorted((reports / s).glob("rollout_walk_10m_*.mp4"))  # `make videos`
+        if videos:
+            links = [f'<a href="{s}/{v.name}">{html.escape(v.stem.removeprefix("rollout_walk_10m_"))}</a>'
+                     for v in videos]
+            md += ["Videos, walk_10m: " + ", ".join(f"[{v.stem}]({s}/{v.name})" for v in videos), ""]
+            body.append("<p>Videos of the policy human in walk_10m: " + ", ".join(links) + "</p>")
     sh = ["Subject", "Conditions", "Sources", "Versions", "Real strides", "Sim strides", "SPM tests",
           "SPM significant", "Last change"]
     srows = [[r.subject, r.conditions, r.sources, str(r.n_versions), _num(r.real_strides, 0),
