@@ -12,10 +12,9 @@ is kept, the cadence follows) and blended from and to a quiet standing pose by t
 cycle's speed). The standing pose is the body's anatomical neutral (every joint coordinate zero:
 upright, arms down) with the feet on the floor. While standing, the cycle waits where the legs pass
 each other (feet closest fore-aft, mid-swing), so every start leaves from there: the blend lifts
-one foot forward, a first step. Where a subject's recording has no start or stop,
-this is the issue's "cycle time-warped to the commanded speed and blended from and to the static
-pose"; Camargo's own start, turn and stop segments are not yet used as reference (they would need
-the whole trial retargeted, not only the cycle).
+one foot forward, a first step. Every subject uses this blend; a recording's own start, turn and
+stop (Camargo has them) are not used as reference yet: that needs the whole trial retargeted, not
+only its cycle.
 """
 
 from __future__ import annotations
