@@ -8,7 +8,8 @@ PPO with the `AMPCallback` (sim/learn/amp.py) adding the style reward. It writes
 continues from them; a run started with `init_from` (another subject's policy folder) begins from
 that policy, its observation statistics and discriminator instead of from scratch (transfer: every
 subject's human has the same joints, observation and action layout; only the body and the reference
-cycle differ), and counts its own steps from zero. Checkpoints are written every `checkpoint_steps`
+cycle differ), and counts its own steps from zero; a straight walker from before steering (72
+observations) is widened to the steering observation first (`widen_policy`). Checkpoints are written every `checkpoint_steps`
 and when the wall-time budget ends the run.
 
 PPO settings follow DeepMimic's (Peng et al. 2018: discount 0.95, GAE lambda 0.95, clip 0.2) with
@@ -253,7 +254,8 @@ def new_ppo(venv: VecNormalize, p: TrainParams) -> PPO:
 
 
 # observation slots whose statistics steering changes: (mean, std) to normalise them with from now on
-# (yaw sin / cos relative to the commanded heading, commanded speed in cycle speeds, amplitude, yaw rate)
+# (yaw sin / cos relative to the commanded heading, gait amplitude, commanded yaw rate; the commanded
+# speed, slot 65, gets the cycle's speed +- 40 %)
 STEERING_STATS = {7: (0.0, 0.5), 8: (0.8, 0.3), 72: (0.7, 0.4), 73: (0.0, 0.5)}
 UNTRAINED_SLOTS = range(65, 72)  # commanded speed and harness wrench: constant in straight-walk training
 
