@@ -9,8 +9,8 @@ continues from them; a run started with `init_from` (another subject's policy fo
 that policy, its observation statistics and discriminator instead of from scratch (transfer: every
 subject's human has the same joints, observation and action layout; only the body and the reference
 cycle differ), and counts its own steps from zero; a straight walker from before steering (72
-observations) is widened to the steering observation first (`widen_policy`). Checkpoints are written every `checkpoint_steps`
-and when the wall-time budget ends the run.
+observations) is widened to the steering observation first (`widen_policy`). Checkpoints are
+written every `checkpoint_steps` and when the wall-time budget ends the run.
 
 PPO settings follow DeepMimic's (Peng et al. 2018: discount 0.95, GAE lambda 0.95, clip 0.2) with
 SB3's Adam; network sizes are params.
