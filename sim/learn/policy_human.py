@@ -6,9 +6,11 @@ motors into the same torque-limited PD servos as in training (`sim.learn.walk_en
 the human keeps its free root, its contacts and all its joints, so the harness and the robot act on
 it physically.
 The policy acts every `control_dt_s` (a multiple of the output sample period); between its
-decisions the PD servos run inside MuJoCo's step.
+decisions the PD servos run inside MuJoCo's step, which must step at the training timestep.
+A scenario's commands (speed, heading per sample) steer it (`sim.learn.steering`); without them it
+walks straight at its cycle's speed.
 
-The policy sees the human's own state only. The harness-wrench slot of the observation stays zero:
+The policy sees the human's own state and its command only. The harness-wrench slot of the observation stays zero:
 the committed policy was trained without the robot, so feeding it forces it never saw would be
 extrapolation; the harness still pushes and pulls the body through the physics.
 
