@@ -7,12 +7,13 @@ the human keeps its free root, its contacts and all its joints, so the harness a
 it physically.
 The policy acts every `control_dt_s` (a multiple of the output sample period); between its
 decisions the PD servos run inside MuJoCo's step, which must step at the training timestep.
-A scenario's commands (speed, heading per sample) steer it (`sim.learn.steering`); without them it
-walks straight at its cycle's speed.
+A scenario's commands (speed, heading per sample) steer it (`sim.learn.steering`); without them
+it walks straight at its cycle's speed.
 
-The policy sees the human's own state and its command only. The harness-wrench slot of the observation stays zero:
-the committed policy was trained without the robot, so feeding it forces it never saw would be
-extrapolation; the harness still pushes and pulls the body through the physics.
+The policy sees the human's own state and its command only. The harness-wrench slot of the
+observation stays zero: the committed policy was trained without the robot, so feeding it forces
+it never saw would be extrapolation; the harness still pushes and pulls the body through the
+physics.
 
 An optional scripted push (`Push`) applies a horizontal force at the pelvis for a duration (the
 evaluation's 200 N / 0.2 s lateral push); nothing else acts on the body from outside.
