@@ -2,8 +2,8 @@
 than the tuned one and the human's walking changes beyond seed noise, or the human falls (issue 11;
 the sluggish gains are the ones that drove the harness to 690 N RMS in the sanity check quoted
 there). The comparison needs the human to walk with the tuned PID: in `steady` (already walking) it
-does; in the paper's protocol `walk_10m` the committed policy does not yet get through its start
-from standing (issue 11 stays open), so that case is an expected failure until it does."""
+does; in the paper's protocol `walk_10m` camargo's committed policy starts and walks but falls
+after its stop (issue 11 stays open), so that case is an expected failure until it stands again."""
 
 from __future__ import annotations
 
@@ -27,8 +27,8 @@ def _mean_se(x: list[float]) -> tuple[float, float]:
 
 @pytest.mark.parametrize("scenario", [
     "steady",
-    pytest.param("walk_10m", marks=pytest.mark.xfail(reason="the committed policy falls in its start from "
-                                                     "standing (issue 11 open)", strict=False)),
+    pytest.param("walk_10m", marks=pytest.mark.xfail(reason="the committed policy falls after its stop "
+                                                     "(issue 11 open)", strict=False)),
 ])
 def test_sluggish_pid_is_told_apart_from_the_tuned_one(params, camargo_model, policies_root, scenario):
     setup = policy_setup("camargo", params, camargo_model.parents[1], policies_root)
