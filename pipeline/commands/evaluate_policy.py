@@ -35,12 +35,12 @@ from metrics.scenario_checks import (
 from pipeline import paths
 from pipeline.params import Params
 from pipeline.stages.outputs import write_figure
-from pipeline.stages.simulate import policy_job, policy_setup, scenario_jobs
+from pipeline.stages.simulate import policy_job, policy_setup, scenario_jobs, scenario_profiles
 from sim.learn.policy_human import PolicyWalk
 from sim.learn.train import BODY_FILE, load_body
 from sim.motion.reference import load_reference
 from sim.rollout.batch import RolloutOutcome, batch_tables, reference_cycles, run_batch
-from sim.rollout.scenarios import CommandProfile, command_profile
+from sim.rollout.scenarios import CommandProfile
 
 SPM_JOINTS = ("hip_flexion", "knee_flexion")
 
@@ -159,13 +159,6 @@ def own_start_s(subject: str, params: Params) -> float | None:
             if phase[starts[i]] == "start" and before[0] == "standing" and before[1] > 1.0:
                 found.append(float(t[ends[i] - 1] - t[starts[i]]))
     return float(np.median(found)) if found else None
-
-
-def scenario_profiles(params: Params, speed_mps: float, rate_hz: float) -> dict[str, CommandProfile]:
-    """Every scenario's command profile for a person whose preferred speed is `speed_mps`."""
-    profile = params.scenarios.profile.build()
-    return {name: command_profile(name, segs, speed_mps, rate_hz, profile)
-            for name, segs in params.scenarios.build().items()}
 
 
 def scenario_report(outcomes: list[RolloutOutcome], profiles: dict[str, CommandProfile], stride_s: float,

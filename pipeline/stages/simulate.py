@@ -33,7 +33,7 @@ from sim.errors import SimulationError
 from sim.motion.reference import load_reference
 from sim.motion.replay import ReplaySegment, ReplaySource
 from sim.rollout.batch import BatchSetup, RolloutJob, RolloutOutcome, batch_tables, run_batch
-from sim.rollout.scenarios import command_profile, measured_phases, phase_agreement, phase_at
+from sim.rollout.scenarios import CommandProfile, command_profile, measured_phases, phase_agreement, phase_at
 
 if TYPE_CHECKING:
     from sim.learn.policy_human import PolicyWalk
@@ -143,6 +143,13 @@ def scenario_jobs(params: Params, conditions: tuple[str, ...] | None = None,
             for name in names for c in conditions for k in range(walks or sc.walks(name))]
 
 
+def scenario_profiles(params: Params, speed_mps: float, rate_hz: float) -> dict[str, CommandProfile]:
+    """Every scenario's command profile for a person whose preferred speed is `speed_mps`."""
+    profile = params.scenarios.profile.build()
+    return {name: command_profile(name, segs, speed_mps, rate_hz, profile)
+            for name, segs in params.scenarios.build().items()}
+
+
 def tag_scenarios(tables: dict[str, pd.DataFrame], jobs: list[RolloutJob], profiles: dict) -> None:
     """Add `scenario` and the commanded `phase` (sim.rollout.scenarios.phase_at) to the rollout tables
     in place: robot rows by sample time, strides by the phase they end in (a stride inside one phase
@@ -203,10 +210,7 @@ def run_simulate_policy(subject: str, params: Params, root: Path = paths.PROCESS
     outcomes = run_batch(setup, jobs, params.rollout.workers, f"scenario rollouts {subject}", progress)
     tables = batch_tables(outcomes)
     _, cycle = load_body(folder)
-    rate = setup.drivers.sample_rate_hz
-    profile = params.scenarios.profile.build()
-    profiles = {name: command_profile(name, segs, cycle.speed_mps, rate, profile)
-                for name, segs in params.scenarios.build().items()}
+    profiles = scenario_profiles(params, cycle.speed_mps, setup.drivers.sample_rate_hz)
     tag_scenarios(tables, jobs, profiles)
     agreement = commanded_vs_measured(outcomes, profiles, params.ingest.build(),
                                       params.scenarios.phase_tolerance_s)
@@ -222,4 +226,4 @@ def run_simulate_policy(subject: str, params: Params, root: Path = paths.PROCESS
 
 
 __all__ = ["policy_job", "policy_setup", "replay_jobs", "replay_setup", "run_simulate", "run_simulate_policy",
-           "run_summary", "scenario_jobs", "tag_scenarios"]
+           "run_summary", "scenario_jobs", "scenario_profiles", "tag_scenarios"]

@@ -27,6 +27,7 @@ import mujoco
 import numpy as np
 
 from sim.errors import SimulationError
+from sim.learn.steering import command_at
 from sim.learn.walk_env import (
     AMP_SIZE,
     LEGACY_OBS_SIZE,
@@ -138,10 +139,7 @@ class PolicyHuman(HumanDriver):
 
     def _command(self, k: int) -> tuple[float, float, float]:
         """(speed, heading, yaw rate) commanded at sample `k` (held after the last sample)."""
-        k = min(k, len(self.speed) - 1)
-        j = min(k + self.every, len(self.speed) - 1)
-        rate = (self.heading[j] - self.heading[k]) / self.control_dt if j > k else 0.0
-        return float(self.speed[k]), float(self.heading[k]), float(rate)
+        return command_at(self.speed, self.heading, k, self.every, self.control_dt)
 
     def before_sample(self, model: mujoco.MjModel, data: mujoco.MjData, k: int) -> None:
         if k % self.every == 0:  # a policy step; falls are checked at the policy's rate (33 Hz)

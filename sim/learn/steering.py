@@ -58,8 +58,7 @@ def sample_commands(rng: np.random.Generator, speed_mps: float, duration_s: floa
         segments.append(Segment(stand_s=float(rng.uniform(*s.stand_s_range))))
     speed = float(rng.uniform(*s.speed_range)) if standing else 1.0
     segments.append(Segment(walk_s=float(rng.uniform(*s.walk_s_range)), speed=speed))
-    total = 0.0
-    while total < duration_s:
+    while True:
         event = rng.choice(3, p=np.asarray(s.event_probabilities) / sum(s.event_probabilities))
         if event == 0:
             angle = float(rng.uniform(*s.turn_deg_range)) * (1 if rng.random() < 0.5 else -1)
@@ -70,8 +69,20 @@ def sample_commands(rng: np.random.Generator, speed_mps: float, duration_s: floa
             segments += [Segment(stop=True), Segment(stand_s=float(rng.uniform(*s.stand_s_range)))]
             speed = float(rng.uniform(*s.speed_range))
         segments.append(Segment(walk_s=float(rng.uniform(*s.walk_s_range)), speed=speed))
-        total = len(command_profile("training", segments, speed_mps, rate_hz, profile).time_s) / rate_hz
-    return command_profile("training", segments, speed_mps, rate_hz, profile)
+        commands = command_profile("training", segments, speed_mps, rate_hz, profile)
+        if len(commands.time_s) / rate_hz >= duration_s:
+            return commands
+
+
+def command_at(speed_mps: np.ndarray, heading_rad: np.ndarray, k: int, ahead: int,
+               dt_s: float) -> tuple[float, float, float]:
+    """(speed, heading, yaw rate) commanded at sample `k` of per-sample commands; the yaw rate is
+    the heading change over the next `ahead` samples (`dt_s`); past the end the last command holds."""
+    last = len(speed_mps) - 1
+    k = min(k, last)
+    j = min(k + ahead, last)
+    rate = (heading_rad[j] - heading_rad[k]) / dt_s if j > k else 0.0
+    return float(speed_mps[k]), float(heading_rad[k]), float(rate)
 
 
 def gait_amplitude(speed_mps: float, cycle_speed_mps: float, full_gait_fraction: float) -> float:
@@ -160,5 +171,5 @@ class SteeredReference:
         return ctrl, ctrl_vel, joint_vel, feet, height, root_vel
 
 
-__all__ = ["CommandSampling", "SteeredReference", "blend_qpos", "gait_amplitude", "sample_commands",
-           "standing_pose"]
+__all__ = ["CommandSampling", "SteeredReference", "blend_qpos", "command_at", "gait_amplitude",
+           "sample_commands", "standing_pose"]

@@ -45,6 +45,7 @@ from sim.learn.steering import (
     CommandSampling,
     SteeredReference,
     blend_qpos,
+    command_at,
     gait_amplitude,
     sample_commands,
     standing_pose,
@@ -339,11 +340,7 @@ class WalkEnv(gym.Env):
 
     def _command(self, i: int) -> tuple[float, float, float]:
         """(speed, heading, yaw rate) of policy step `i` (the last command holds after the profile)."""
-        c = self.commands
-        i = min(i, len(c.time_s) - 1)
-        j = min(i + 1, len(c.time_s) - 1)
-        rate = (c.heading_rad[j] - c.heading_rad[i]) / self.dt if j > i else 0.0
-        return float(c.speed_mps[i]), float(c.heading_rad[i]), float(rate)
+        return command_at(self.commands.speed_mps, self.commands.heading_rad, i, 1, self.dt)
 
     def _draw_interval(self) -> float:
         lo, hi = self.p.push_interval_s
