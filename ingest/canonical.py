@@ -13,7 +13,7 @@ import numpy as np
 
 from ingest.errors import IngestError
 from ingest.manifest import Manifest
-from ingest.readers import MarkerTable, MotTable, read_c3d, read_csv, read_markers, read_mot
+from ingest.readers import MarkerTable, MotTable, read_c3d, read_csv, read_markers, read_mot, read_robot_log
 from ingest.subject import FileFormat, Subject, TrialSpec
 from ingest.trial import ForcePlates, Provenance, Trial
 
@@ -44,6 +44,27 @@ def up_to_z(xyz: np.ndarray, up_axis: str) -> np.ndarray:
         return xyz
     out = np.empty_like(xyz)
     out[..., 0], out[..., 1], out[..., 2] = xyz[..., 0], -xyz[..., 2], xyz[..., 1]
+    return out
+
+
+def z_up_to(xyz: np.ndarray, up_axis: str) -> np.ndarray:
+    """The inverse of `up_to_z`: canonical Z-up points into a file's `up_axis` (Y-up: (x, z, -y))."""
+    if up_axis == "z":
+        return xyz
+    out = np.empty_like(xyz)
+    out[..., 0], out[..., 1], out[..., 2] = xyz[..., 0], xyz[..., 2], -xyz[..., 1]
+    return out
+
+
+def opensim_coordinates(angles: dict[str, np.ndarray], knee_flexion_sign: int = 1,
+                        extra: dict[str, tuple[str, float]] | None = None) -> dict[str, np.ndarray]:
+    """Canonical joint angles (deg) as OpenSim coordinates, the inverse of `canonical_angles`
+    (`OPENSIM_COORDINATES`, plus `extra` OpenSim name -> (canonical name, sign)); angles the trial
+    lacks are left out."""
+    out = {}
+    for column, (name, sign) in {**OPENSIM_COORDINATES, **(extra or {})}.items():
+        if name in angles:
+            out[column] = np.asarray(angles[name], float) * (knee_flexion_sign if sign is None else sign)
     return out
 
 
@@ -192,8 +213,13 @@ def load_trial(subject: Subject, spec: TrialSpec, manifest: Manifest, source: st
         path = manifest.resolve(spec.grf)
         plates = plates_from_grf(read_mot(path), subject.format, heading)
         provenance.append(_provenance(manifest, spec.grf, path, "grf:mot"))
+    log = None
+    if spec.robot_log:
+        path = manifest.resolve(spec.robot_log)
+        log = read_robot_log(path)
+        provenance.append(_provenance(manifest, spec.robot_log, path, "robot:csv"))
     return Trial(subject.id, spec.condition, source, spec.id, float(rate), np.asarray(time, float),
-                 markers, angles, plates, tuple(provenance))
+                 markers, angles, plates, tuple(provenance), log)
 
 
 __all__ = ["load_trial", "canonical_angles", "up_to_z", "rotate_z", "read_c3d"]

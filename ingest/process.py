@@ -1,7 +1,8 @@
 """Process one canonical Trial: gap filling, filtering, events, strides, cycles (DESIGN.md steps 1-6).
 
 `process_trial` is pure: a Trial and parameters in, three tidy tables out (events, strides,
-cycles), each with the trial's identity columns first. Real and simulated trials go through
+cycles), each with the trial's identity columns first, and the robot table of a robot-assisted
+trial's robot log (`ingest.robot_log`) on the trial's own samples. Real and simulated trials go through
 exactly this function: that is what makes the datasets matched.
 """
 
@@ -20,6 +21,8 @@ from ingest.filtering import lowpass
 from ingest.gaps import fill_rigid, fill_short
 from ingest.kinematics import marker_angles
 from ingest.phases import PhaseParams, motion_phases
+from ingest.robot import ROBOT_COLUMNS
+from ingest.robot_log import robot_table
 from ingest.strides import StrideParams, segment_strides
 from ingest.trial import SIDES, Trial
 
@@ -68,6 +71,7 @@ class ProcessedTrial:
     events: pd.DataFrame
     strides: pd.DataFrame
     cycles: pd.DataFrame
+    robot: pd.DataFrame = field(default_factory=lambda: pd.DataFrame(columns=ROBOT_COLUMNS))
 
 
 def clean_markers(trial: Trial, markerset: dict[str, str], p: IngestParams) -> Trial:
@@ -162,8 +166,10 @@ def process_trial(trial: Trial, markerset: dict[str, str], p: IngestParams) -> P
     cycles = normalise_cycles(strides, time, angles, p.n_points)
     ident = {"subject": trial.subject, "source": trial.source, "condition": trial.condition,
              "trial": trial.trial}
+    robot = (robot_table(trial.robot_log, trial.time_s, trial.subject, trial.condition, trial.trial)
+             if trial.robot_log is not None else pd.DataFrame(columns=ROBOT_COLUMNS))
     return ProcessedTrial(clean, _with_id(events, ident), _with_id(strides, ident),
-                          _with_id(cycles, ident))
+                          _with_id(cycles, ident), robot)
 
 
 def _with_id(df: pd.DataFrame, ident: dict[str, str]) -> pd.DataFrame:
@@ -175,11 +181,13 @@ def _with_id(df: pd.DataFrame, ident: dict[str, str]) -> pd.DataFrame:
 
 @dataclass(frozen=True)
 class SubjectTables:
-    """A subject's processed tables, all trials stacked."""
+    """A subject's processed tables, all trials stacked; `robot` holds the robot-assisted trials'
+    robot logs as robot tables (`ingest.robot`), empty when there are none."""
 
     events: pd.DataFrame
     strides: pd.DataFrame
     cycles: pd.DataFrame
+    robot: pd.DataFrame
 
 
 def process_subject(subject, manifest, p: IngestParams, progress: bool = False) -> SubjectTables:
@@ -192,8 +200,10 @@ def process_subject(subject, manifest, p: IngestParams, progress: bool = False) 
     results = []
     for spec in tqdm(subject.trials, desc=f"ingest {subject.id}", unit="trial", disable=not progress):
         results.append(process_trial(load_trial(subject, spec, manifest), subject.markerset, p))
+    logs = [r.robot for r in results if not r.robot.empty]
+    robot = pd.concat(logs, ignore_index=True) if logs else pd.DataFrame(columns=ROBOT_COLUMNS)
     tables = SubjectTables(*(pd.concat([getattr(r, name) for r in results], ignore_index=True)
-                             for name in ("events", "strides", "cycles")))
+                             for name in ("events", "strides", "cycles")), robot)
     if not tables.strides["kept"].any():
         reasons = tables.strides["reason"].value_counts().to_dict() if len(tables.strides) else {}
         raise IngestError(subject.path, f"no steady complete stride in {len(subject.trials)} "

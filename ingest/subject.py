@@ -5,7 +5,9 @@ role -> marker name), format (how the files are written: up_axis, knee_flexion_s
 files without a unit header, angle_unit), static (scaling trial: markers, optional window_s, and
 optional `angles`, the manifest key of the static pose's IK coordinates, median over the same
 window, used to calibrate the model's joint zeros), trials (id, condition, and
-manifest keys of the markers / angles / grf files).
+manifest keys of the markers / angles / grf files, and of the `robot_log` of a robot-assisted
+trial: `ingest.readers.robot_log`), and `round_trip_of` (the subject whose simulated trials these
+files are, exported and read back: `python -m pipeline export`; reports and the store label it).
 """
 
 from __future__ import annotations
@@ -39,6 +41,7 @@ class TrialSpec:
     markers: str | None = None
     angles: str | None = None
     grf: str | None = None
+    robot_log: str | None = None
 
 
 @dataclass(frozen=True)
@@ -59,6 +62,7 @@ class Subject:
     static: StaticSpec | None
     trials: tuple[TrialSpec, ...] = field(default_factory=tuple)
     path: Path | None = None
+    round_trip_of: str | None = None
 
     @property
     def conditions(self) -> tuple[str, ...]:
@@ -111,11 +115,16 @@ def load_subject(subject_id: str, directory: Path = SUBJECTS_DIR) -> Subject:
             markers=t.get("markers"),
             angles=t.get("angles"),
             grf=t.get("grf"),
+            robot_log=t.get("robot_log"),
         )
         for t in _require(doc, "trials", path)
     )
     if not trials:
         raise SubjectError(path, "no trials listed")
+    for t in trials:
+        if t.robot_log and t.condition == "free":
+            raise SubjectError(path, f"trial {t.id!r} is free walking but has a robot_log: name the "
+                               "controller that ran as its condition")
     static_doc = doc.get("static")
     static = None
     if static_doc:
@@ -133,4 +142,5 @@ def load_subject(subject_id: str, directory: Path = SUBJECTS_DIR) -> Subject:
         static=static,
         trials=trials,
         path=path,
+        round_trip_of=str(doc["round_trip_of"]) if doc.get("round_trip_of") else None,
     )

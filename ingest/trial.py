@@ -13,6 +13,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ingest.errors import IngestError
+from ingest.readers.robot_log import RobotLog
 
 JOINTS = ("hip_flexion", "knee_flexion", "ankle_dorsiflexion")
 SIDES = ("left", "right")
@@ -64,6 +65,7 @@ class Trial:
     angles: dict[str, np.ndarray] = field(default_factory=dict)
     plates: ForcePlates | None = None
     provenance: tuple[Provenance, ...] = ()
+    robot_log: RobotLog | None = None  # the robot's own log of a robot-assisted trial
 
     @property
     def n_frames(self) -> int:

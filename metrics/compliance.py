@@ -13,7 +13,7 @@ import pandas as pd
 
 from metrics.groups import GROUP, with_identity
 
-# the columns used here, of the robot table a rollout writes (sim.rollout.loop.ROBOT_COLUMNS)
+# the columns used here, of the robot table a rollout writes (ingest.robot.ROBOT_COLUMNS)
 NEEDED_ROBOT_COLUMNS = ("trial", "time_s", "e_x_m", "e_y_m", "fall", "locked")
 COLUMNS = [*GROUP, "n_trials", "n_samples", "mean_abs_ex_cm", "sd_abs_ex_cm", "mean_abs_ey_cm",
            "sd_abs_ey_cm", "max_abs_ex_cm", "max_abs_ey_cm", "fall_rate"]

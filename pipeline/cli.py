@@ -153,6 +153,17 @@ def cmd_render(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_export(args: argparse.Namespace) -> int:
+    from pipeline.commands.export import run_export
+
+    scenario = None if args.scenario == "replay" else args.scenario
+    folder = run_export(args.subject, load_params(args.params), args.out, scenario,
+                        tuple(args.condition) if args.condition else None, args.walks,
+                        args.root or PROCESSED_ROOT)
+    print(f"wrote {folder}", file=sys.stderr)
+    return 0
+
+
 def cmd_metrics(args: argparse.Namespace) -> int:
     from pipeline.stages.metrics import run_metrics
 
@@ -206,7 +217,7 @@ def cmd_add_subject(args: argparse.Namespace) -> int:
     trials = [NewTrial.parse(t) for t in args.trial]
     path = add_subject(args.id, args.height_m, args.mass_kg, args.static, trials, markerset=args.markerset,
                        up_axis=args.up_axis, knee_flexion_sign=args.knee_flexion_sign, dataset=args.dataset,
-                       registry=registry)
+                       round_trip_of=args.round_trip_of, registry=registry)
     print(f"wrote {path} and added {args.id!r} to {args.params}; run `dvc repro`", file=sys.stderr)
     return 0
 
@@ -265,8 +276,12 @@ def add_results_commands(commands: argparse._SubParsersAction) -> None:
     add.add_argument("--height-m", type=float, required=True)
     add.add_argument("--mass-kg", type=float, required=True)
     add.add_argument("--static", type=Path, required=True, help="static (scaling) marker file")
-    add.add_argument("--trial", action="append", required=True, metavar="COND=MARKERS[,ANGLES[,GRF]]",
-                     help="a walking trial: condition and marker file, optionally IK angles and GRF .mot")
+    add.add_argument("--trial", action="append", required=True,
+                     metavar="COND=MARKERS[,ANGLES[,GRF[,ROBOT_LOG]]]",
+                     help="a walking trial: condition and marker file, optionally IK angles and GRF .mot "
+                     "and, for a robot-assisted trial (condition = the controller), the robot log .csv")
+    add.add_argument("--round-trip-of", metavar="SUBJECT", help="these files are SUBJECT's simulated trials "
+                     "exported by `export` and read back: label the subject as a round trip")
     add.add_argument("--markerset", help="marker set in data/markersets/ (default: the one that fits)")
     add.add_argument("--up-axis", choices=("y", "z"), default="z")
     add.add_argument("--knee-flexion-sign", type=int, choices=(1, -1), default=1)
@@ -368,6 +383,20 @@ def build_parser() -> argparse.ArgumentParser:
     render.add_argument("--root", type=Path, help="default: data/processed")
     render.add_argument("--reports", type=Path, help="video to <reports>/<subject>/ (default: reports)")
     render.set_defaults(func=cmd_render)
+
+    export = commands.add_parser("export", help="simulated trials as OpenSim files (.trc, .mot, GRF, "
+                                 "robot log)")
+    export.add_argument("subject")
+    export.add_argument("--source", choices=("sim",), default="sim",
+                        help="simulated trials (recorded ones are files already)")
+    export.add_argument("--scenario", default="walk_10m", help="a scenario of params (policy human), or "
+                        "'replay' for the replay human's straight bouts (default: walk_10m)")
+    export.add_argument("--condition", action="append", help="free or a controller (repeatable; default: "
+                        "rollout.conditions)")
+    export.add_argument("--walks", type=int, help="walks (seeds) per condition (default: as in simulate)")
+    export.add_argument("--out", type=Path, help="default: data/exports/<subject>/<scenario>/")
+    export.add_argument("--root", type=Path, help="default: data/processed")
+    export.set_defaults(func=cmd_export)
 
     add_results_commands(commands)
     return parser

@@ -13,6 +13,7 @@ from ingest.errors import IngestError
 from ingest.readers.c3d import C3dRecording, read_c3d
 from ingest.readers.csv import CsvRecording, read_csv
 from ingest.readers.mot import MotTable, read_mot
+from ingest.readers.robot_log import RobotLog, read_robot_log, write_robot_log
 from ingest.readers.table import UNIT_TO_M, MarkerTable
 from ingest.readers.trc import read_trc
 
@@ -29,5 +30,5 @@ def read_markers(path: str | Path) -> MarkerTable:
     raise IngestError(path, f"unknown marker file type {suffix!r} (expected .trc, .c3d or .csv)")
 
 
-__all__ = ["UNIT_TO_M", "C3dRecording", "CsvRecording", "MarkerTable", "MotTable", "read_c3d", "read_csv",
-           "read_markers", "read_mot", "read_trc"]
+__all__ = ["UNIT_TO_M", "C3dRecording", "CsvRecording", "MarkerTable", "MotTable", "RobotLog", "read_c3d",
+           "read_csv", "read_markers", "read_mot", "read_robot_log", "read_trc", "write_robot_log"]

@@ -81,3 +81,16 @@ def read_mot(path: str | Path) -> MotTable:
     if len(table) > 1 and not (table["time"].diff().iloc[1:] > 0).all():
         raise IngestError(path, "time column is not strictly increasing")
     return MotTable(path, header, table)
+
+
+def write_mot(path: str | Path, table: pd.DataFrame, name: str, in_degrees: bool) -> Path:
+    """Write `table` (a `time` column first) as an OpenSim storage file (`version=1`, `nRows`,
+    `nColumns`, `inDegrees`, `endheader`), the layout `read_mot` reads."""
+    path = Path(path)
+    if table.columns[0] != "time":
+        raise IngestError(path, f"the first column must be 'time', not {table.columns[0]!r}")
+    header = [name, "version=1", f"nRows={len(table)}", f"nColumns={table.shape[1]}",
+              f"inDegrees={'yes' if in_degrees else 'no'}", "endheader"]
+    body = table.to_csv(sep="\t", index=False, float_format="%.8g", lineterminator="\n")
+    path.write_text("\n".join(header) + "\n" + body)
+    return path

@@ -72,3 +72,27 @@ def read_trc(path: str | Path) -> MarkerTable:
     xyz = data[:, 2:].reshape(len(rows), n_markers, 3) * UNIT_TO_M[unit]
     return MarkerTable(path, rate, time, names, xyz, unit)
 
+
+
+def write_trc(path: str | Path, time_s: np.ndarray, names: tuple[str, ...] | list[str], xyz_m: np.ndarray,
+              unit: str = "mm") -> Path:
+    """Write markers (n_frames, n_markers, 3) in metres, in the axes given, as an OpenSim `.trc` in
+    `unit` (the layout `read_trc` reads; NaN -> empty cell). The rate is taken from `time_s`."""
+    path = Path(path)
+    time_s = np.asarray(time_s, float)
+    xyz = np.asarray(xyz_m, float) / UNIT_TO_M[unit]
+    n, m = len(time_s), len(names)
+    if xyz.shape != (n, m, 3):
+        raise IngestError(path, f"markers have shape {xyz.shape}, expected ({n}, {m}, 3)")
+    rate = (n - 1) / (time_s[-1] - time_s[0]) if n > 1 else 0.0
+    head = [f"PathFileType\t4\t(X/Y/Z)\t{path.name}",
+            "DataRate\tCameraRate\tNumFrames\tNumMarkers\tUnits\tOrigDataRate\tOrigDataStartFrame\tOrigNumFrames",
+            f"{rate:.10g}\t{rate:.10g}\t{n}\t{m}\t{unit}\t{rate:.10g}\t1\t{n}",
+            "\t".join(["Frame#", "Time", *(f"{name}\t\t" for name in names)]).rstrip("\t"),
+            "\t".join(["", "", *(f"X{j}\tY{j}\tZ{j}" for j in range(1, m + 1))]), ""]
+    cells = np.char.mod("%.6f", xyz.reshape(n, 3 * m))
+    cells[~np.isfinite(xyz.reshape(n, 3 * m))] = ""
+    rows = ["\t".join([str(k + 1), f"{t:.6f}", *row])
+            for k, (t, row) in enumerate(zip(time_s, cells, strict=True))]
+    path.write_text("\n".join(head + rows) + "\n")
+    return path

@@ -28,7 +28,8 @@ import yaml
 from ingest.canonical import load_trial
 from ingest.errors import GaitloopError, IngestError, SubjectError
 from ingest.manifest import DEFAULT_MANIFEST, Manifest, Source, sha256_of
-from ingest.readers import read_markers, read_mot
+from ingest.readers import read_markers, read_mot, read_robot_log
+from ingest.robot_log import robot_table
 from ingest.subject import (
     MARKERSETS_DIR,
     SUBJECTS_DIR,
@@ -50,22 +51,25 @@ MOT_SUFFIXES = (".mot", ".sto")
 
 @dataclass(frozen=True)
 class NewTrial:
-    """One trial to register: its condition, marker file and optional angles / GRF `.mot` files."""
+    """One trial to register: its condition, marker file and optional angles / GRF `.mot` files and
+    robot log (`.csv`, `ingest.readers.robot_log`: a robot-assisted trial)."""
 
     condition: str
     markers: Path
     angles: Path | None = None
     grf: Path | None = None
+    robot_log: Path | None = None
 
     @classmethod
     def parse(cls, text: str) -> NewTrial:
-        """`COND=MARKERS[,ANGLES[,GRF]]`, e.g. `free=walk1.trc,walk1_ik.mot,walk1_grf.mot`."""
+        """`COND=MARKERS[,ANGLES[,GRF[,ROBOT_LOG]]]` (empty fields skip a file), e.g.
+        `free=walk1.trc,walk1_ik.mot,walk1_grf.mot` or `pid=walk2.trc,walk2_ik.mot,,walk2_robot.csv`."""
         cond, sep, files = text.partition("=")
         parts = [p.strip() for p in files.split(",")] if sep else []
-        if not cond.strip() or not parts or not parts[0] or len(parts) > 3:
-            raise SubjectError(text, "a trial is COND=MARKERS[,ANGLES.mot[,GRF.mot]]")
-        paths = [Path(p) if p else None for p in parts] + [None] * (3 - len(parts))
-        return cls(cond.strip(), paths[0], paths[1], paths[2])
+        if not cond.strip() or not parts or not parts[0] or len(parts) > 4:
+            raise SubjectError(text, "a trial is COND=MARKERS[,ANGLES.mot[,GRF.mot[,ROBOT_LOG.csv]]]")
+        paths = [Path(p) if p else None for p in parts] + [None] * (4 - len(parts))
+        return cls(cond.strip(), *paths)
 
 
 @dataclass(frozen=True)
@@ -83,11 +87,13 @@ def _check_file(path: Path, kind: str) -> Path:
     path = Path(path)
     if not path.is_file():
         raise IngestError(path, f"{kind} file not found")
-    suffixes = MARKER_SUFFIXES if kind in ("markers", "static") else MOT_SUFFIXES
+    readers = {"markers": read_markers, "static": read_markers, "robot_log": read_robot_log}
+    suffixes = {"markers": MARKER_SUFFIXES, "static": MARKER_SUFFIXES, "robot_log": (".csv",)}
+    suffixes = suffixes.get(kind, MOT_SUFFIXES)
     if path.suffix.lower() not in suffixes:
         raise IngestError(path, f"{kind} file must be one of {', '.join(suffixes)}")
     try:
-        read_markers(path) if kind in ("markers", "static") else read_mot(path)
+        readers.get(kind, read_mot)(path)
     except GaitloopError as exc:
         raise IngestError(path, f"unreadable {kind} file: {getattr(exc, 'problem', exc)}") from None
     except Exception as exc:  # a reader tripping over garbage is still an unreadable file
@@ -130,7 +136,8 @@ def _append_subject_to_params(text: str, subject_id: str, path: Path) -> str:
 
 def add_subject(subject_id: str, height_m: float, mass_kg: float, static: Path, trials: list[NewTrial], *,
                 markerset: str | None = None, up_axis: str = "z", knee_flexion_sign: int = 1,
-                dataset: str | None = None, registry: Registry = Registry()) -> Path:
+                dataset: str | None = None, round_trip_of: str | None = None,
+                registry: Registry = Registry()) -> Path:
     """Check and register a subject; returns the new subject file. Raises `SubjectError` or
     `IngestError` naming the id or file at fault, having written nothing."""
     subj_file = registry.subjects_dir / f"{subject_id}.yaml"
@@ -149,9 +156,16 @@ def add_subject(subject_id: str, height_m: float, mass_kg: float, static: Path, 
         raise SubjectError(subject_id, f"height {height_m} m / mass {mass_kg} kg are not a human's")
     if up_axis not in ("y", "z") or knee_flexion_sign not in (1, -1):
         raise SubjectError(subject_id, "up axis must be y or z and knee flexion sign 1 or -1")
+    if round_trip_of is not None and not ID_PATTERN.match(round_trip_of):
+        raise SubjectError(round_trip_of, "round_trip_of must be a subject id")
+    for t in trials:
+        if t.robot_log and t.condition == "free":
+            raise SubjectError(t.robot_log, "a robot log belongs to a robot-assisted trial: name the "
+                               "controller that ran as the trial's condition, not 'free'")
     static = _check_file(static, "static")
     checked = [NewTrial(t.condition, _check_file(t.markers, "markers"),
-                        t.angles and _check_file(t.angles, "angles"), t.grf and _check_file(t.grf, "grf"))
+                        t.angles and _check_file(t.angles, "angles"), t.grf and _check_file(t.grf, "grf"),
+                        t.robot_log and _check_file(t.robot_log, "robot_log"))
                for t in trials]
     markerset = markerset or fitting_markerset(read_markers(static).names, static, registry.markersets_dir)
     roles = load_markerset(markerset, registry.markersets_dir)
@@ -168,18 +182,21 @@ def add_subject(subject_id: str, height_m: float, mass_kg: float, static: Path, 
             n += 1
             trial_id = f"{t.markers.stem}_{n}"
         ids.add(trial_id)
-        specs.append(TrialSpec(trial_id, t.condition, key(t.markers), key(t.angles), key(t.grf)))
+        specs.append(TrialSpec(trial_id, t.condition, key(t.markers), key(t.angles), key(t.grf),
+                               key(t.robot_log)))
 
     # Read every trial exactly as the pipeline will (files mapped to where they lie now).
     fmt = FileFormat(up_axis=up_axis, knee_flexion_sign=knee_flexion_sign)
     subject = Subject(subject_id, float(height_m), float(mass_kg), dataset or f"added:{subject_id}", roles,
                       fmt, StaticSpec(static_key), tuple(specs))
-    paths = [static, *(p for t in checked for p in (t.markers, t.angles, t.grf) if p)]
+    paths = [static, *(p for t in checked for p in (t.markers, t.angles, t.grf, t.robot_log) if p)]
     files = {key(p): p for p in paths}
     here = _FilesAsTheyLie({k: Source(k, p.as_uri(), sha256_of(p)) for k, p in files.items()}, files)
     for spec in specs:
         try:
-            load_trial(subject, spec, here)
+            trial = load_trial(subject, spec, here)
+            if trial.robot_log is not None:  # the log must cover the mocap
+                robot_table(trial.robot_log, trial.time_s, subject_id, spec.condition, spec.id)
         except GaitloopError as exc:
             raise IngestError(files.get(spec.markers, spec.markers), f"cannot be ingested as subject "
                               f"{subject_id!r}: {getattr(exc, 'problem', exc)}") from None
@@ -190,6 +207,7 @@ def add_subject(subject_id: str, height_m: float, mass_kg: float, static: Path, 
         "format": {"up_axis": up_axis, "knee_flexion_sign": knee_flexion_sign},
         "static": {"markers": static_key},
         "trials": [{k: v for k, v in dataclasses.asdict(s).items() if v is not None} for s in specs],
+        **({"round_trip_of": round_trip_of} if round_trip_of else {}),
     }
     params_text = _append_subject_to_params(registry.params_path.read_text(), subject_id,
                                             registry.params_path)

@@ -1,7 +1,8 @@
 """Stage `ingest <subject>`: a subject's raw trials -> events, strides and cycles tables.
 
 Outputs in `<out_root>/<subject>/real/`: `events.parquet`, `strides.parquet`, `cycles.parquet`
-(columns in README.md) and `summary.json`, a small DVC metrics file.
+(columns in README.md), `robot.parquet` (the robot logs of robot-assisted trials as robot tables,
+`ingest.robot`; empty without) and `summary.json`, a small DVC metrics file.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from pipeline.params import Params
 from pipeline.paths import PROCESSED_ROOT, real_dir
 from pipeline.stages.outputs import write_outputs
 
-TABLES = ("events", "strides", "cycles")
+TABLES = ("events", "strides", "cycles", "robot")
 
 
 def summary(strides: pd.DataFrame, n_trials: int) -> dict:

@@ -24,6 +24,7 @@ from tqdm import tqdm
 
 from ingest.errors import IngestError
 from ingest.process import IngestParams, ProcessedTrial, process_trial
+from ingest.robot import ROBOT_COLUMNS
 from sim.body.markers import trial_from_qpos
 from sim.errors import SimulationError
 from sim.motion.driver import HumanDriver
@@ -32,7 +33,7 @@ from sim.robot.controllers import make_controller
 from sim.robot.controllers.base import Controller
 from sim.robot.controllers.warm_start import WarmStarted
 from sim.robot.mrba import RobotParams
-from sim.rollout.loop import ROBOT_COLUMNS, RolloutParams, RolloutResult, rollout
+from sim.rollout.loop import RolloutParams, RolloutResult, rollout
 from sim.rollout.world import build_world, robot_info
 
 TABLES = ("events", "strides", "cycles")
@@ -101,6 +102,7 @@ class RolloutOutcome:
     result: RolloutResult | None = None  # kept only when asked (render): world qpos is large
     world: mujoco.MjModel | None = None  # the compiled world of `result`, kept with it
     human: HumanRun | None = None        # the driver that ran, kept with it
+    probe: Any = None                    # what `Worker.run(..., probe=)` recorded
 
     @property
     def fell(self) -> bool:
@@ -135,11 +137,15 @@ class Worker:
                           condition=job.condition, trial=job.trial, discard_s=run.discard_s)
         return run, ctrl, p
 
-    def run(self, job: RolloutJob, keep_result: bool = False) -> RolloutOutcome:
+    def run(self, job: RolloutJob, keep_result: bool = False,
+            probe: Callable[[mujoco.MjModel], Any] | None = None) -> RolloutOutcome:
+        """One job. `probe`: made from the compiled world, called at every sample (see `rollout`) and
+        kept in the outcome (e.g. `sim.body.ground_reaction.GroundReactionProbe`)."""
         run, ctrl, p = self.prepare(job)
         human = run.driver
         world = build_world(self.spec, human, p)
-        result = rollout(self.spec, human, ctrl, p, job.seed, model=world)
+        probing = probe(world) if probe is not None else None
+        result = rollout(self.spec, human, ctrl, p, job.seed, model=world, probe=probing)
         human_fall = getattr(human, "fall_time_s", None)
         out = RolloutOutcome(
             job=job, human_mode=human.mode, stable=result.stable, warnings=result.warnings,
@@ -148,7 +154,7 @@ class Worker:
             distance_m=float(result.human_qpos[-1, 0] - result.human_qpos[0, 0]), robot=result.robot,
             pelvis_xy=result.human_qpos[:, :2].copy(), sample_rate_hz=run.sample_rate_hz,
             result=result if keep_result else None, world=world if keep_result else None,
-            human=run if keep_result else None)
+            human=run if keep_result else None, probe=probing)
         if not self.setup.process:
             return out
         qpos = result.human_qpos

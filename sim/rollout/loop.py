@@ -3,7 +3,7 @@
 `rollout` is a pure function of (world, human driver, controller, params, seed): it builds its own
 model (`sim.rollout.world`: the compiled world, the physics step grid, the robot's start state), so it
 can be called many times and in parallel processes. `RolloutParams` and `RolloutResult` are its input
-and output; `ROBOT_COLUMNS` are the columns of its robot table.
+and output; its robot table has the columns of `ingest.robot.ROBOT_COLUMNS`.
 
 Timing: the controller, the fall rule and the drive act once per control tick (`control_rate_hz`,
 100 Hz as on a real mobile base: the command path of a differential drive); the human driver acts
@@ -13,9 +13,10 @@ Per control tick the Python work is a handful of float operations: sensors are r
 `qpos` / `qvel` views as floats into one reused `RobotSensors`, the controller answers a `BaseCommand`
 tuple, the drive writes three servo targets into a `ctrl` view. Per output sample the rollout copies
 `qpos` and the robot's sensor block (sim.robot.mrba `SENSORS`) into preallocated arrays; the robot table
-(e_x, e_y, base state, harness wrench, commands, fall flags) is computed from them with numpy after
-the loop. Recorded sensors are MuJoCo's values of the last physics step (evaluated at its start, one
-step before the sample instant; at t = 0, the initial state).
+(`ingest.robot.ROBOT_COLUMNS`: e_x, e_y, e_z from the arm's joint positions as its encoders read
+them, the harness point's offset, base state, harness wrench, commands, fall flags) is computed
+from them with numpy after the loop. Recorded sensors are MuJoCo's values of the last physics step
+(evaluated at its start, one step before the sample instant; at t = 0, the initial state).
 
 The seed sets the robot's start offset (arm deflection uniform in +-`start_offset_m`, x and y) and
 the sensor noise of the arm and odometry.
@@ -25,12 +26,14 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import mujoco
 import numpy as np
 import pandas as pd
 
+from ingest.robot import ROBOT_COLUMNS, ROBOT_SIGNAL_COLUMNS
 from sim.errors import SimulationError
 from sim.motion.driver import HumanDriver
 from sim.robot.controllers.base import BaseCommand, Controller, RobotSensors
@@ -38,11 +41,6 @@ from sim.robot.fall import FallDetector
 from sim.robot.harness import HarnessIndex, wrench_from_sensors
 from sim.robot.mrba import SENSOR_WIDTH, SENSORS, BaseDrive, RobotIndex, RobotParams, lock_arm
 from sim.rollout.world import build_world, initial_speed, place_robot, step_grid
-
-ROBOT_COLUMNS = ["subject", "source", "human_mode", "condition", "trial", "seed", "time_s", "e_x_m", "e_y_m",
-                 "base_x_m", "base_y_m", "base_yaw_rad", "base_speed_mps", "base_yaw_rate_rps",
-                 "cmd_speed_mps", "cmd_yaw_rate_rps", "harness_fx_n", "harness_fy_n", "harness_fz_n",
-                 "harness_tx_nm", "harness_ty_nm", "harness_tz_nm", "fall", "locked"]
 
 
 @dataclass(frozen=True)
@@ -110,10 +108,13 @@ def _view(arr: np.ndarray, idx: np.ndarray) -> np.ndarray | None:
 
 
 def rollout(world: mujoco.MjSpec, human: HumanDriver, controller: Controller | None, p: RolloutParams,
-            seed: int, model: mujoco.MjModel | None = None, duration_s: float | None = None) -> RolloutResult:
+            seed: int, model: mujoco.MjModel | None = None, duration_s: float | None = None,
+            probe: Callable[[mujoco.MjModel, mujoco.MjData, int], None] | None = None) -> RolloutResult:
     """Run one closed-loop rollout. `model`: a world already built by `build_world` for this `human`
-    and `p` (saves compiling in loops); `duration_s`: default the human's motion length. The
-    controller's `RobotInfo.dt_s` must be the control period."""
+    and `p` (saves compiling in loops); `duration_s`: default the human's motion length; `probe`:
+    called with (model, data, sample index) at every output sample, lead-in included (e.g.
+    `sim.body.ground_reaction.GroundReactionProbe`). The controller's `RobotInfo.dt_s` must be the
+    control period."""
     rng = np.random.default_rng(seed)
     model = build_world(world, human, p) if model is None else model
     dt, n_sample, n_control = step_grid(p.sample_rate_hz, p.max_physics_dt_s, p.control_rate_hz)
@@ -183,6 +184,8 @@ def rollout(world: mujoco.MjSpec, human: HumanDriver, controller: Controller | N
                 mujoco.mj_step(model, data, nstep=nstep)
             if k >= 0:
                 qpos_out[k] = qpos
+                if probe is not None:
+                    probe(model, data, k)
                 if record_hook:
                     human.record(model, data, k)
                 if robot:
@@ -242,10 +245,11 @@ def rollout(world: mujoco.MjSpec, human: HumanDriver, controller: Controller | N
         yaw = block("base_pos")[:, 2]
         bv = block("base_vel")
         speed = bv[:, 0] * np.cos(yaw) + bv[:, 1] * np.sin(yaw)
-        rec = np.column_stack([block("e")[:, :2], block("base_pos"), speed, bv[:, 2], cmd_col,
-                               wrench_from_sensors(model, hidx, block("harness_pos"), block("harness_vel"),
-                                                   block("harness_limit"))])[keep]
-        table = pd.DataFrame(rec, columns=ROBOT_COLUMNS[7:22])
+        wrench = wrench_from_sensors(model, hidx, block("harness_pos"), block("harness_vel"),
+                                     block("harness_limit"))
+        rec = np.column_stack([qpos_out[:, idx.arm_qpos], block("e")[:, :2], block("base_pos"), speed,
+                               bv[:, 2], cmd_col, wrench])[keep]
+        table = pd.DataFrame(rec, columns=ROBOT_SIGNAL_COLUMNS)
         table.insert(0, "time_s", times[keep] - p.discard_s)
         for col, val in reversed(list({"subject": p.subject, "source": "sim", "human_mode": human.mode,
                                        "condition": p.condition, "trial": p.trial, "seed": seed}.items())):
@@ -259,4 +263,4 @@ def rollout(world: mujoco.MjSpec, human: HumanDriver, controller: Controller | N
         wall_s=wall, warnings=warnings, initial_state=initial_state)
 
 
-__all__ = ["ROBOT_COLUMNS", "RolloutParams", "RolloutResult", "rollout"]
+__all__ = ["RolloutParams", "RolloutResult", "rollout"]

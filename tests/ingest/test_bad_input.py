@@ -19,6 +19,8 @@ from ingest.canonical import load_trial
 from ingest.errors import GaitloopError, IngestError, ManifestError, SubjectError
 from ingest.manifest import Manifest, Source, sha256_of
 from ingest.process import IngestParams, process_subject, process_trial
+from ingest.readers import read_robot_log, read_trc
+from ingest.robot_log import robot_table
 from ingest.subject import FileFormat, Subject, TrialSpec, load_subject
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -322,6 +324,54 @@ def test_trial_with_no_complete_stride(corpus, camargo, params):
     subject, _ = _one_trial(camargo, key)
     with _raises(IngestError, str(camargo.path), "no steady complete stride"):
         process_subject(subject, corpus.manifest(), params)
+
+
+# --- robot logs (synthetic: no robot log in the shared data, on the real trial's clock) ----------
+
+CAMARGO_ROBOT = "camargo2021_levelground/Robot/levelground_ccw_fast_01_01_robot.csv"
+
+
+def _robot_log(corpus: Corpus, end_early_s: float = 0.0, edit=None) -> str:
+    """A 100 Hz robot log over the real Camargo trial's span; `edit(header, rows)` alters its text."""
+    mocap = read_trc(corpus.real.resolve(CAMARGO_TRC)).time_s
+    t = np.arange(mocap[0], mocap[-1] - end_early_s + 0.005, 0.01)
+    header = ["time [s]", "arm_forward [m]", "arm_lateral [m]", "arm_vertical [m]", "base_x [m]",
+              "base_y [m]", "base_yaw [rad]"]
+    rows = [[f"{x:.4f}", "0.02", "-0.01", "0.005", f"{1.2 * x:.4f}", "0", "0"] for x in t]
+    if edit is not None:
+        header, rows = edit(header, rows)
+    return corpus.add(CAMARGO_ROBOT, "\n".join(",".join(r) for r in [header, *rows]) + "\n")
+
+
+def test_robot_log_missing_column(corpus):
+    key = _robot_log(corpus, edit=lambda h, rows: (h[:-1], [r[:-1] for r in rows]))
+    with _raises(IngestError, corpus.path(key), "missing required columns: base_yaw"):
+        read_robot_log(corpus.manifest().resolve(key))
+
+
+def test_robot_log_arm_in_degrees(corpus):
+    key = _robot_log(corpus, edit=lambda h, rows: ([c.replace("arm_forward [m]", "arm_forward [deg]")
+                                                     for c in h], rows))
+    with _raises(IngestError, corpus.path(key), "'arm_forward'", "'deg'", "'m', 'cm', 'mm'"):
+        read_robot_log(corpus.manifest().resolve(key))
+
+
+def test_robot_log_time_not_increasing(corpus):
+    def swap(header, rows):
+        rows[100], rows[101] = rows[101], rows[100]
+        return header, rows
+
+    key = _robot_log(corpus, edit=swap)
+    with _raises(IngestError, corpus.path(key), "time not strictly increasing", "line 103"):
+        read_robot_log(corpus.manifest().resolve(key))
+
+
+def test_robot_log_shorter_than_the_mocap(corpus):
+    key = _robot_log(corpus, end_early_s=2.0)
+    log = read_robot_log(corpus.manifest().resolve(key))
+    mocap = read_trc(corpus.real.resolve(CAMARGO_TRC)).time_s
+    with _raises(IngestError, corpus.path(key), "robot log covers", "the mocap trial"):
+        robot_table(log, mocap, "camargo", "pid", "bad")
 
 
 # --- registry and manifest ---------------------------------------------------------------------

@@ -11,13 +11,14 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from ingest.robot import ROBOT_COLUMNS
 from ingest.strides import kept_stride_runs
 from sim.errors import SimulationError
 from sim.motion.reference import load_reference
 from sim.motion.replay import Motion, ReplayHuman, interpolate_qpos, scripted_fall, with_lead_in
 from sim.motion.synthetic import WalkParams, capsule_world, synthetic_walk
 from sim.robot.controllers import make_controller
-from sim.rollout.loop import ROBOT_COLUMNS, RolloutParams, rollout
+from sim.rollout.loop import RolloutParams, rollout
 from sim.rollout.world import physics_steps, robot_info, step_grid
 
 WALK = WalkParams(duration_s=6.0)
