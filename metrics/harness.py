@@ -3,6 +3,8 @@
 A transparent follow-me controller moves the robot so the harness spring barely loads; the
 interaction wrench is therefore measured directly: RMS and peak absolute value of each component
 and of the force and torque magnitudes, over the following samples (see `metrics.compliance`).
+A real robot-assisted trial has them only when its robot logged a load cell; a quantity that was not
+measured (all NaN) gets no row.
 """
 
 from __future__ import annotations
@@ -30,6 +32,9 @@ def harness_table(robot: pd.DataFrame, exclude_locked: bool = True) -> pd.DataFr
         for name, parts, unit in (("f_norm", ("fx", "fy", "fz"), "N"), ("t_norm", ("tx", "ty", "tz"), "N m")):
             series[name] = (np.linalg.norm(np.stack([series[q][0] for q in parts]), axis=0), unit)
         for q, (x, unit) in series.items():
+            if len(x) and not np.isfinite(x).any():
+                continue  # not measured: a real robot without a load cell logs no wrench
+            x = x[np.isfinite(x)]
             if len(x) == 0:
                 rows.append((*key, q, unit, 0, np.nan, np.nan, np.nan))
                 continue

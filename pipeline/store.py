@@ -104,6 +104,7 @@ class SubjectResults:
     subject: str
     tables: dict[str, pd.DataFrame]
     params_hash: str
+    round_trip_of: str | None = None  # its "recorded" trials are this subject's exported simulations
 
 
 @dataclass(frozen=True)
@@ -215,7 +216,9 @@ def _views() -> list[str]:
         "AS spm_tests, "
         "(SELECT count(*) FROM latest_spm_tests t WHERE t.subject = v.subject AND t.h0_rejected) "
         "AS spm_significant, "
-        "max(v.created_at) AS last_change FROM latest_versions v GROUP BY v.subject ORDER BY v.subject",
+        "max(v.created_at) AS last_change, "
+        "(SELECT s.round_trip_of FROM subjects s WHERE s.subject = v.subject) AS round_trip_of "
+        "FROM latest_versions v GROUP BY v.subject ORDER BY v.subject",
     ]
     return views
 
@@ -229,6 +232,8 @@ def ensure_schema(con: duckdb.DuckDBPyConnection) -> None:
                 "created_at TIMESTAMP NOT NULL, run_id BIGINT NOT NULL)")
     con.execute("CREATE TABLE IF NOT EXISTS store_runs (run_id BIGINT PRIMARY KEY, created_at TIMESTAMP, "
                 "code_rev VARCHAR, subjects VARCHAR, n_groups BIGINT, n_new_versions BIGINT)")
+    con.execute("CREATE TABLE IF NOT EXISTS subjects (subject VARCHAR PRIMARY KEY, round_trip_of VARCHAR, "
+                "run_id BIGINT NOT NULL)")
     con.execute("CREATE TABLE IF NOT EXISTS run_groups (run_id BIGINT NOT NULL, subject VARCHAR NOT NULL, "
                 "condition VARCHAR NOT NULL, source VARCHAR NOT NULL, human_mode VARCHAR NOT NULL, "
                 "version_id BIGINT NOT NULL)")
@@ -319,6 +324,9 @@ def store_results(path: Path, results: list[SubjectResults], params: StoreParams
                             progress(f"{res.subject}/{'/'.join(key[1:])}/{name}")
                     new.append(next_id)
                     next_id += 1
+            for res in results:  # what each subject is, as of its last store run
+                con.execute("INSERT OR REPLACE INTO subjects VALUES (?, ?, ?)",
+                            [res.subject, res.round_trip_of, run_id])
             con.execute("INSERT INTO store_runs VALUES (?, ?, ?, ?, ?, ?)",
                         [run_id, now, rev, ",".join(r.subject for r in results), n_groups, len(new)])
             con.execute("COMMIT")

@@ -21,6 +21,7 @@ from pathlib import Path
 import pandas as pd
 
 from ingest.manifest import sha256_of
+from ingest.subject import load_subject
 from metrics import (
     bands_table,
     compliance,
@@ -163,6 +164,7 @@ def run_metrics(subject: str, params: Params, root: Path = PROCESSED_ROOT,
         raise MetricsError(str(subject_dir(root, subject)), f"cannot compute metrics ({exc})") from None
     folder = metrics_dir(out_root, subject)
     provenance = {"subject": subject, "params_hash": params_hash(params),
-                  "inputs": input_hashes(subject, root)}
+                  "inputs": input_hashes(subject, root),
+                  "round_trip_of": load_subject(subject).round_trip_of}
     write_outputs(folder, tables, {"metrics": headline(tables), "provenance": provenance})
     return folder

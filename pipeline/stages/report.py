@@ -138,7 +138,8 @@ FIGURES = {
 
 # Columns the report reads from views that have grown over time: a store file whose views predate
 # this code is named as such instead of failing on a missing attribute.
-REQUIRED_COLUMNS = {"table1": ("sim_n_samples", "sim_fall_rate"), "table3": ("side",)}
+REQUIRED_COLUMNS = {"table1": ("sim_n_samples", "sim_fall_rate"), "table3": ("side",),
+                    "summary": ("round_trip_of",)}
 STALE = "they predate this code; rerun `python -m pipeline store` (it recreates the views)"
 
 
@@ -346,6 +347,10 @@ def subject_report(subject: str, data: dict[str, pd.DataFrame], reports: Path = 
              "condition, source and human mode). Real = recorded mocap; Sim = the human digital twin "
              "walking with the MRBA twin (`replay` or `policy` human).", ""]
     s = summary.iloc[0]
+    if isinstance(s["round_trip_of"], str) and s["round_trip_of"]:
+        lines += [f"**Round trip:** this subject's \"recorded\" trials are {s['round_trip_of']}'s simulated "
+                  "trials, exported as OpenSim files and robot logs (`python -m pipeline export`) and read "
+                  "back; its Real columns test the pipeline, not a person.", ""]
     lines += [f"Conditions: {s['conditions']}. Sources: {s['sources']}. Kept strides real/sim: "
               f"{_num(s['real_strides'], 0)}/{_num(s['sim_strides'], 0)}. "
               f"SPM tests run: {int(s['spm_tests'])}, "

@@ -26,7 +26,8 @@ def load_results(subject: str, root: Path = METRICS_ROOT) -> SubjectResults:
                          f"run `python -m pipeline metrics {subject}`")
     files = {t: folder / f"{t}.parquet" for t in TABLES}
     tables = {t: pd.read_parquet(f) for t, f in files.items() if f.is_file()}
-    return SubjectResults(subject, tables, str(json.loads(prov.read_text())["params_hash"]))
+    doc = json.loads(prov.read_text())
+    return SubjectResults(subject, tables, str(doc["params_hash"]), doc.get("round_trip_of"))
 
 
 def run_store(params: Params, root: Path = METRICS_ROOT, db: Path | None = None,

@@ -218,3 +218,23 @@ def test_a_condition_a_subject_no_longer_has_leaves_the_latest_views(processed, 
     assert count(db, "select count(*) from versions where condition = 'toe_in'") == 1  # still there
     assert count(db, "select count(*) from latest_spm_tests where condition_b = 'toe_in'") == 0
     assert count(db, "select count(*) from latest_versions where subject = 'camargo'") == 1
+
+
+def test_round_trip_subject_is_labelled_in_the_store_and_report(processed, tmp_path):
+    from dataclasses import replace
+
+    from pipeline.stages.report import load_report_data, subject_report
+
+    db = tmp_path / "results.duckdb"
+    camargo = load_results("camargo", processed)
+    tables = {name: df.assign(subject="camargo_rt") for name, df in camargo.tables.items()}
+    round_trip = replace(camargo, subject="camargo_rt", tables=tables, round_trip_of="camargo")
+    store_results(db, [camargo, round_trip], FAST, rev="rev1")
+    summary = query(db, "select subject, coalesce(round_trip_of, '-') as of from subject_summary "
+                        "order by subject")
+    assert summary.set_index("subject")["of"].to_dict() == {"camargo": "-", "camargo_rt": "camargo"}
+    data = load_report_data(db)
+    head = subject_report("camargo_rt", data, tmp_path / "reports").read_text().splitlines()[:8]
+    assert any("Round trip" in line and "camargo's simulated" in line for line in head)
+    plain = subject_report("camargo", data, tmp_path / "reports").read_text()
+    assert "Round trip" not in plain
