@@ -218,8 +218,9 @@ def load_trial(subject: Subject, spec: TrialSpec, manifest: Manifest, source: st
         path = manifest.resolve(spec.robot_log)
         log = read_robot_log(path)
         provenance.append(_provenance(manifest, spec.robot_log, path, "robot:csv"))
+    robot_markers = subject.robot_markers if log is None and spec.condition != "free" else None
     return Trial(subject.id, spec.condition, source, spec.id, float(rate), np.asarray(time, float),
-                 markers, angles, plates, tuple(provenance), log)
+                 markers, angles, plates, tuple(provenance), log, robot_markers)
 
 
 __all__ = ["load_trial", "canonical_angles", "up_to_z", "rotate_z", "read_c3d"]

@@ -22,7 +22,7 @@ from ingest.gaps import fill_rigid, fill_short
 from ingest.kinematics import marker_angles
 from ingest.phases import PhaseParams, motion_phases
 from ingest.robot import ROBOT_COLUMNS
-from ingest.robot_log import robot_table
+from ingest.robot_log import log_from_markers, robot_table
 from ingest.strides import StrideParams, segment_strides
 from ingest.trial import SIDES, Trial
 
@@ -166,8 +166,12 @@ def process_trial(trial: Trial, markerset: dict[str, str], p: IngestParams) -> P
     cycles = normalise_cycles(strides, time, angles, p.n_points)
     ident = {"subject": trial.subject, "source": trial.source, "condition": trial.condition,
              "trial": trial.trial}
-    robot = (robot_table(trial.robot_log, trial.time_s, trial.subject, trial.condition, trial.trial)
-             if trial.robot_log is not None else pd.DataFrame(columns=ROBOT_COLUMNS))
+    log = trial.robot_log
+    if log is None and trial.robot_markers is not None:  # filtered like every marker
+        log = log_from_markers(clean.markers, time, trial.robot_markers, clean.rate_hz, p.max_gap_s,
+                               trial.origin)
+    robot = (robot_table(log, trial.time_s, trial.subject, trial.condition, trial.trial) if log is not None
+             else pd.DataFrame(columns=ROBOT_COLUMNS))
     return ProcessedTrial(clean, _with_id(events, ident), _with_id(strides, ident),
                           _with_id(cycles, ident), robot)
 

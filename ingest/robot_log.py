@@ -6,6 +6,8 @@ unwrapped first, so a turn through +-pi does not swing back), previous-sample ho
 locked flags. Base speed (along the heading) and yaw rate are differentiated on the log's own time
 before resampling. Where the log's samples are the mocap's (same count, times within 1e-9 s), the
 values are copied, not interpolated.
+
+Without a log, markers on the robot give the same signals (`log_from_markers`).
 """
 
 from __future__ import annotations
@@ -16,8 +18,10 @@ import numpy as np
 import pandas as pd
 
 from ingest.errors import IngestError
+from ingest.gaps import fill_short
 from ingest.readers.robot_log import RobotLog
 from ingest.robot import ROBOT_COLUMNS
+from ingest.subject import RobotMarkers
 
 SAME_TIME_TOL_S = 1e-9
 
@@ -98,3 +102,24 @@ def log_from_table(table: pd.DataFrame, path: Path) -> RobotLog:
                     cols("base_x_m", "base_y_m"), cols("base_yaw_rad")[:, 0],
                     None if np.isnan(wrench).all() else wrench, None if np.isnan(cmd).all() else cmd,
                     t["fall"].to_numpy(bool), t["locked"].to_numpy(bool))
+
+
+def log_from_markers(markers: dict[str, np.ndarray], time_s: np.ndarray, rm: RobotMarkers, rate_hz: float,
+                     max_gap_s: float, origin: str) -> RobotLog:
+    """The robot log that markers on the robot give (`ingest.subject.RobotMarkers`), canonical frame:
+    base position = the base markers' midpoint, yaw = the heading from the rear to the front marker,
+    arm = the arm-end marker in the base frame minus the neutral point. Gaps up to `max_gap_s` are
+    filled (`ingest.gaps.fill_short`); a longer gap is an error naming `origin`."""
+    missing = [n for n in rm.names if n not in markers]
+    if missing:
+        raise IngestError(origin, f"robot markers {missing} are not in the marker file")
+    front, rear, arm = (fill_short(markers[n], rate_hz, max_gap_s) for n in rm.names)
+    if not all(np.isfinite(x).all() for x in (front, rear, arm)):
+        raise IngestError(origin, f"robot markers {', '.join(rm.names)} have gaps longer than {max_gap_s} s")
+    base = (front + rear) / 2
+    yaw = np.unwrap(np.arctan2(front[:, 1] - rear[:, 1], front[:, 0] - rear[:, 0]))
+    d = arm - base
+    c, s = np.cos(yaw), np.sin(yaw)
+    in_base = np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1], d[:, 2]])
+    return RobotLog(Path(origin), np.asarray(time_s, float), in_base - np.asarray(rm.neutral_in_base_m),
+                    base[:, :2], yaw)

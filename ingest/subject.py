@@ -6,8 +6,9 @@ files without a unit header, angle_unit), static (scaling trial: markers, option
 optional `angles`, the manifest key of the static pose's IK coordinates, median over the same
 window, used to calibrate the model's joint zeros), trials (id, condition, and
 manifest keys of the markers / angles / grf files, and of the `robot_log` of a robot-assisted
-trial: `ingest.readers.robot_log`), and `round_trip_of` (the subject whose simulated trials these
-files are, exported and read back: `python -m pipeline export`; reports and the store label it).
+trial: `ingest.readers.robot_log`), `robot_markers` (markers on the robot that stand in for a robot
+log: `RobotMarkers`) and `round_trip_of` (the subject whose simulated trials these files are,
+exported and read back: `python -m pipeline export`; reports and the store label it).
 """
 
 from __future__ import annotations
@@ -45,6 +46,23 @@ class TrialSpec:
 
 
 @dataclass(frozen=True)
+class RobotMarkers:
+    """Markers on the robot, in the trials' marker files: two on the base along its heading and one
+    on the arm's end; `neutral_in_base_m` is the arm's neutral point relative to the base markers'
+    midpoint, in the base frame (x forward, y left, z up). They give the robot's signals of a
+    robot-assisted trial without a robot log (`ingest.robot_log.log_from_markers`)."""
+
+    base_front: str
+    base_rear: str
+    arm_end: str
+    neutral_in_base_m: tuple[float, float, float]
+
+    @property
+    def names(self) -> tuple[str, str, str]:
+        return self.base_front, self.base_rear, self.arm_end
+
+
+@dataclass(frozen=True)
 class StaticSpec:
     markers: str
     window_s: tuple[float, float] | None = None
@@ -63,6 +81,7 @@ class Subject:
     trials: tuple[TrialSpec, ...] = field(default_factory=tuple)
     path: Path | None = None
     round_trip_of: str | None = None
+    robot_markers: RobotMarkers | None = None
 
     @property
     def conditions(self) -> tuple[str, ...]:
@@ -125,6 +144,18 @@ def load_subject(subject_id: str, directory: Path = SUBJECTS_DIR) -> Subject:
         if t.robot_log and t.condition == "free":
             raise SubjectError(path, f"trial {t.id!r} is free walking but has a robot_log: name the "
                                "controller that ran as its condition")
+    robot_markers = None
+    if doc.get("robot_markers"):
+        rm = doc["robot_markers"]
+        try:
+            neutral = tuple(float(x) for x in rm["neutral_in_base_m"])
+            robot_markers = RobotMarkers(str(rm["base_front"]), str(rm["base_rear"]), str(rm["arm_end"]),
+                                         neutral)
+        except (KeyError, TypeError, ValueError) as exc:
+            raise SubjectError(path, f"robot_markers needs base_front, base_rear, arm_end (marker names) and "
+                               f"neutral_in_base_m [x, y, z] in metres ({exc!r})") from None
+        if len(neutral) != 3:
+            raise SubjectError(path, "robot_markers.neutral_in_base_m must be [x, y, z] in metres")
     static_doc = doc.get("static")
     static = None
     if static_doc:
@@ -143,4 +174,5 @@ def load_subject(subject_id: str, directory: Path = SUBJECTS_DIR) -> Subject:
         trials=trials,
         path=path,
         round_trip_of=str(doc["round_trip_of"]) if doc.get("round_trip_of") else None,
+        robot_markers=robot_markers,
     )

@@ -14,6 +14,7 @@ import numpy as np
 
 from ingest.errors import IngestError
 from ingest.readers.robot_log import RobotLog
+from ingest.subject import RobotMarkers
 
 JOINTS = ("hip_flexion", "knee_flexion", "ankle_dorsiflexion")
 SIDES = ("left", "right")
@@ -66,6 +67,7 @@ class Trial:
     plates: ForcePlates | None = None
     provenance: tuple[Provenance, ...] = ()
     robot_log: RobotLog | None = None  # the robot's own log of a robot-assisted trial
+    robot_markers: RobotMarkers | None = None  # or markers on the robot that give it (ingest.robot_log)
 
     @property
     def n_frames(self) -> int:

@@ -197,7 +197,8 @@ def read_robot_log(path: str | Path) -> RobotLog:
 def write_robot_log(path: str | Path, log: RobotLog) -> None:
     """Write `log` as a gaitloop robot log v1 in SI units; groups that are None (or all NaN) are left out.
 
-    Floats are written with 17 significant digits, so reading the file back gives the same values.
+    Floats are written in their shortest exact form (Python's `repr`), so reading the file back gives
+    the same values.
     """
     n = len(log.time_s)
     columns: dict[str, np.ndarray] = {"time [s]": log.time_s}
@@ -220,7 +221,7 @@ def write_robot_log(path: str | Path, log: RobotLog) -> None:
     values = [np.asarray(v) for v in columns.values()]
     for i in range(n):
         body.append(",".join("" if v.dtype.kind == "f" and np.isnan(v[i]) else
-                             (str(v[i]) if v.dtype.kind in "iub" else f"{v[i]:.17g}") for v in values))
+                             (str(v[i]) if v.dtype.kind in "iub" else repr(float(v[i]))) for v in values))
     text = "\n".join([FORMAT_LINE, ",".join(columns), *body]) + "\n"
     Path(path).write_text(text, encoding="utf-8")
 

@@ -3,7 +3,8 @@
 Each trial is the rollout `simulate` runs for that job (same setup, scenario, condition and seed:
 a rollout is a pure function of them), run again with the feet's ground reactions recorded
 (`sim.body.ground_reaction`). The whole trial is written, a fall included. The folder holds, per
-trial, the virtual markers (.trc, mm, Y up), the joint coordinates (.mot, degrees), the ground
+trial, the virtual markers (.trc, mm, Y up; with the robot also markers on it,
+`sim.robot.mrba.robot_markers`), the joint coordinates (.mot, degrees), the ground
 reactions (.mot + ExternalLoads .xml) and, with the robot, its log (.csv, `ingest.readers.robot_log`);
 plus `static.trc` (the model standing in its static pose, for scaling), the scaled model's MJCF
 (`model.xml`) and a README saying what each file is and how to read the trials back.
@@ -27,6 +28,7 @@ from pipeline.stages.simulate import policy_setup, replay_jobs, replay_setup, sc
 from sim.body.ground_reaction import GroundReactionProbe
 from sim.body.markers import trial_from_qpos
 from sim.errors import SimulationError
+from sim.robot.mrba import ROBOT_MARKERS, robot_markers
 from sim.rollout.batch import RolloutOutcome, Worker
 
 STATIC_S = 1.0
@@ -60,17 +62,20 @@ def run_export(subject: str, params: Params, out: Path | None = None, scenario: 
         raise SimulationError(subject, "nothing to export (no condition or walk)")
     worker = Worker(setup)
     model = worker.human_model
-    rows = []
+    rows, neutral = [], None
     for job in tqdm(jobs, desc=f"export {subject}", unit="trial", disable=not progress):
         o = worker.run(job, keep_result=True, probe=GroundReactionProbe)
-        files = export_trial(folder, sim_trial(model, subject, o), o.result.human_qpos[:, :3], ground_of(o),
-                             log_from_table(o.robot, folder / f"{job.trial}_robot.csv") if not o.robot.empty
-                             else None)
+        trial, log = sim_trial(model, subject, o), None
+        if not o.robot.empty:  # the robot's log, and markers on it (either gives the robot's signals)
+            log = log_from_table(o.robot, folder / f"{job.trial}_robot.csv")
+            on_robot, neutral = robot_markers(o.world, o.result.world_qpos)
+            trial = trial.with_(markers={**trial.markers, **on_robot})
+        files = export_trial(folder, trial, o.result.human_qpos[:, :3], ground_of(o), log)
         fell = o.human_fall_s if o.human_fall_s is not None else o.robot_fall_s
         rows.append((job, files, fell))
     export_trial(folder, static_trial(model, subject, o.sample_rate_hz))
     shutil.copyfile(setup.human_xml, folder / "model.xml")
-    (folder / "README.md").write_text(readme(subject, scenario, rows))
+    (folder / "README.md").write_text(readme(subject, scenario, rows, neutral))
     return folder
 
 
@@ -96,13 +101,14 @@ def static_trial(model: mujoco.MjModel, subject: str, rate_hz: float) -> Trial:
     return trial_from_qpos(model, np.tile(q, (n, 1)), rate_hz, subject, "static", "static")
 
 
-def readme(subject: str, scenario: str | None, rows: list) -> str:
+def readme(subject: str, scenario: str | None, rows: list, neutral_in_base_m: np.ndarray | None) -> str:
     """What the export folder holds."""
     lines = [f"# gaitloop export: {subject}, {'scenario ' + scenario if scenario else 'replay human'}", "",
              "Simulated trials written by `python -m pipeline export` (gaitloop). Frames: OpenSim's, "
              f"{UP_AXIS.upper()} up, X forward (the simulation's walking direction), Z to the right.", "",
              "| file | what |", "|---|---|",
-             "| `<trial>.trc` | virtual markers (mm), named as the subject's real markers |",
+             "| `<trial>.trc` | virtual markers (mm), named as the subject's real markers; with the robot "
+             f"also {', '.join(ROBOT_MARKERS)} (two on the base along its heading, the arm's end) |",
              "| `<trial>_ik.mot` | joint coordinates (degrees; OpenSim names and signs; knee flexion +; "
              "pelvis_tx/ty/tz in m) |",
              "| `<trial>_grf.mot` | ground reaction per foot from the simulated foot contacts: `r_`/`l_` "
@@ -120,6 +126,12 @@ def readme(subject: str, scenario: str | None, rows: list) -> str:
               "--up-axis y --markerset <set> --round-trip-of " + subject + " --trial "
               "<condition>=<trial>.trc,<trial>_ik.mot,,<trial>_robot.csv ...` registers them as a "
               "recorded subject (a round trip: the store and report label it so).", ""]
+    if neutral_in_base_m is not None:
+        x, y, z = (float(v) for v in neutral_in_base_m)
+        lines += ["Without the robot logs, the markers on the robot give the same signals: add to the "
+                  "subject file", "", "```yaml", "robot_markers:", f"  base_front: {ROBOT_MARKERS[0]}",
+                  f"  base_rear: {ROBOT_MARKERS[1]}", f"  arm_end: {ROBOT_MARKERS[2]}",
+                  f"  neutral_in_base_m: [{x:.6f}, {y:.6f}, {z:.6f}]", "```", ""]
     return "\n".join(lines)
 
 

@@ -197,6 +197,36 @@ def attach_robot(spec: mujoco.MjSpec, p: RobotParams, harness_body: str = "pelvi
     add_sensors(spec, harness_body)
 
 
+# Virtual markers on the robot (`robot_markers`): two on the mast along the heading, one on the arm's end
+ROBOT_MARKERS = ("MRBA_base_front", "MRBA_base_rear", "MRBA_arm_end")
+BASE_MARKER_OFFSETS_M = ((0.25, 0.0, 0.5), (-0.25, 0.0, 0.5))  # base frame, from the base body's origin
+
+
+def robot_markers(model: mujoco.MjModel, world_qpos: np.ndarray) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """Positions (n, 3) of `ROBOT_MARKERS` along the world configurations `world_qpos` (n, nq), and
+    the arm's neutral point relative to the base markers' midpoint in the base frame (what a lab
+    declares as `robot_markers.neutral_in_base_m`, ingest.subject.RobotMarkers)."""
+    base = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "mrba_base")
+    arm_end = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, ARM_JOINTS[-1])
+    neutral = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, "mrba_neutral")
+    if min(base, arm_end, neutral) < 0:
+        raise SimulationError("world", "robot markers need the MRBA (attach_robot)")
+    data = mujoco.MjData(model)
+    offsets = np.array(BASE_MARKER_OFFSETS_M)
+    out = np.empty((len(world_qpos), 3, 3))
+    for k, q in enumerate(np.atleast_2d(world_qpos)):
+        data.qpos[:] = q
+        mujoco.mj_kinematics(model, data)
+        rot = data.xmat[base].reshape(3, 3)
+        out[k, :2] = data.xpos[base] + offsets @ rot.T
+        out[k, 2] = data.xpos[arm_end]
+    midpoint = offsets.mean(axis=0)
+    neutral_in_base = model.site_pos[neutral] - midpoint if model.site_bodyid[neutral] == base else None
+    if neutral_in_base is None:
+        raise SimulationError("world", "the neutral point is not on the base body")
+    return {name: out[:, j].copy() for j, name in enumerate(ROBOT_MARKERS)}, neutral_in_base
+
+
 def add_sensors(spec: mujoco.MjSpec, harness_body: str) -> None:
     """The robot's sensor block (`SENSORS` order); see the module docstring."""
     S, obj = mujoco.mjtSensor, mujoco.mjtObj

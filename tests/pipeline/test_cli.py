@@ -9,6 +9,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from ingest.robot import ROBOT_COLUMNS
 from pipeline.cli import main
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -76,8 +77,10 @@ def test_ingest_writes_documented_tables_reproducibly(tmp_path):
     second = ingest()
     for name in COLUMNS:
         pd.testing.assert_frame_equal(first[name], second[name])
+    robot = pd.read_parquet(folder / "robot.parquet")  # no robot-assisted trial: empty, documented columns
+    assert robot.empty and list(robot.columns) == ROBOT_COLUMNS
     assert sorted(p.name for p in folder.iterdir()) == sorted(
-        [f"{n}.parquet" for n in COLUMNS] + ["summary.json"])  # no temp files left behind
+        [f"{n}.parquet" for n in (*COLUMNS, "robot")] + ["summary.json"])  # no temp files left behind
 
 
 def test_bench_writes_report(tmp_path):

@@ -150,3 +150,34 @@ def test_mot_has_opensim_names_and_signs(round_trip):
     log = read_robot_log(out / "walk_10m_pid_seed0_robot.csv")
     assert log.wrench is not None and log.fall is not None and len(log.time_s) == len(mot.time_s)
     assert (out / "model.xml").is_file() and "robot log" in (out / "README.md").read_text()
+
+
+def test_markers_on_the_robot_give_the_same_table1(round_trip, tmp_path):
+    """Without the robot logs: the subject file's `robot_markers` (the block the export README gives)
+    turn the markers on the robot into the same robot table, filtered like every marker."""
+    import yaml
+
+    readme = (round_trip["out"] / "README.md").read_text()
+    block = yaml.safe_load(readme.split("```yaml", 1)[1].split("```", 1)[0])
+    doc = yaml.safe_load(round_trip["subject"].path.read_text())
+    doc["trials"] = [{k: v for k, v in t.items() if k != "robot_log"} for t in doc["trials"]]
+    doc.update(block)
+    (tmp_path / "camargo_rt.yaml").write_text(yaml.safe_dump(doc))
+    subject = load_subject("camargo_rt", tmp_path)
+    assert subject.robot_markers is not None and not any(t.robot_log for t in subject.trials)
+    manifest = Manifest.load(round_trip["subject"].path.parent.parent / "sources.yaml",
+                             cache=round_trip["subject"].path.parent.parent / "raw")
+    robot = process_subject(subject, manifest, round_trip["params"].ingest.build()).robot
+    assert not robot["locked"].any()  # markers do not know the robot's fall state: compare before it
+    end = {o.job.condition: min(t for t in (o.robot_fall_s, np.inf) if t is not None)
+           for o in round_trip["outcomes"]}
+    sim = round_trip["sim"]["robot"]
+
+    def before_fall(table: pd.DataFrame) -> pd.DataFrame:
+        return table[table["time_s"] < table["condition"].map(end)]
+
+    cols = ["mean_abs_ex_cm", "mean_abs_ey_cm"]
+    real = compliance_table(before_fall(robot)).set_index("condition")[cols]
+    sim = compliance_table(before_fall(sim)).set_index("condition")[cols]
+    assert sorted(real.index) == ["adaptive", "pid"]
+    np.testing.assert_allclose(real.loc[sim.index].to_numpy(), sim.to_numpy(), rtol=0.02)
