@@ -164,6 +164,15 @@ def cmd_export(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_tune(args: argparse.Namespace) -> int:
+    from pipeline.commands.tune import run_tune
+
+    path = run_tune(args.subject, args.controller, load_params(args.params), variant=args.variant,
+                    n_trials=args.n_trials)
+    print(f"wrote {path}", file=sys.stderr)
+    return 0
+
+
 def cmd_metrics(args: argparse.Namespace) -> int:
     from pipeline.stages.metrics import run_metrics
 
@@ -397,6 +406,16 @@ def build_parser() -> argparse.ArgumentParser:
     export.add_argument("--out", type=Path, help="default: data/exports/<subject>/<scenario>/")
     export.add_argument("--root", type=Path, help="default: data/processed")
     export.set_defaults(func=cmd_export)
+
+    tune = commands.add_parser("tune", help="tune a controller's gains for one subject on the policy-human "
+                               "scenarios (Optuna through Ray Tune)")
+    tune.add_argument("subject")
+    tune.add_argument("--controller", required=True, help="a controller of robot.controllers with a "
+                      "tune.search space")
+    tune.add_argument("--variant", default="healthy", help="cohort variant (default: healthy, the subject's "
+                      "own policy)")
+    tune.add_argument("--n-trials", type=int, help="default: params tune.n_trials")
+    tune.set_defaults(func=cmd_tune)
 
     add_results_commands(commands)
     return parser

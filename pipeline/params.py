@@ -28,6 +28,7 @@ from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError,
 from ingest.errors import GaitloopError
 from ingest.process import IngestParams
 from metrics import JOINTS, SpmParams
+from metrics.outcomes import ObjectiveWeights
 from metrics.phases import EventWindow
 from metrics.policy_checks import PolicyChecks
 from metrics.scenario_checks import ScenarioChecks
@@ -682,6 +683,48 @@ class ScenariosSchema(Schema):
                 for name, segments in self.commands.items()}
 
 
+# sweeps and tuning (Ray)
+
+class RaySchema(Schema):
+    num_cpus: Annotated[int, Field(ge=1)]
+    max_retries: Annotated[int, Field(ge=0)]
+
+
+class SweepSchema(Schema):
+    study: Annotated[str, Field(pattern=r"^[a-z0-9][a-z0-9_-]*$")]
+    subjects: tuple[str, ...]
+    variants: tuple[str, ...]
+    conditions: tuple[str, ...]
+    scenarios: tuple[str, ...]
+    seeds: Annotated[int, Field(ge=1)]
+
+
+class TuneSchema(Schema):
+    method: Literal["tpe", "cmaes"]
+    n_trials: Annotated[int, Field(ge=2)]
+    seed: int
+    scenarios: tuple[str, ...]
+    seeds: tuple[int, ...]
+    heldout_seeds: tuple[int, ...]
+    force_weight_m_per_n: Annotated[float, Field(ge=0.0)]
+    gait_weight_m: Annotated[float, Field(ge=0.0)]
+    fall_penalty_m: Annotated[float, Field(ge=0.0)]
+    search: dict[str, dict[str, tuple[float, float]]]
+
+    @model_validator(mode="after")
+    def _disjoint(self) -> TuneSchema:
+        if set(self.seeds) & set(self.heldout_seeds):
+            raise ValueError("heldout_seeds must differ from seeds (held-back evaluation)")
+        for name, space in self.search.items():
+            for gain, (lo, hi) in space.items():
+                if not lo < hi:
+                    raise ValueError(f"search.{name}.{gain}: low {lo} must be below high {hi}")
+        return self
+
+    def weights(self) -> ObjectiveWeights:
+        return ObjectiveWeights(self.force_weight_m_per_n, self.gait_weight_m, self.fall_penalty_m)
+
+
 class Params(Schema):
     """The whole params.yaml."""
 
@@ -697,6 +740,9 @@ class Params(Schema):
     train: TrainSchema
     evaluate_policy: EvaluatePolicySchema
     scenarios: ScenariosSchema
+    ray: RaySchema
+    sweep: SweepSchema
+    tune: TuneSchema
 
     _path: Path = PrivateAttr(default=PARAMS_FILE)
 
@@ -706,10 +752,19 @@ class Params(Schema):
         for name in self.robot.tuning.initial:
             if name not in controllers:
                 raise ValueError(f"robot.tuning.initial.{name}: no controller {name!r} in robot.controllers")
-        for cond in self.rollout.conditions:
-            if cond != "free" and cond not in controllers:
-                raise ValueError(f"rollout.conditions: {cond!r} is neither free nor a controller in "
-                                 "robot.controllers")
+        for key, conditions in (("rollout.conditions", self.rollout.conditions),
+                                ("sweep.conditions", self.sweep.conditions)):
+            for cond in conditions:
+                if cond != "free" and cond not in controllers:
+                    raise ValueError(f"{key}: {cond!r} is neither free nor a controller in robot.controllers")
+        for name in self.tune.search:
+            if name not in controllers:
+                raise ValueError(f"tune.search.{name}: no controller {name!r} in robot.controllers")
+        scenario_lists = (("sweep.scenarios", self.sweep.scenarios), ("tune.scenarios", self.tune.scenarios))
+        for key, names in scenario_lists:
+            for name in names:
+                if name not in self.scenarios.commands:
+                    raise ValueError(f"{key}: no scenario {name!r} in scenarios.commands")
         return self
 
     @property

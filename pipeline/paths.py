@@ -10,6 +10,9 @@ Layout, relative to the repository root (each root can be moved by a command's `
     data/processed/<subject>/sim_policy/  policy-human rollouts (simulate --human policy)
     data/metrics/<subject>/               metric tables and provenance (metrics)
     data/policies/<subject>/              the trained walking policy (train)
+    data/sweeps/<study>/                  a study's rollout rows (sweep)
+    data/tuning/<subject>/<variant>/      per-subject tuned controller gains (tune), committed
+    data/exports/<subject>/<scenario>/    simulated trials as OpenSim files (export), not versioned
     data/paper/wang2025.yaml              the reference paper's published Tables I-III (report)
     data/results.duckdb                   the results store (params store.path; relative paths in params
                                           are taken from the repository root)
@@ -36,6 +39,8 @@ STORE_FILE = DATA_ROOT / "results.duckdb"
 REPORTS_ROOT = REPO_ROOT / "reports"
 BENCH_REPORT = REPORTS_ROOT / "bench.json"
 TUNING_REPORT = REPORTS_ROOT / "controller_tuning.json"
+SWEEPS_ROOT = DATA_ROOT / "sweeps"    # `sweep`: <study>/jobs/<job key>.parquet, results.parquet (DVC stage)
+TUNING_ROOT = DATA_ROOT / "tuning"    # `tune`: <subject>/<variant>/<controller>.json (committed)
 
 HUMAN_XML = "human.xml"          # in model_dir: the scaled human (scale stage)
 REFERENCE_NPZ = "reference.npz"  # in model_dir: the retargeted motion and cycle (reference stage)
@@ -51,6 +56,16 @@ def repo_relative(path: Path) -> str:
     """`path` relative to the repository root when it lies inside it, else as given (for documents
     that name their files)."""
     return str(path.relative_to(REPO_ROOT)) if path.is_relative_to(REPO_ROOT) else str(path)
+
+
+def sweep_dir(root: str | Path, study: str) -> Path:
+    """`<root>/<study>` (root: data/sweeps): a study's job rows and their union."""
+    return Path(root) / study
+
+
+def tuning_file(root: str | Path, subject: str, variant: str, controller: str) -> Path:
+    """`<root>/<subject>/<variant>/<controller>.json` (root: data/tuning): one tuning result."""
+    return Path(root) / subject / variant / f"{controller}.json"
 
 
 def subject_dir(root: str | Path, subject: str) -> Path:

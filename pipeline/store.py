@@ -24,6 +24,7 @@ stay queryable. `paper_table1..3`, `phase_compliance`, `event_aligned`, `spm_clu
 from __future__ import annotations
 
 import hashlib
+import json
 import subprocess
 import time
 from collections.abc import Callable, Iterator
@@ -77,6 +78,25 @@ SCHEMAS: dict[str, str] = {
                     "p DOUBLE",
 }
 TABLES = tuple(SCHEMAS)
+# Studies (`sweep`): one row per rollout job, stored once per (study, job_key) whatever retried it.
+SWEEP_COLUMNS = ["study", "job_key", "subject", "variant", "condition", "gains_hash", "scenario", "seed",
+                 "params_hash", "mean_abs_ex_cm", "mean_abs_ey_cm", "force_rms_n", "fell",
+                 "gait_speed_mps", "stride_length_m", "n_strides", "n_samples", "wall_s"]
+SWEEP_DDL = ("study VARCHAR NOT NULL, job_key VARCHAR NOT NULL, subject VARCHAR, variant VARCHAR, "
+             "condition VARCHAR, gains_hash VARCHAR, scenario VARCHAR, seed BIGINT, params_hash VARCHAR, "
+             "mean_abs_ex_cm DOUBLE, mean_abs_ey_cm DOUBLE, force_rms_n DOUBLE, fell BOOLEAN, "
+             "gait_speed_mps DOUBLE, stride_length_m DOUBLE, n_strides BIGINT, n_samples BIGINT, "
+             "wall_s DOUBLE, run_id BIGINT, PRIMARY KEY (study, job_key)")
+# Per-subject controller tuning (`tune`): a new version per (subject, variant, controller) when the
+# tuned result changes (data/tuning/<subject>/<variant>/<controller>.json).
+TUNING_COLUMNS = ["subject", "variant", "controller", "method", "n_trials", "seed", "generic_gains",
+                  "tuned_gains", "search_best_objective", "generic_mean", "generic_ci95", "generic_falls",
+                  "tuned_mean", "tuned_ci95", "tuned_falls", "n_heldout"]
+TUNING_DDL = ("version_id BIGINT NOT NULL, subject VARCHAR, variant VARCHAR, controller VARCHAR, "
+              "method VARCHAR, n_trials BIGINT, seed BIGINT, generic_gains VARCHAR, tuned_gains VARCHAR, "
+              "search_best_objective DOUBLE, generic_mean DOUBLE, generic_ci95 DOUBLE, generic_falls BIGINT, "
+              "tuned_mean DOUBLE, tuned_ci95 DOUBLE, tuned_falls BIGINT, n_heldout BIGINT, "
+              "content_hash VARCHAR, run_id BIGINT, created_at TIMESTAMP")
 LINKED = ("spm_curves", "spm_clusters")  # rows that belong to an SPM test's group via test_id
 
 
@@ -202,6 +222,17 @@ def _views() -> list[str]:
         "t.zstar, c.cluster, c.start_pct, c.end_pct, c.extent_pct, c.p, t.version_id FROM latest_spm_tests t "
         "JOIN result_spm_clusters c USING (version_id, test_id) "
         "ORDER BY t.subject, t.comparison, t.joint, t.condition_a, t.condition_b, c.cluster",
+        # the latest tuned gains per subject, variant and controller, beside the generic ones
+        "CREATE OR REPLACE VIEW tuning_comparison AS SELECT t.* EXCLUDE (content_hash, run_id) "
+        "FROM tuned_gains t "
+        "WHERE t.version_id = (SELECT max(u.version_id) FROM tuned_gains u WHERE u.subject = t.subject AND "
+        "u.variant = t.variant AND u.controller = t.controller) ORDER BY subject, variant, controller",
+        # a study's rollouts per subject, variant, condition and scenario: mean over seeds
+        "CREATE OR REPLACE VIEW sweep_summary AS SELECT study, subject, variant, condition, scenario, "
+        "count(*) AS n_runs, sum(fell::INT) AS falls, avg(mean_abs_ex_cm) AS mean_abs_ex_cm, "
+        "avg(mean_abs_ey_cm) AS mean_abs_ey_cm, avg(force_rms_n) AS force_rms_n, "
+        "avg(gait_speed_mps) AS gait_speed_mps, avg(stride_length_m) AS stride_length_m FROM sweep_results "
+        "GROUP BY ALL ORDER BY study, subject, variant, scenario, condition",
         "CREATE OR REPLACE VIEW subject_summary AS SELECT v.subject, "
         "count(*) AS n_groups, "
         "(SELECT count(*) FROM versions a WHERE a.subject = v.subject) AS n_versions, "
@@ -232,6 +263,8 @@ def ensure_schema(con: duckdb.DuckDBPyConnection) -> None:
                 "created_at TIMESTAMP NOT NULL, run_id BIGINT NOT NULL)")
     con.execute("CREATE TABLE IF NOT EXISTS store_runs (run_id BIGINT PRIMARY KEY, created_at TIMESTAMP, "
                 "code_rev VARCHAR, subjects VARCHAR, n_groups BIGINT, n_new_versions BIGINT)")
+    con.execute(f"CREATE TABLE IF NOT EXISTS sweep_results ({SWEEP_DDL})")
+    con.execute(f"CREATE TABLE IF NOT EXISTS tuned_gains ({TUNING_DDL})")
     con.execute("CREATE TABLE IF NOT EXISTS subjects (subject VARCHAR PRIMARY KEY, round_trip_of VARCHAR, "
                 "run_id BIGINT NOT NULL)")
     con.execute("CREATE TABLE IF NOT EXISTS run_groups (run_id BIGINT NOT NULL, subject VARCHAR NOT NULL, "
@@ -288,8 +321,11 @@ def content_hash(tables: dict[str, pd.DataFrame]) -> str:
 
 
 def store_results(path: Path, results: list[SubjectResults], params: StoreParams = StoreParams(),
-                  rev: str | None = None, progress: Callable[[str], None] | None = None) -> StoreReport:
-    """Add new versions for every changed group of `results`, all in one transaction."""
+                  rev: str | None = None, progress: Callable[[str], None] | None = None,
+                  sweeps: list[pd.DataFrame] = (), tunings: list[dict] = ()) -> StoreReport:
+    """Add new versions for every changed group of `results`, all in one transaction; plus the rows
+    of `sweeps` (`SWEEP_COLUMNS`) not stored yet and a new version of each changed `tunings` result
+    (`TUNING_COLUMNS` keys)."""
     start = time.perf_counter()
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -324,6 +360,12 @@ def store_results(path: Path, results: list[SubjectResults], params: StoreParams
                             progress(f"{res.subject}/{'/'.join(key[1:])}/{name}")
                     new.append(next_id)
                     next_id += 1
+            for sweep in sweeps:  # a job's rows once, however often it ran
+                con.register("incoming", sweep[SWEEP_COLUMNS].assign(run_id=run_id))
+                con.execute("INSERT OR IGNORE INTO sweep_results BY NAME SELECT * FROM incoming")
+                con.unregister("incoming")
+            for tuning in tunings:
+                _store_tuning(con, tuning, run_id, now)
             for res in results:  # what each subject is, as of its last store run
                 con.execute("INSERT OR REPLACE INTO subjects VALUES (?, ?, ?)",
                             [res.subject, res.round_trip_of, run_id])
@@ -334,6 +376,23 @@ def store_results(path: Path, results: list[SubjectResults], params: StoreParams
             con.execute("ROLLBACK")
             raise
     return StoreReport(run_id, n_groups, tuple(new), time.perf_counter() - start)
+
+
+def _store_tuning(con: duckdb.DuckDBPyConnection, tuning: dict, run_id: int, now: datetime) -> None:
+    """A new `tuned_gains` version unless the latest of its subject, variant and controller has the
+    same content."""
+    row = {c: tuning[c] for c in TUNING_COLUMNS}
+    row = {k: json.dumps(v, sort_keys=True) if isinstance(v, dict) else v for k, v in row.items()}
+    digest = hashlib.sha256(json.dumps(row, sort_keys=True, default=str).encode()).hexdigest()[:16]
+    latest = con.execute("SELECT content_hash FROM tuned_gains WHERE subject = ? AND variant = ? AND "
+                         "controller = ? ORDER BY version_id DESC LIMIT 1",
+                         [row["subject"], row["variant"], row["controller"]]).fetchone()
+    if latest and latest[0] == digest:
+        return
+    version = con.execute("SELECT coalesce(max(version_id), 0) + 1 FROM tuned_gains").fetchone()[0]
+    con.execute(f"INSERT INTO tuned_gains (version_id, {', '.join(TUNING_COLUMNS)}, content_hash, run_id, "
+                f"created_at) VALUES ({', '.join(['?'] * (len(TUNING_COLUMNS) + 4))})",
+                [version, *row.values(), digest, run_id, now])
 
 
 def query(path: Path, sql: str, busy_timeout_s: float = 10.0) -> pd.DataFrame:

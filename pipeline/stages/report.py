@@ -123,6 +123,7 @@ QUERIES = {
     "tracking": "SELECT * FROM latest_tracking ORDER BY subject, source, human_mode, condition, time_s",
     "harness": "SELECT * FROM latest_harness ORDER BY subject, source, human_mode, condition, quantity",
     "events": "SELECT * FROM event_aligned ORDER BY subject, human_mode, condition, scenario, event, t_s",
+    "tuning": "SELECT * FROM tuning_comparison",
 }
 # Every figure a report can have, in the order the index shows them, with its caption.
 FIGURES = {

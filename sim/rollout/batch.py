@@ -1,4 +1,4 @@
-"""The one batch runner: many rollouts of one subject's human, in worker processes.
+"""The one batch runner: many rollouts of one subject's human, in this process or on Ray.
 
 A `RolloutJob` names a condition (`free` or a controller of `BatchSetup.controllers`), a seed, the
 simulated trial's id and the human driver's own description of the job. Each worker opens the
@@ -6,20 +6,21 @@ subject's world once (`Worker`): the MuJoCo spec, the human model for virtual ma
 driver source (`DriverSource.open`: the replay reference or the trained policy). Per job it builds
 the driver and the controller, runs `sim.rollout.loop.rollout`, and turns the human's motion into a
 canonical sim `Trial` through the virtual markers, processed by `ingest.process.process_trial`
-exactly like a real trial. Simulate (replay human), policy rollouts, render and the rollout bench
-all run here, so every rollout of the project is set up one way.
+exactly like a real trial. Parallel jobs run as Ray tasks (`BatchRunner`, `sim.rollout.cluster`).
+Simulate (replay human), policy rollouts, render, sweeps and the rollout bench all run here, so
+every rollout of the project is set up one way.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 import mujoco
 import numpy as np
 import pandas as pd
+import ray
 from tqdm import tqdm
 
 from ingest.errors import IngestError
@@ -33,6 +34,7 @@ from sim.robot.controllers import make_controller
 from sim.robot.controllers.base import Controller
 from sim.robot.controllers.warm_start import WarmStarted
 from sim.robot.mrba import RobotParams
+from sim.rollout.cluster import cached_worker, connect
 from sim.rollout.loop import RolloutParams, RolloutResult, rollout
 from sim.rollout.world import build_world, robot_info
 
@@ -193,47 +195,54 @@ def reference_cycles(model: mujoco.MjModel, reference: Reference, subject: str, 
     return pd.concat(parts, ignore_index=True) if parts else pd.DataFrame()
 
 
-_WORKER: Worker | None = None
-
-
-def _open_worker(setup: BatchSetup) -> None:
-    global _WORKER
-    _WORKER = Worker(setup)
-
-
-def _run_in_worker(job: RolloutJob) -> RolloutOutcome:
-    assert _WORKER is not None, "worker not opened"
-    return _WORKER.run(job)
+@ray.remote(num_cpus=1)
+def run_job(setup: BatchSetup, job: RolloutJob) -> RolloutOutcome:
+    """One job in a Ray worker, on the worker's cached open world of `setup`."""
+    return cached_worker(setup, Worker).run(job)
 
 
 class BatchRunner:
-    """Runs jobs of one `BatchSetup`: in this process with `workers <= 1`, else in a process pool
-    that stays open (and warm) until the `with` block ends."""
+    """Runs jobs of one `BatchSetup`: in this process with `workers <= 1`, else as Ray tasks on
+    `workers` CPUs of a local Ray instance (or the cluster of `RAY_ADDRESS`; `sim.rollout.cluster`).
+    A task whose worker died is retried `max_retries` times (a job is a pure function of its
+    inputs); an exception a job raises is not retried and propagates."""
 
-    def __init__(self, setup: BatchSetup, workers: int = 1) -> None:
-        self.setup, self.workers = setup, max(1, int(workers))
-        self._pool: ProcessPoolExecutor | None = None
+    def __init__(self, setup: BatchSetup, workers: int = 1, max_retries: int = 1) -> None:
+        self.setup, self.workers, self.max_retries = setup, max(1, int(workers)), int(max_retries)
         self._local: Worker | None = None
+        self._setup_ref = None
 
     def __enter__(self) -> BatchRunner:
         if self.workers > 1:
-            self._pool = ProcessPoolExecutor(max_workers=self.workers, initializer=_open_worker,
-                                             initargs=(self.setup,))
+            connect(self.workers)
+            self._setup_ref = ray.put(self.setup)
         else:
             self._local = Worker(self.setup)
         return self
 
     def __exit__(self, *exc: object) -> None:
-        if self._pool is not None:
-            self._pool.shutdown()
-        self._pool = self._local = None
+        self._local = self._setup_ref = None
 
     def map(self, jobs: Iterable[RolloutJob], desc: str = "rollouts", progress: bool = False
             ) -> list[RolloutOutcome]:
         """Outcomes in job order, with a progress bar when `progress`."""
         jobs = list(jobs)
-        it = self._pool.map(_run_in_worker, jobs) if self._pool is not None else map(self._local.run, jobs)
-        return list(tqdm(it, total=len(jobs), desc=desc, disable=not progress))
+        bar = tqdm(total=len(jobs), desc=desc, disable=not progress)
+        if self._setup_ref is None:
+            out = []
+            for job in jobs:
+                out.append(self._local.run(job))
+                bar.update()
+            bar.close()
+            return out
+        task = run_job.options(max_retries=self.max_retries)
+        refs = [task.remote(self._setup_ref, job) for job in jobs]
+        pending = list(refs)
+        while pending:
+            done, pending = ray.wait(pending, num_returns=1)
+            bar.update(len(done))
+        bar.close()
+        return ray.get(refs)
 
 
 def run_batch(setup: BatchSetup, jobs: Iterable[RolloutJob], workers: int = 1, desc: str = "rollouts",

@@ -1,0 +1,62 @@
+"""One rollout's headline numbers, and the objective a controller is tuned and compared by.
+
+A sweep stores one row per rollout job (`run_row`): how closely the robot followed (mean |e_x|,
+|e_y| over the following samples, as Table I), how hard the harness pulled (|f| RMS), whether the
+human fell, and how it walked (mean speed and stride length of its kept strides). `objective`
+scores a controller on such rows against the same person walking free, with one procedure for
+every controller (the issue's "same budget and procedure"): the cost of Wang, Chan et al. (ICRA
+2025) Table I (|e_x| + |e_y|), plus the harness force (transparency), plus the gait change versus
+walking free (the paper's Tables II-III question), plus a penalty per fall.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from metrics.compliance import following
+
+ROW_COLUMNS = ["mean_abs_ex_cm", "mean_abs_ey_cm", "force_rms_n", "fell", "gait_speed_mps", "stride_length_m",
+               "n_strides", "n_samples"]
+
+
+def run_row(robot: pd.DataFrame, strides: pd.DataFrame, fell: bool, exclude_locked: bool = True) -> dict:
+    """Headline numbers of one rollout: its robot table (empty when walking free) and strides."""
+    kept = strides[strides["kept"].astype(bool)] if not strides.empty else strides
+    out = {"mean_abs_ex_cm": np.nan, "mean_abs_ey_cm": np.nan, "force_rms_n": np.nan, "fell": bool(fell),
+           "gait_speed_mps": float(kept["gait_speed_mps"].mean()) if len(kept) else np.nan,
+           "stride_length_m": float(kept["stride_length_m"].mean()) if len(kept) else np.nan,
+           "n_strides": int(len(kept)), "n_samples": 0}
+    if not robot.empty:
+        f = following(robot, exclude_locked)
+        force = np.linalg.norm(f[["harness_fx_n", "harness_fy_n", "harness_fz_n"]].to_numpy(float), axis=1)
+        out.update(mean_abs_ex_cm=float(np.abs(f["e_x_m"]).mean() * 100) if len(f) else np.nan,
+                   mean_abs_ey_cm=float(np.abs(f["e_y_m"]).mean() * 100) if len(f) else np.nan,
+                   force_rms_n=float(np.sqrt(np.mean(force ** 2))) if len(f) else np.nan, n_samples=len(f))
+    return out
+
+
+@dataclass(frozen=True)
+class ObjectiveWeights:
+    """Weights of the controller objective (params `tune`), in metres of tracking error."""
+
+    force_weight_m_per_n: float = 0.001   # 10 N harness force RMS costs as much as 1 cm of mean |e|
+    gait_weight_m: float = 0.05           # a 100 % change of gait speed versus free walking costs 5 cm
+    fall_penalty_m: float = 0.5           # a fall costs 50 cm
+
+
+def objective(rows: pd.DataFrame, free_speed_mps: float, w: ObjectiveWeights = ObjectiveWeights()) -> float:
+    """Mean over rollouts of |e_x| + |e_y| (m) + w_f |f|_rms + w_g |speed / free speed - 1| + the fall
+    penalty; a rollout without following samples or strides counts as a fall."""
+    ex, ey = rows["mean_abs_ex_cm"].to_numpy(float) / 100, rows["mean_abs_ey_cm"].to_numpy(float) / 100
+    force = rows["force_rms_n"].to_numpy(float)
+    gait = np.abs(rows["gait_speed_mps"].to_numpy(float) / free_speed_mps - 1.0)
+    fell = rows["fell"].to_numpy(bool) | ~np.isfinite(ex + ey + force + gait)
+    cost = np.where(fell, w.fall_penalty_m, 0.0) + np.nan_to_num(ex + ey + w.force_weight_m_per_n * force
+                                                                + w.gait_weight_m * gait, nan=0.0)
+    return float(cost.mean())
+
+
+__all__ = ["ROW_COLUMNS", "ObjectiveWeights", "objective", "run_row"]
