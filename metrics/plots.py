@@ -213,3 +213,26 @@ def policy_spm_figure(curves_by_joint: dict, results: dict, subject: str) -> Fig
     fig.suptitle(f"{subject}: free walking, real vs policy human (SPM anova1, alpha 0.05)")
     fig.tight_layout()
     return fig
+
+
+def tuning_figure(tuning: pd.DataFrame, title: str = "Controller tuning: held-back objective") -> Figure:
+    """Generic vs tuned gains per controller and variant (`tune`): the held-back objective, mean with its
+    95 % CI across rollouts (`tuning_comparison`), falls out of the held-back rollouts over each bar."""
+    rows = tuning.sort_values(["controller", "variant"]).reset_index(drop=True)
+    fig, ax = plt.subplots(figsize=(max(4.0, 1.8 * len(rows) + 1.5), 3.8))
+    for k, (which, colour) in enumerate((("generic", "0.6"), ("tuned", "tab:blue"))):
+        x = [i + (k - 0.5) * 0.38 for i in range(len(rows))]
+        mean, ci = rows[f"{which}_mean"].astype(float), rows[f"{which}_ci95"].astype(float).fillna(0.0)
+        ax.bar(x, mean, width=0.36, yerr=ci, capsize=3, color=colour, label=f"{which} gains")
+        for xi, m, c, falls, n in zip(x, mean, ci, rows[f"{which}_falls"], rows["n_heldout"], strict=True):
+            ax.annotate(f"{int(falls)}/{int(n)} falls", (xi, m + c), xytext=(0, 2),
+                        textcoords="offset points", ha="center", va="bottom", fontsize=7)
+    labels = [f"{r.controller}\n({r.variant})" for r in rows.itertuples(index=False)]
+    ax.set_xticks(list(range(len(rows))), labels, fontsize=8)
+    ax.set_ylabel("objective (m), lower is better")
+    ax.margins(y=0.15)
+    ax.grid(alpha=0.3, axis="y")
+    ax.legend(fontsize=8)
+    fig.suptitle(title)
+    fig.tight_layout()
+    return fig

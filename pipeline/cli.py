@@ -20,6 +20,7 @@ from pipeline.paths import (
     PARAMS_FILE,
     PROCESSED_ROOT,
     REPORTS_ROOT,
+    SWEEPS_ROOT,
     TUNING_REPORT,
 )
 from pipeline.stages.outputs import json_text, write_json
@@ -161,6 +162,18 @@ def cmd_export(args: argparse.Namespace) -> int:
                         tuple(args.condition) if args.condition else None, args.walks,
                         args.root or PROCESSED_ROOT)
     print(f"wrote {folder}", file=sys.stderr)
+    return 0
+
+
+def cmd_sweep(args: argparse.Namespace) -> int:
+    from pipeline.stages.sweep import run_sweep
+
+    summary = run_sweep(load_params(args.params), args.root or SWEEPS_ROOT)
+    for f in summary["failed"]:
+        print(f"failed: {f['subject']} {f['condition']} {f['scenario']} seed {f['seed']}: {f['error']}",
+              file=sys.stderr)
+    print(f"sweep {summary['study']}: {summary['ran']} ran, {summary['resumed']} resumed, "
+          f"{len(summary['failed'])} failed of {summary['jobs']} jobs", file=sys.stderr)
     return 0
 
 
@@ -406,6 +419,11 @@ def build_parser() -> argparse.ArgumentParser:
     export.add_argument("--out", type=Path, help="default: data/exports/<subject>/<scenario>/")
     export.add_argument("--root", type=Path, help="default: data/processed")
     export.set_defaults(func=cmd_export)
+
+    sweep = commands.add_parser("sweep", help="run the study of params `sweep` on Ray (resumable; "
+                                "RAY_ADDRESS: on that cluster)")
+    sweep.add_argument("--root", type=Path, help="default: data/sweeps")
+    sweep.set_defaults(func=cmd_sweep)
 
     tune = commands.add_parser("tune", help="tune a controller's gains for one subject on the policy-human "
                                "scenarios (Optuna through Ray Tune)")

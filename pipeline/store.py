@@ -337,8 +337,8 @@ def store_results(path: Path, results: list[SubjectResults], params: StoreParams
             ensure_schema(con)
             latest = {tuple(r[:4]): (r[4], r[5]) for r in con.execute(
                 f"SELECT {', '.join(GROUP)}, content_hash, version_id FROM newest_versions").fetchall()}
-            next_id = con.execute("SELECT coalesce(max(version_id), 0) + 1 FROM versions").fetchone()[0]
-            run_id = con.execute("SELECT coalesce(max(run_id), 0) + 1 FROM store_runs").fetchone()[0]
+            next_id = con.execute("SELECT coalesce(max(version_id), 0) + 1 FROM versions").fetchall()[0][0]
+            run_id = con.execute("SELECT coalesce(max(run_id), 0) + 1 FROM store_runs").fetchall()[0][0]
             new, n_groups = [], 0
             for res in results:
                 for key, tables in _group_rows(res).items():
@@ -386,10 +386,11 @@ def _store_tuning(con: duckdb.DuckDBPyConnection, tuning: dict, run_id: int, now
     digest = hashlib.sha256(json.dumps(row, sort_keys=True, default=str).encode()).hexdigest()[:16]
     latest = con.execute("SELECT content_hash FROM tuned_gains WHERE subject = ? AND variant = ? AND "
                          "controller = ? ORDER BY version_id DESC LIMIT 1",
-                         [row["subject"], row["variant"], row["controller"]]).fetchone()
+                         [row["subject"], row["variant"], row["controller"]]).fetchall()
+    latest = latest[0] if latest else None
     if latest and latest[0] == digest:
         return
-    version = con.execute("SELECT coalesce(max(version_id), 0) + 1 FROM tuned_gains").fetchone()[0]
+    version = con.execute("SELECT coalesce(max(version_id), 0) + 1 FROM tuned_gains").fetchall()[0][0]
     con.execute(f"INSERT INTO tuned_gains (version_id, {', '.join(TUNING_COLUMNS)}, content_hash, run_id, "
                 f"created_at) VALUES ({', '.join(['?'] * (len(TUNING_COLUMNS) + 4))})",
                 [version, *row.values(), digest, run_id, now])

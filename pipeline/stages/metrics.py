@@ -55,7 +55,7 @@ SOURCES = ("real", "sim", "sim_policy")
 SOURCE_DIRS = {"real": real_dir, "sim": sim_dir, "sim_policy": sim_policy_dir}  # under <root>/<subject>/
 # Sections that do not shape the results; the hash of all others identifies a params version
 # (so a section added later, e.g. for a new controller, counts without editing this list).
-NON_RESULT_SECTIONS = ("subjects", "store", "report")
+NON_RESULT_SECTIONS = ("subjects", "store", "report", "ray", "sweep", "tune")
 
 
 def params_hash(params: Params) -> str:

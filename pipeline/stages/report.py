@@ -35,6 +35,7 @@ from metrics.plots import (
     kinematics_figure,
     spm_figure,
     tracking_figure,
+    tuning_figure,
 )
 from pipeline.params import ReportParams
 from pipeline.paths import PAPER_FILE, POLICIES_ROOT, REPORTS_ROOT, policy_dir, report_dir
@@ -135,6 +136,9 @@ FIGURES = {
     "harness": "Harness force and torque magnitude, RMS and peak per condition",
     "kinematics": "Joint angles of every source and condition (mean ± SD over cycles)",
     "spm": "SPM1D statistic curves, thresholds (dashed) and supra-threshold clusters (shaded)",
+    "tuning": "Per-subject controller tuning (`tune`): the objective of metrics/outcomes.py on the held-back "
+              "walks with the generic and the tuned gains (mean and 95 % CI across rollouts; falls above "
+              "each bar)",
 }
 
 # Columns the report reads from views that have grown over time: a store file whose views predate
@@ -288,6 +292,7 @@ def subject_figures(subject: str, data: dict[str, pd.DataFrame], p: ReportParams
     curves = data["spm_curves"][data["spm_curves"]["test_id"].isin(tests["test_id"])]
     tracking, harness = _of(data["tracking"], subject), _of(data["harness"], subject)
     statistic = "F" if (tests["test"] == "anova1").all() else "t"
+    tuning = _of(data["tuning"], subject)
     figures = {
         "events": lambda: event_figure(events, list(p.event_scenarios),
                                        f"{subject}: around the commanded events (mean, 95 % CI across runs)"),
@@ -298,9 +303,11 @@ def subject_figures(subject: str, data: dict[str, pd.DataFrame], p: ReportParams
         "kinematics": lambda: kinematics_figure(
             bands, f"{subject}: joint kinematics (mean ± SD, side {side})"),
         "spm": lambda: spm_figure(tests, curves, f"{subject}: SPM{{{statistic}}} (alpha 0.05)"),
+        "tuning": lambda: tuning_figure(tuning, f"{subject}: controller tuning, held-back objective "
+                                                "(mean, 95 % CI)"),
     }
     present = {"events": not events.empty, "kinematics_policy": not policy.empty,
-               "tracking": not tracking.empty, "harness": not harness.empty}
+               "tracking": not tracking.empty, "harness": not harness.empty, "tuning": not tuning.empty}
     return {name: draw for name, draw in figures.items() if present.get(name, True)}
 
 
@@ -377,10 +384,39 @@ def subject_report(subject: str, data: dict[str, pd.DataFrame], reports: Path = 
             lines += _spm_lines(_of(data["spm_tests"], subject), _of(data["clusters"], subject))
     if "tracking" not in figures and "harness" not in figures:
         lines += ["## Tracking and harness force", "", "No simulated robot runs for this subject yet.", ""]
+    lines += tuning_lines(_of(data["tuning"], subject), "tuning" in figures)
     path = folder / "report.md"
     with replacing(path) as (temp,):
         temp.write_text("\n".join(lines))
     return path
+
+
+def _gains(doc) -> str:
+    gains = json.loads(doc) if isinstance(doc, str) else dict(doc)
+    return ", ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in gains.items())
+
+
+def _cost(mean, ci, falls, n) -> str:
+    return f"{_mean_sd(mean, ci, 4)} ({_num(falls, 0)}/{_num(n, 0)} falls)"
+
+
+def tuning_lines(tuning: pd.DataFrame, figure: bool) -> list[str]:
+    """The "Controller tuning" section: per controller and variant the held-back objective with the
+    generic and the tuned gains (mean ± 95 % CI across rollouts, falls) and the tuned gains."""
+    lines = ["## Controller tuning", ""]
+    if tuning.empty:
+        return lines + ["No tuned gains for this subject yet (run `python -m pipeline tune <subject> "
+                        "--controller <name>`, then `store`).", ""]
+    rows = [[r.controller, r.variant, f"{r.method}, {int(r.n_trials)} trials",
+             _cost(r.generic_mean, r.generic_ci95, r.generic_falls, r.n_heldout),
+             _cost(r.tuned_mean, r.tuned_ci95, r.tuned_falls, r.n_heldout), _gains(r.tuned_gains)]
+            for r in tuning.sort_values(["controller", "variant"]).itertuples(index=False)]
+    lines += ["Objective (metrics/outcomes.py, lower is better): |e_x| + |e_y| (m) + harness force RMS and "
+              "gait-speed change versus walking free, weighted, + a penalty per fall; on held-back walks "
+              "the search never saw (mean ± 95 % CI across rollouts).", "",
+              md_table(["Controller", "Variant", "Search", "Generic gains", "Tuned gains",
+                        "Tuned gain values"], rows)]
+    return lines + (_image("tuning") if figure else [])
 
 
 def _spm_lines(tests: pd.DataFrame, clusters: pd.DataFrame) -> list[str]:

@@ -1,7 +1,8 @@
 """Stage `store`: every subject's metric tables -> new versions in the results store.
 
 Reads `<root>/<subject>/<table>.parquet` (root: data/metrics) and `provenance.json` for each subject in
-params.yaml and adds them to `data/results.duckdb` in one transaction (`pipeline.store`).
+params.yaml, the sweep study's rows (data/sweeps/<study>/results.parquet) and the tuning results
+(data/tuning) and adds them to `data/results.duckdb` in one transaction (`pipeline.store`).
 """
 
 from __future__ import annotations
@@ -13,8 +14,8 @@ import pandas as pd
 from tqdm import tqdm
 
 from pipeline.params import Params
-from pipeline.paths import METRICS_ROOT, metrics_dir
-from pipeline.store import TABLES, StoreError, StoreReport, SubjectResults, store_results
+from pipeline.paths import METRICS_ROOT, SWEEPS_ROOT, TUNING_ROOT, metrics_dir, sweep_dir
+from pipeline.store import TABLES, TUNING_COLUMNS, StoreError, StoreReport, SubjectResults, store_results
 
 
 def load_results(subject: str, root: Path = METRICS_ROOT) -> SubjectResults:
@@ -30,14 +31,36 @@ def load_results(subject: str, root: Path = METRICS_ROOT) -> SubjectResults:
     return SubjectResults(subject, tables, str(doc["params_hash"]), doc.get("round_trip_of"))
 
 
+def load_sweep(study: str, root: Path = SWEEPS_ROOT) -> list[pd.DataFrame]:
+    """The study's rows (`sweep` stage), or nothing when it has not run."""
+    path = sweep_dir(root, study) / "results.parquet"
+    return [pd.read_parquet(path)] if path.is_file() else []
+
+
+def load_tunings(root: Path = TUNING_ROOT) -> list[dict]:
+    """Every tuning result under `root` (`tune`: <subject>/<variant>/<controller>.json)."""
+    out = []
+    for path in sorted(root.glob("*/*/*.json")):
+        try:
+            doc = json.loads(path.read_text())
+            out.append({c: doc[c] for c in TUNING_COLUMNS})
+        except (ValueError, KeyError) as exc:
+            raise StoreError(path, f"not a tuning result ({exc!r})") from None
+    return out
+
+
 def run_store(params: Params, root: Path = METRICS_ROOT, db: Path | None = None,
-              progress: bool = True) -> StoreReport:
-    """Store the metrics of every subject in params `subjects`."""
+              progress: bool = True, sweeps_root: Path = SWEEPS_ROOT, tuning_root: Path = TUNING_ROOT
+              ) -> StoreReport:
+    """Store the metrics of every subject in params `subjects`, the rows of the params' sweep study
+    and every tuning result."""
     p = params.store.build()
     subjects = list(params.subjects)
     results = [load_results(s, root) for s in subjects]
     bar = tqdm(desc="store", unit="table", disable=not progress, leave=False)
     try:
-        return store_results(db or p.path, results, p, progress=lambda _: bar.update())
+        return store_results(db or p.path, results, p, progress=lambda _: bar.update(),
+                             sweeps=load_sweep(params.sweep.study, sweeps_root),
+                             tunings=load_tunings(tuning_root))
     finally:
         bar.close()

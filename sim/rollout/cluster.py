@@ -30,10 +30,10 @@ _CACHE: dict[str, Any] = {}
 def connect(num_cpus: int) -> dict[str, float]:
     """Start (or join, via `RAY_ADDRESS`) Ray once per process; returns the cluster's resources."""
     if not ray.is_initialized():
-        address = os.environ.get(RAY_ADDRESS) or None
+        address = os.environ.get(RAY_ADDRESS) or "local"  # "local": a new instance, never a stray one
         kwargs: dict[str, Any] = {"include_dashboard": False, "logging_level": logging.ERROR,
                                   "log_to_driver": False}
-        if address is None:
+        if address == "local":
             kwargs.update(num_cpus=int(num_cpus), object_store_memory=OBJECT_STORE_MB * 2**20)
         ray.init(address=address, **kwargs)
     return ray.cluster_resources()

@@ -1,0 +1,163 @@
+"""Stage `sweep`: a study of subjects x variants x conditions x scenarios x seeds on Ray.
+
+Each job is one policy-human rollout, a pure function of (subject, variant, condition and its gains,
+scenario, seed, params hash); its key is the hash of exactly those, so a job that ran (or was retried
+after its worker died) gives the same row, and a rerun with nothing changed runs nothing. Jobs run as
+Ray tasks (`sim.rollout.cluster`: local, or the cluster of `RAY_ADDRESS`) on the batch runner's
+worker (`sim.rollout.batch.Worker`); a task is retried `ray.max_retries` times, whether its worker
+died or it raised, and a job that still fails is reported with its error while the rest completes.
+
+Outputs in `<root>/<study>/` (root: data/sweeps): `jobs/<key>.parquet` (one row per finished job,
+written as results come back: an interrupted study resumes where it stopped), `results.parquet`
+(the rows of the current jobs; `metrics.outcomes.run_row` plus identity) and `summary.json`. The
+store stage adds the rows to `sweep_results`, once per (study, job key).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import pandas as pd
+import ray
+from tqdm import tqdm
+
+from metrics.outcomes import run_row
+from pipeline import paths
+from pipeline.params import Params
+from pipeline.stages.outputs import write_outputs
+from pipeline.stages.simulate import policy_setup
+from pipeline.store import SWEEP_COLUMNS
+from sim.learn.policy_human import PolicyWalk
+from sim.rollout.batch import BatchSetup, RolloutJob, Worker
+from sim.rollout.cluster import cached_worker, connect
+
+HEALTHY = "healthy"  # the subject's own policy; cohort variants come with the virtual cohort
+ROLLOUT_SECTIONS = ("ingest", "metrics", "robot", "rollout", "human", "train", "evaluate_policy", "scenarios")
+
+
+@dataclass(frozen=True)
+class SweepJob:
+    """One rollout of a study; `key` names it (and its row) for good."""
+
+    study: str
+    subject: str
+    variant: str
+    condition: str
+    gains: dict
+    scenario: str
+    seed: int
+    params_hash: str
+
+    @property
+    def gains_hash(self) -> str:
+        return hashlib.sha256(json.dumps(self.gains, sort_keys=True).encode()).hexdigest()[:12]
+
+    @property
+    def key(self) -> str:
+        doc = [self.subject, self.variant, self.condition, self.gains, self.scenario, self.seed,
+               self.params_hash]
+        return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()[:20]
+
+    def rollout_job(self) -> RolloutJob:
+        return RolloutJob(self.condition, self.seed, f"{self.scenario}_{self.condition}_seed{self.seed}",
+                          PolicyWalk(scenario=self.scenario))
+
+
+def rollout_params_hash(params: Params) -> str:
+    """sha256 (16 hex) of the params sections that shape a rollout and its row (`ROLLOUT_SECTIONS`;
+    the controllers' gains are part of each job's key instead): adding seeds or subjects to a study
+    adds jobs, it does not rename the finished ones."""
+    doc = {k: params.document()[k] for k in ROLLOUT_SECTIONS}
+    doc["robot"] = {k: v for k, v in doc["robot"].items() if k not in ("controllers", "tuning")}
+    return hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()[:16]
+
+
+def sweep_jobs(params: Params, policy_root: Path = paths.POLICIES_ROOT) -> tuple[list[SweepJob], list[str]]:
+    """The study's jobs from params `sweep`, grouped by subject; and notes on what was left out
+    (a subject without a trained policy, a variant that does not exist yet)."""
+    sw, controllers = params.sweep, params.robot.controller_specs()
+    digest = rollout_params_hash(params)
+    jobs, notes = [], []
+    for subject in sw.subjects:
+        if not (paths.policy_dir(policy_root, subject) / "policy.zip").is_file():
+            notes.append(f"{subject}: no trained policy in {paths.policy_dir(policy_root, subject)}")
+            continue
+        for variant in sw.variants:
+            if variant != HEALTHY:
+                notes.append(f"{subject}/{variant}: no such variant yet (only {HEALTHY!r}, the subject's own "
+                             "policy)")
+                continue
+            for condition in sw.conditions:
+                gains = {} if condition == "free" else dict(controllers[condition].get("gains", {}))
+                jobs += [SweepJob(sw.study, subject, variant, condition, gains, scenario, seed, digest)
+                         for scenario in sw.scenarios for seed in range(sw.seeds)]
+    return jobs, notes
+
+
+def job_row(worker: Worker, job: SweepJob, exclude_locked: bool) -> pd.DataFrame:
+    """Run one job on an open world and return its row (`pipeline.store.SWEEP_COLUMNS`)."""
+    start = time.perf_counter()
+    o = worker.run(job.rollout_job())
+    strides = o.tables.get("strides", pd.DataFrame(columns=["kept", "gait_speed_mps", "stride_length_m"]))
+    row = {"study": job.study, "job_key": job.key, "subject": job.subject, "variant": job.variant,
+           "condition": job.condition, "gains_hash": job.gains_hash, "scenario": job.scenario,
+           "seed": job.seed, "params_hash": job.params_hash,
+           **run_row(o.robot, strides, o.fell, exclude_locked), "wall_s": time.perf_counter() - start}
+    return pd.DataFrame([row])[SWEEP_COLUMNS]
+
+
+@ray.remote(num_cpus=1)
+def _run_remote(setup: BatchSetup, job: SweepJob, exclude_locked: bool) -> pd.DataFrame:
+    return job_row(cached_worker(setup, Worker), job, exclude_locked)
+
+
+def run_sweep(params: Params, root: Path = paths.SWEEPS_ROOT, policy_root: Path = paths.POLICIES_ROOT,
+              progress: bool = True, on_result: Callable[[SweepJob], None] | None = None) -> dict:
+    """Run the study's missing jobs on Ray and write its outputs; returns the summary. `on_result`:
+    called after each finished job (tests use it to kill a worker mid-sweep)."""
+    jobs, notes = sweep_jobs(params, policy_root)
+    folder = paths.sweep_dir(root, params.sweep.study)
+    job_dir = folder / "jobs"
+    job_dir.mkdir(parents=True, exist_ok=True)
+    todo = [j for j in jobs if not (job_dir / f"{j.key}.parquet").is_file()]
+    failed: list[dict] = []
+    if todo:
+        connect(params.ray.num_cpus)
+        subjects = dict.fromkeys(j.subject for j in todo)
+        setups = {s: ray.put(policy_setup(s, params, policy_root=policy_root)) for s in subjects}
+        task = _run_remote.options(max_retries=params.ray.max_retries, retry_exceptions=True)
+        refs = {task.remote(setups[j.subject], j, params.metrics.exclude_locked): j for j in todo}
+        pending = list(refs)
+        with tqdm(total=len(todo), desc=f"sweep {params.sweep.study}", disable=not progress) as bar:
+            while pending:
+                done, pending = ray.wait(pending, num_returns=1)
+                for ref in done:
+                    job = refs[ref]
+                    try:
+                        write_outputs(job_dir, {job.key: ray.get(ref)}, {})
+                    except Exception as exc:  # retried already: report it, finish the rest
+                        failed.append({"job_key": job.key, "subject": job.subject, "condition": job.condition,
+                                       "scenario": job.scenario, "seed": job.seed,
+                                       "error": f"{type(exc).__name__}: {str(exc).splitlines()[0][:300]}"})
+                    bar.update()
+                    if on_result is not None:
+                        on_result(job)
+    keys = {j.key for j in jobs}
+    files = [job_dir / f"{k}.parquet" for k in sorted(keys)]
+    rows = [pd.read_parquet(f) for f in files if f.is_file()]
+    results = pd.concat(rows, ignore_index=True) if rows else pd.DataFrame(columns=SWEEP_COLUMNS)
+    summary = {"study": params.sweep.study, "jobs": len(jobs), "ran": len(todo) - len(failed),
+               "resumed": len(jobs) - len(todo), "failed": failed, "notes": notes}
+    ran = results[results["job_key"].isin({j.key for j in todo})]
+    if len(ran):
+        summary["job_wall_s_mean"] = round(float(ran["wall_s"].mean()), 3)
+    write_outputs(folder, {"results": results}, {"summary": summary})
+    return summary
+
+
+__all__ = ["SweepJob", "job_row", "run_sweep", "sweep_jobs"]

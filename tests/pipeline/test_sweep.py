@@ -1,0 +1,138 @@
+"""Sweeps on Ray: a two-node local cluster (`ray start --head` plus a worker node, reached through
+RAY_ADDRESS) runs a small study; its worker node is killed after the first finished job, and the
+study still completes, every job's row stored exactly once; a rerun resumes (runs nothing)."""
+
+from __future__ import annotations
+
+import json
+import os
+import secrets
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pandas as pd
+import pytest
+import yaml
+
+from pipeline.params import load_params, parse_params
+from pipeline.paths import POLICIES_ROOT
+from pipeline.stages.sweep import rollout_params_hash, run_sweep, sweep_jobs
+from pipeline.store import StoreParams, query, store_results
+
+REPO = Path(__file__).resolve().parents[2]
+RAY = Path(sys.executable).with_name("ray")
+
+pytestmark = pytest.mark.skipif(not (POLICIES_ROOT / "camargo" / "policy.zip").is_file(),
+                                reason="camargo's committed policy is missing")
+
+
+def small_study(study: str = "killed_worker", seeds: int = 3):
+    doc = load_params().document()
+    doc["sweep"].update(study=study, subjects=["camargo"], conditions=["free", "pid"], scenarios=["steady"],
+                        seeds=seeds)
+    doc["scenarios"]["commands"]["steady"] = [{"walk_s": 3.0, "speed": 1.0}]
+    return parse_params(doc)
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture
+def cluster(tmp_path):
+    """A head node and a worker node (1 CPU each) on this machine, with a token (Ray >= 2.59
+    authenticates local clusters); yields (the environment that reaches it, the worker's process)."""
+    port = _free_port()
+    env = {**os.environ, "RAY_AUTH_MODE": "token", "RAY_AUTH_TOKEN": secrets.token_hex(16),
+           "RAY_USAGE_STATS_ENABLED": "0", "OMP_NUM_THREADS": "1"}
+    env.pop("RAY_ADDRESS", None)
+    common = ["--num-cpus=1", "--block", "--node-ip-address=127.0.0.1"]
+
+    def start(*args: str) -> subprocess.Popen:
+        return subprocess.Popen([str(RAY), "start", *args, *common], env=env, cwd=REPO,
+                                start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+
+    address = f"127.0.0.1:{port}"
+    procs = [start("--head", f"--port={port}", "--include-dashboard=false")]
+    try:
+        deadline = time.monotonic() + 90
+        while not _cpus(address, env) >= 1:  # the head must be up before a worker node joins
+            assert time.monotonic() < deadline, "the head node did not start"
+            time.sleep(1)
+        procs.append(start(f"--address={address}"))
+        while not _cpus(address, env) >= 2:
+            assert time.monotonic() < deadline, "the worker node did not join"
+            time.sleep(1)
+        yield {**env, "RAY_ADDRESS": address}, procs[1]
+    finally:
+        for p in reversed(procs):
+            try:
+                os.killpg(p.pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+            p.wait(timeout=30)
+
+
+def _cpus(address: str, env: dict) -> float:
+    """The cluster's CPUs as `ray status` reports them (0 while it is not reachable)."""
+    out = subprocess.run([str(RAY), "status", f"--address={address}"], env=env, capture_output=True,
+                         text=True, timeout=60)
+    for line in out.stdout.splitlines():  # e.g. " 0.0/2.0 CPU"
+        if line.strip().endswith(" CPU") and "/" in line:
+            return float(line.split("/")[1].split()[0])
+    return 0.0
+
+
+def test_sweep_completes_after_its_worker_node_is_killed(cluster, tmp_path):
+    env, worker = cluster
+    params = small_study()
+    jobs, _ = sweep_jobs(params)
+    params_file = tmp_path / "params.yaml"
+    params_file.write_text(yaml.safe_dump(params.document(), sort_keys=False))
+    sweeps = tmp_path / "sweeps"
+    cmd = [sys.executable, "-m", "pipeline", "--params", str(params_file), "sweep", "--root", str(sweeps)]
+    run = subprocess.Popen(cmd, env=env, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                           text=True)
+    job_dir = sweeps / "killed_worker" / "jobs"
+    deadline = time.monotonic() + 300
+    while not (job_dir.is_dir() and any(job_dir.glob("*.parquet"))):  # the first job has finished
+        assert run.poll() is None and time.monotonic() < deadline, run.stdout.read() if run.stdout else ""
+        time.sleep(0.1)
+    os.killpg(worker.pid, signal.SIGKILL)
+    assert len(list(job_dir.glob("*.parquet"))) < len(jobs)  # killed mid-sweep
+    output, _ = run.communicate(timeout=300)
+    assert run.returncode == 0, output
+    summary = json.loads((sweeps / "killed_worker" / "summary.json").read_text())
+    assert summary["failed"] == [] and summary["ran"] == len(jobs) == 6, output
+    results = pd.read_parquet(sweeps / "killed_worker" / "results.parquet")
+    assert sorted(results["job_key"]) == sorted(j.key for j in jobs)
+    assert results["mean_abs_ex_cm"][results["condition"] == "pid"].notna().all()
+
+    db = tmp_path / "results.duckdb"
+    for _ in range(2):  # storing the study again adds nothing
+        store_results(db, [], StoreParams(busy_timeout_s=1.0), rev="test", sweeps=[results])
+    counts = query(db, "select count(*) as n, count(distinct job_key) as k from sweep_results")
+    assert counts.iloc[0].tolist() == [6, 6]
+
+    again = run_sweep(params, root=sweeps, progress=False)  # resumes: nothing left to run, no Ray needed
+    assert again["ran"] == 0 and again["resumed"] == 6
+
+
+def test_job_keys_name_what_shapes_a_rollout():
+    params = small_study(seeds=2)
+    keys = {j.key for j in sweep_jobs(params)[0]}
+    assert len(keys) == 4
+    more_seeds = {j.key for j in sweep_jobs(small_study(seeds=3))[0]}
+    assert keys < more_seeds  # adding seeds adds jobs and keeps the finished ones
+    doc = params.document()
+    doc["robot"]["controllers"]["pid"]["gains"]["kp_x"] *= 2
+    changed = parse_params(doc)
+    pid_keys = {j.key for j in sweep_jobs(changed)[0] if j.condition == "pid"}
+    assert not pid_keys & keys  # other gains: other jobs
+    assert rollout_params_hash(changed) == rollout_params_hash(params)  # gains are in the key itself
