@@ -135,7 +135,7 @@ def run_bench(params: Params, repeat: int = 5, sections: tuple[str, ...] = SECTI
     """The benchmark sections asked for, each with its own `targets` and `meets_targets`:
     ingest (`TARGETS`), retarget (`RETARGET_TARGETS`), human (no target: the physical limit that
     rollouts are compared to), store (`STORE_TARGETS`), rollout and policy_rollout (ratio to raw
-    `mj_step`), train (ratio to Humanoid-v5)."""
+    `mj_step`), sweep (Ray: parallel efficiency, overhead per job), train (ratio to Humanoid-v5)."""
     unknown = sorted(set(sections) - set(SECTIONS))
     if unknown:
         raise ValueError(f"unknown bench sections {unknown} (known: {', '.join(SECTIONS)})")
@@ -155,6 +155,10 @@ def run_bench(params: Params, repeat: int = 5, sections: tuple[str, ...] = SECTI
             from pipeline.bench.policy_rollout import POLICY_ROLLOUT_TARGETS, time_policy_rollout
 
             section, targets = time_policy_rollout(params, min(repeat, 3)), POLICY_ROLLOUT_TARGETS
+        elif name == "sweep":
+            from pipeline.bench.sweep import SWEEP_TARGETS, time_sweep
+
+            section, targets = time_sweep(params), SWEEP_TARGETS
         elif name == "train":
             from pipeline.bench.train import TRAIN_TARGETS, time_training
 

@@ -45,6 +45,7 @@ from sim.rollout.cluster import cached_worker, connect
 VARIANTS = ("healthy",)  # the subject's own policy; cohort variants come with the virtual cohort
 METRIC = "objective"
 CI_LEVEL = 0.95
+STUDY = "tune"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -194,8 +195,9 @@ def search(ctx: SearchContext, params: Params, n_trials: int, generic: dict[str,
     optuna.logging.set_verbosity(optuna.logging.WARNING)  # the progress bar says what the study does
     space = search_space(params, ctx.controller)
     start = {g: float(min(max(generic[g], lo), hi)) for g, (lo, hi) in space.items()}
+    storage = optuna.storages.InMemoryStorage()  # the study's own record: trials numbered as suggested
     alg = OptunaSearch(optuna_space(space), metric=METRIC, mode="min", points_to_evaluate=[start],
-                       sampler=sampler(params))
+                       sampler=sampler(params), study_name=STUDY, storage=storage)
     bar = tqdm(total=n_trials, desc=f"tune {ctx.base.subject} {ctx.controller}", disable=not progress)
 
     class _Progress(tune.Callback):
@@ -213,14 +215,14 @@ def search(ctx: SearchContext, params: Params, n_trials: int, generic: dict[str,
                                       failure_config=tune.FailureConfig(max_failures=params.ray.max_retries)))
         grid = tuner.fit()
         bar.close()
-        results = sorted(grid, key=lambda r: r.metrics.get("trial_id", ""))  # ids count up in creation order
-        errors = [r.error for r in results if r.error is not None]
-        if errors:
-            raise SimulationError(f"tune {ctx.base.subject} {ctx.controller}",
-                                  f"{len(errors)} of {n_trials} trials failed; the first: {errors[0]}")
-        return [{"trial": k, "gains": {g: float(r.config[g]) for g in space},
-                 METRIC: float(r.metrics[METRIC]), "falls": int(r.metrics["falls"])}
-                for k, r in enumerate(results)]
+    errors = [r.error for r in grid if r.error is not None]
+    if errors:
+        raise SimulationError(f"tune {ctx.base.subject} {ctx.controller}",
+                              f"{len(errors)} of {n_trials} trials failed; the first: {errors[0]}")
+    falls = {tuple(float(r.config[g]) for g in space): int(r.metrics["falls"]) for r in grid}
+    trials = sorted(optuna.load_study(study_name=STUDY, storage=storage).trials, key=lambda t: t.number)
+    return [{"trial": t.number, "gains": {g: float(t.params[g]) for g in space}, METRIC: float(t.value),
+             "falls": falls.get(tuple(float(t.params[g]) for g in space))} for t in trials]
 
 
 def _finite(x: float | None) -> float | None:

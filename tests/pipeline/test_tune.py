@@ -39,7 +39,8 @@ def test_tune_writes_a_bounded_result(tiny: Params, tmp_path: Path) -> None:
     assert set(TUNING_COLUMNS + extra) <= set(doc)
     head = (doc["subject"], doc["variant"], doc["controller"], doc["n_trials"])
     assert head == ("camargo", "healthy", "pid", N_TRIALS)
-    assert len(doc["history"]) == N_TRIALS
+    assert [h["trial"] for h in doc["history"]] == list(range(N_TRIALS))
+    assert doc["history"][0]["gains"] == {g: doc["generic_gains"][g] for g in tiny.tune.search["pid"]}
     space = tiny.tune.search["pid"]
     assert set(doc["tuned_gains"]) == set(doc["generic_gains"])  # unsearched constants (i_max) kept
     assert doc["tuned_gains"]["i_max"] == doc["generic_gains"]["i_max"]
