@@ -47,16 +47,22 @@ class ObjectiveWeights:
     fall_penalty_m: float = 0.5           # a fall costs 50 cm
 
 
-def objective(rows: pd.DataFrame, free_speed_mps: float, w: ObjectiveWeights = ObjectiveWeights()) -> float:
-    """Mean over rollouts of |e_x| + |e_y| (m) + w_f |f|_rms + w_g |speed / free speed - 1| + the fall
-    penalty; a rollout without following samples or strides counts as a fall."""
+def costs(rows: pd.DataFrame, free_speed_mps: float, w: ObjectiveWeights = ObjectiveWeights()) -> np.ndarray:
+    """Per rollout: |e_x| + |e_y| (m) + w_f |f|_rms + w_g |speed / free speed - 1|, or the fall penalty
+    for a rollout that fell (or has no following samples or kept strides). A fall costs the same
+    whenever it happens: its partial terms are left out, so a controller cannot lower its cost by
+    making the human fall before the costly part of a walk."""
     ex, ey = rows["mean_abs_ex_cm"].to_numpy(float) / 100, rows["mean_abs_ey_cm"].to_numpy(float) / 100
     force = rows["force_rms_n"].to_numpy(float)
     gait = np.abs(rows["gait_speed_mps"].to_numpy(float) / free_speed_mps - 1.0)
-    fell = rows["fell"].to_numpy(bool) | ~np.isfinite(ex + ey + force + gait)
-    cost = np.where(fell, w.fall_penalty_m, 0.0) + np.nan_to_num(ex + ey + w.force_weight_m_per_n * force
-                                                                + w.gait_weight_m * gait, nan=0.0)
-    return float(cost.mean())
+    terms = ex + ey + w.force_weight_m_per_n * force + w.gait_weight_m * gait
+    fell = rows["fell"].to_numpy(bool) | ~np.isfinite(terms)
+    return np.where(fell, w.fall_penalty_m, np.nan_to_num(terms))
 
 
-__all__ = ["ROW_COLUMNS", "ObjectiveWeights", "objective", "run_row"]
+def objective(rows: pd.DataFrame, free_speed_mps: float, w: ObjectiveWeights = ObjectiveWeights()) -> float:
+    """Mean of `costs` over the rollouts."""
+    return float(costs(rows, free_speed_mps, w).mean())
+
+
+__all__ = ["ROW_COLUMNS", "ObjectiveWeights", "costs", "objective", "run_row"]

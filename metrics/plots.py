@@ -219,7 +219,7 @@ def tuning_figure(tuning: pd.DataFrame, title: str = "Controller tuning: held-ba
     """Generic vs tuned gains per controller and variant (`tune`): the held-back objective, mean with its
     95 % CI across rollouts (`tuning_comparison`), falls out of the held-back rollouts over each bar."""
     rows = tuning.sort_values(["controller", "variant"]).reset_index(drop=True)
-    fig, ax = plt.subplots(figsize=(max(4.0, 1.8 * len(rows) + 1.5), 3.8))
+    fig, ax = plt.subplots(figsize=(max(6.0, 1.8 * len(rows) + 1.5), 3.8))
     for k, (which, colour) in enumerate((("generic", "0.6"), ("tuned", "tab:blue"))):
         x = [i + (k - 0.5) * 0.38 for i in range(len(rows))]
         mean, ci = rows[f"{which}_mean"].astype(float), rows[f"{which}_ci95"].astype(float).fillna(0.0)
@@ -232,7 +232,7 @@ def tuning_figure(tuning: pd.DataFrame, title: str = "Controller tuning: held-ba
     ax.set_ylabel("objective (m), lower is better")
     ax.margins(y=0.15)
     ax.grid(alpha=0.3, axis="y")
-    ax.legend(fontsize=8)
+    fig.legend(*ax.get_legend_handles_labels(), loc="lower center", ncol=2, fontsize=8)
     fig.suptitle(title)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0.07, 1, 1))
     return fig

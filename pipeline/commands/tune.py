@@ -33,16 +33,17 @@ import ray
 from scipy import stats
 from tqdm import tqdm
 
-from metrics.outcomes import ObjectiveWeights, objective, run_row
+from metrics.outcomes import ObjectiveWeights, costs, objective, run_row
 from pipeline import paths
 from pipeline.params import Params, ParamsError
 from pipeline.stages.outputs import write_json
 from pipeline.stages.simulate import policy_setup, scenario_jobs
+from pipeline.stages.sweep import HEALTHY
 from sim.errors import SimulationError
 from sim.rollout.batch import BatchSetup, RolloutJob, Worker
 from sim.rollout.cluster import cached_worker, connect
 
-VARIANTS = ("healthy",)  # the subject's own policy; cohort variants come with the virtual cohort
+VARIANTS = (HEALTHY,)  # the subject's own policy; cohort variants come with the virtual cohort
 METRIC = "objective"
 CI_LEVEL = 0.95
 STUDY = "tune"
@@ -150,12 +151,12 @@ def free_speed(rows: pd.DataFrame, subject: str) -> float:
 def heldout_summary(rows: pd.DataFrame, free_speed_mps: float, w: ObjectiveWeights) -> dict:
     """Per-rollout cost (the objective of that one rollout): mean, 95 % CI half-width (Student t
     across rollouts; None with one rollout) and the falls."""
-    costs = np.array([objective(rows.iloc[[i]], free_speed_mps, w) for i in range(len(rows))])
-    n = len(costs)
-    ci = (float(stats.t.ppf(0.5 + CI_LEVEL / 2, n - 1) * costs.std(ddof=1) / math.sqrt(n))
+    each = costs(rows, free_speed_mps, w)
+    n = len(each)
+    ci = (float(stats.t.ppf(0.5 + CI_LEVEL / 2, n - 1) * each.std(ddof=1) / math.sqrt(n))
           if n > 1 else None)
-    return {"mean": float(costs.mean()), "ci95": ci, "falls": int(rows["fell"].astype(bool).sum()),
-            "costs": costs.tolist()}
+    return {"mean": float(each.mean()), "ci95": ci, "falls": int(rows["fell"].astype(bool).sum()),
+            "costs": each.tolist()}
 
 
 def trial_objective(config: dict, ctx: SearchContext) -> None:
@@ -229,7 +230,7 @@ def _finite(x: float | None) -> float | None:
     return None if x is None or not math.isfinite(x) else float(x)
 
 
-def run_tune(subject: str, controller: str, params: Params, variant: str = "healthy",
+def run_tune(subject: str, controller: str, params: Params, variant: str = HEALTHY,
              n_trials: int | None = None, out_root: Path = paths.TUNING_ROOT, progress: bool = True) -> Path:
     """Tune `controller`'s gains for `subject`'s policy human (variant `healthy`: its own policy),
     compare with the generic gains on held-back walks; returns the written JSON's path."""
