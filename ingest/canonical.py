@@ -5,9 +5,20 @@ What a file's header says (units, inDegrees) is applied; what it cannot say (up 
 comes from the subject file. Both are then checked against the body: a pelvis that is not
 0.4-1.6 m above the feet along the up axis, or a knee that flexes backwards, is reported as a
 wrong declaration instead of passing silently.
+
+Up axis `auto` (the default of a subject file that does not say): the axis of the marker file
+along which the pelvis markers stand 0.4-1.6 m above the foot markers in at least 90 % of the
+frames holding both; exactly one of +X, +Y, +Z must qualify, else the file is refused with the
+heights measured per axis. The decision is logged (logger `gaitloop.ingest`) and kept in the
+trial's provenance (`reader`, e.g. `markers:trc up=y(auto)`). A declared axis is used as declared
+and checked the same way.
 """
 
 from __future__ import annotations
+
+import dataclasses
+import logging
+import warnings
 
 import numpy as np
 
@@ -36,13 +47,26 @@ OPENSIM_COORDINATES = {
     "pelvis_rotation": ("pelvis_rotation", 1.0),
 }
 PELVIS_ABOVE_FEET_M = (0.4, 1.6)
+# Up axis `auto`: share of the frames (holding pelvis and foot markers) in which the pelvis must
+# stand PELVIS_ABOVE_FEET_M above the feet along the axis; 90 % tolerates jumps, falls and gaps.
+AUTO_UP_MIN_FRACTION = 0.9
+UP_AXES = ("x", "y", "z")
+PELVIS_ROLES = ("asis_left", "asis_right", "psis_left", "psis_right")
+FOOT_ROLES = ("heel_left", "heel_right", "toe_left", "toe_right")
+log = logging.getLogger("gaitloop.ingest")
 
 
 def up_to_z(xyz: np.ndarray, up_axis: str) -> np.ndarray:
-    """Rotate lab axes so the declared up axis becomes Z (right-handed: Y-up (x, y, z) -> (x, -z, y))."""
+    """Rotate lab axes so the declared up axis becomes Z (right-handed: Y-up (x, y, z) -> (x, -z, y);
+    X-up (x, y, z) -> (y, z, x))."""
     if up_axis == "z":
         return xyz
+    if up_axis not in UP_AXES:
+        raise ValueError(f"up axis {up_axis!r} is not one of {UP_AXES} (resolve 'auto' first)")
     out = np.empty_like(xyz)
+    if up_axis == "x":
+        out[..., 0], out[..., 1], out[..., 2] = xyz[..., 1], xyz[..., 2], xyz[..., 0]
+        return out
     out[..., 0], out[..., 1], out[..., 2] = xyz[..., 0], -xyz[..., 2], xyz[..., 1]
     return out
 
@@ -51,9 +75,66 @@ def z_up_to(xyz: np.ndarray, up_axis: str) -> np.ndarray:
     """The inverse of `up_to_z`: canonical Z-up points into a file's `up_axis` (Y-up: (x, z, -y))."""
     if up_axis == "z":
         return xyz
+    if up_axis not in UP_AXES:
+        raise ValueError(f"up axis {up_axis!r} is not one of {UP_AXES}")
     out = np.empty_like(xyz)
+    if up_axis == "x":
+        out[..., 0], out[..., 1], out[..., 2] = xyz[..., 2], xyz[..., 0], xyz[..., 1]
+        return out
     out[..., 0], out[..., 1], out[..., 2] = xyz[..., 0], xyz[..., 2], -xyz[..., 1]
     return out
+
+
+def pelvis_above_feet(xyz: np.ndarray, names: tuple[str, ...] | list[str],
+                      roles: dict[str, str]) -> np.ndarray | None:
+    """Per frame and lab axis, the pelvis markers' mean minus the foot markers' mean, (n, 3) m in
+    the file's own axes (NaN where either is missing); None without pelvis or foot markers."""
+    index = {n: j for j, n in enumerate(names)}
+    pelvis = [index[roles[r]] for r in PELVIS_ROLES if roles.get(r) in index]
+    feet = [index[roles[r]] for r in FOOT_ROLES if roles.get(r) in index]
+    if not pelvis or not feet:
+        return None
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # frames without any pelvis or foot marker
+        return np.nanmean(xyz[:, pelvis], axis=1) - np.nanmean(xyz[:, feet], axis=1)
+
+
+def detect_up_axis(xyz: np.ndarray, names: tuple[str, ...] | list[str], roles: dict[str, str],
+                   origin: str) -> tuple[str, dict[str, float]]:
+    """The file's up axis (module docstring, `auto`) and the median pelvis height above the feet
+    measured along each of its axes; raises `IngestError` when no axis, or more than one, fits."""
+    height = pelvis_above_feet(xyz, names, roles)
+    fix = "declare it: format.up_axis in the subject file, or --up-axis (x, y or z)"
+    if height is None:
+        raise IngestError(origin, f"cannot detect the up axis: the marker set's pelvis and foot markers "
+                          f"are not in the file; {fix}")
+    ok = np.isfinite(height).all(axis=1)
+    if not ok.any():
+        raise IngestError(origin, f"cannot detect the up axis: no frame holds both pelvis and foot markers; "
+                          f"{fix}")
+    lo, hi = PELVIS_ABOVE_FEET_M
+    h = height[ok]
+    share = ((h >= lo) & (h <= hi)).mean(axis=0)
+    medians = {a: float(np.median(h[:, j])) for j, a in enumerate(UP_AXES)}
+    fits = [a for j, a in enumerate(UP_AXES) if share[j] >= AUTO_UP_MIN_FRACTION]
+    if len(fits) != 1:
+        measured = ", ".join(f"{a.upper()} {medians[a]:+.3g} m ({share[j]:.0%} of frames in range)"
+                             for j, a in enumerate(UP_AXES))
+        raise IngestError(origin, f"cannot detect the up axis: pelvis above the feet per axis {measured}; "
+                          f"expected {lo}-{hi} m in >= {AUTO_UP_MIN_FRACTION:.0%} of frames along exactly "
+                          f"one axis; {fix}")
+    return fits[0], medians
+
+
+def resolve_up_axis(xyz: np.ndarray, names: tuple[str, ...] | list[str], roles: dict[str, str],
+                    fmt: FileFormat, origin: str) -> tuple[str, bool]:
+    """(up axis, detected?): the declared `fmt.up_axis`, or for `auto` the detected one (logged)."""
+    if fmt.up_axis != "auto":
+        return fmt.up_axis, False
+    axis, medians = detect_up_axis(xyz, names, roles, origin)
+    log.info("%s: up axis %s detected (pelvis above the feet: %s)", origin, axis.upper(),
+             ", ".join(f"{a.upper()} {m:+.2f} m" for a, m in medians.items()))
+    return axis, True
 
 
 def opensim_coordinates(angles: dict[str, np.ndarray], knee_flexion_sign: int = 1,
@@ -69,12 +150,10 @@ def opensim_coordinates(angles: dict[str, np.ndarray], knee_flexion_sign: int = 
 
 
 def _check_body_scale(markers: dict[str, np.ndarray], roles: dict[str, str], origin: str,
-                      fmt: FileFormat, unit: str) -> None:
+                      up_axis: str, unit: str) -> None:
     """Pelvis must sit 0.4-1.6 m above the feet along +Z: catches lying units and up axes."""
-    pelvis = [markers[roles[r]] for r in ("asis_left", "asis_right", "psis_left", "psis_right")
-              if roles.get(r) in markers]
-    feet = [markers[roles[r]] for r in ("heel_left", "heel_right", "toe_left", "toe_right")
-            if roles.get(r) in markers]
+    pelvis = [markers[roles[r]] for r in PELVIS_ROLES if roles.get(r) in markers]
+    feet = [markers[roles[r]] for r in FOOT_ROLES if roles.get(r) in markers]
     if not pelvis or not feet:
         return
     with np.errstate(all="ignore"):
@@ -85,9 +164,10 @@ def _check_body_scale(markers: dict[str, np.ndarray], roles: dict[str, str], ori
     if not lo <= height <= hi:
         raise IngestError(
             origin,
-            f"pelvis is {height:.4g} m above the feet along the up axis ({fmt.up_axis.upper()} "
+            f"pelvis is {height:.4g} m above the feet along the up axis ({up_axis.upper()} "
             f"declared, Units {unit!r}); expected {lo}-{hi} m: the file's units or the subject's "
-            "format.up_axis are wrong",
+            "format.up_axis are wrong (fix the Units header, or the up axis: format.up_axis in the "
+            "subject file, --up-axis of add-subject / events; 'auto' detects it)",
         )
 
 
@@ -185,20 +265,21 @@ def load_trial(subject: Subject, spec: TrialSpec, manifest: Manifest, source: st
     angles: dict[str, np.ndarray] = {}
     time = rate = None
     heading = 0.0
+    up = subject.format.up_axis
     if spec.markers:
         path = manifest.resolve(spec.markers)
         table: MarkerTable = read_markers(path)
         if path.suffix.lower() == ".csv":
             angles.update(read_csv(path).angles_deg)
-        xyz = up_to_z(table.xyz_m, subject.format.up_axis)
+        up, detected = resolve_up_axis(table.xyz_m, table.names, subject.markerset, subject.format, str(path))
+        xyz = up_to_z(table.xyz_m, up)
         markers = {n: xyz[:, j] for j, n in enumerate(table.names)}
-        _check_body_scale(markers, subject.markerset, str(path), subject.format, table.declared_unit)
+        _check_body_scale(markers, subject.markerset, str(path), up, table.declared_unit)
         heading = heading_rotation(markers, subject.markerset, table.rate_hz)
         markers = {n: rotate_z(v, heading) for n, v in markers.items()}
         time, rate = table.time_s, table.rate_hz
-        provenance.append(
-            _provenance(manifest, spec.markers, path, f"markers:{path.suffix.lower().lstrip('.')}")
-        )
+        reader = f"markers:{path.suffix.lower().lstrip('.')} up={up}{'(auto)' if detected else ''}"
+        provenance.append(_provenance(manifest, spec.markers, path, reader))
     if spec.angles:
         path = manifest.resolve(spec.angles)
         mot = read_mot(path)
@@ -211,7 +292,10 @@ def load_trial(subject: Subject, spec: TrialSpec, manifest: Manifest, source: st
     plates = None
     if spec.grf:
         path = manifest.resolve(spec.grf)
-        plates = plates_from_grf(read_mot(path), subject.format, heading)
+        if up == "auto":
+            raise IngestError(path, "up axis 'auto' is detected from the trial's marker file, and this trial "
+                              "has none: declare format.up_axis in the subject file (or --up-axis)")
+        plates = plates_from_grf(read_mot(path), dataclasses.replace(subject.format, up_axis=up), heading)
         provenance.append(_provenance(manifest, spec.grf, path, "grf:mot"))
     log = None
     if spec.robot_log:
@@ -223,4 +307,5 @@ def load_trial(subject: Subject, spec: TrialSpec, manifest: Manifest, source: st
                  markers, angles, plates, tuple(provenance), log, robot_markers)
 
 
-__all__ = ["load_trial", "canonical_angles", "up_to_z", "rotate_z", "read_c3d"]
+__all__ = ["load_trial", "canonical_angles", "up_to_z", "rotate_z", "read_c3d", "detect_up_axis",
+           "resolve_up_axis"]

@@ -12,6 +12,16 @@
   after the peak). The refinement removes the 40-50 ms early bias of the bare Zeni peak that we
   measured against force plates on both example subjects (the heel is still descending at its
   most anterior point).
+- A recording that starts with a heel already at its most anterior point (a peak cut by the start)
+  gets a heel strike there only when the foot is landing at that moment: heel within
+  `start_heel_height_m` of its stance level (5th percentile of its height over the trial), heel
+  vertical speed below `start_heel_speed_mps`, and the toe still coming down faster than
+  `start_toe_descent_mps` (the foot is not yet flat). A foot in swing, a foot already flat
+  (mid-stance, or quiet standing) and a trailing heel rising towards toe off get none: the strike
+  happened before the recording. Thresholds from the filtered markers at the plate-measured heel
+  strikes of both example subjects: heel -9..+17 mm above its stance level and -0.37..+0.24 m/s,
+  toe descending at 0.55-1.5 m/s (flat within ~0.1 s); a rising trailing heel stands 48-92 mm
+  above its stance level at 0.6-1.2 m/s.
 - `auto`: kinematic events everywhere, replaced by the force-plate event of the same side and
   kind when one lies within `force_window_s` (plates usually cover a few steps only).
 """
@@ -41,6 +51,9 @@ class EventParams:
     min_prominence_m: float = 0.1
     heel_settle_mps: float = 0.05
     settle_window_s: float = 0.25
+    start_heel_height_m: float = 0.03
+    start_heel_speed_mps: float = 0.4
+    start_toe_descent_mps: float = 0.2
 
 
 def _frame(rows: list[tuple[str, str, float, str]]) -> pd.DataFrame:
@@ -125,6 +138,24 @@ def _peak_at_start(x: np.ndarray, distance: int, prominence: float) -> bool:
     return bool(x[0] - head[trough] >= prominence and (x[1 : trough + 1] <= x[0]).all())
 
 
+def _landing(heel_z: np.ndarray, toe_z: np.ndarray, k: int, rate_hz: float, p: EventParams) -> bool:
+    """Whether frame `k` is a heel landing (module docstring): heel loaded near its stance level and
+    nearly still, toe still descending (the foot not yet flat)."""
+    if not 0 <= k < len(heel_z) or len(heel_z) < 3:
+        return False
+    window = slice(max(0, k - 1), min(len(heel_z), k + 2))
+    if not (np.isfinite(heel_z[window]).all() and np.isfinite(toe_z[window]).all()):
+        return False
+    with np.errstate(all="ignore"):
+        stance_level = np.nanpercentile(heel_z, 5)
+    heel_v = np.gradient(heel_z[window]) * rate_hz
+    toe_v = np.gradient(toe_z[window]) * rate_hz
+    j = k - window.start
+    return bool(heel_z[k] - stance_level <= p.start_heel_height_m
+                and abs(heel_v[j]) <= p.start_heel_speed_mps
+                and toe_v[j] < -p.start_toe_descent_mps)
+
+
 def kinematic_events(heel: dict[str, np.ndarray], toe: dict[str, np.ndarray], pelvis: np.ndarray,
                      heading_rad: np.ndarray, time_s: np.ndarray, rate_hz: float,
                      p: EventParams) -> pd.DataFrame:
@@ -145,8 +176,9 @@ def kinematic_events(heel: dict[str, np.ndarray], toe: dict[str, np.ndarray], pe
                 at = _refined_peak(rel, i)
                 if event == "heel_strike":
                     settled = _heel_settled(marker[:, 2], i, rate_hz, p)
-                    if settled is None and i == 0:
-                        continue  # a cut peak whose landing is not in the recording either
+                    if i == 0 and (settled is None or not _landing(
+                            marker[:, 2], toe[side][:, 2], int(round(settled)), rate_hz, p)):
+                        continue  # a cut peak: the foot is not landing in the recording
                     at = settled or at
                 rows.append((side, event, float(np.interp(at, np.arange(len(time_s)), time_s)),
                              "kinematic"))

@@ -2,9 +2,11 @@
 
 Fields: id, height_m, mass_kg, dataset, markerset (name of `data/markersets/<name>.yaml`, landmark
 role -> marker name), format (how the files are written: up_axis, knee_flexion_sign, and for
-files without a unit header, angle_unit), static (scaling trial: markers, optional window_s, and
+files without a unit header, angle_unit; up_axis x, y, z or auto, auto when not given:
+`ingest.canonical.detect_up_axis`), static (scaling trial: markers, optional window_s, and
 optional `angles`, the manifest key of the static pose's IK coordinates, median over the same
-window, used to calibrate the model's joint zeros), trials (id, condition, and
+window, used to calibrate the model's joint zeros; or `static: auto`, the quietest standing window
+found in the trials: `ingest.static.find_standing_window`), trials (id, condition, and
 manifest keys of the markers / angles / grf files, and of the `robot_log` of a robot-assisted
 trial: `ingest.readers.robot_log`), `robot_markers` (markers on the robot that stand in for a robot
 log: `RobotMarkers`) and `round_trip_of` (the subject whose simulated trials these files are,
@@ -24,13 +26,15 @@ REPO_ROOT = Path(__file__).resolve().parent.parent
 SUBJECTS_DIR = REPO_ROOT / "data" / "subjects"
 MARKERSETS_DIR = REPO_ROOT / "data" / "markersets"
 ROLES = ("heel", "toe", "ankle", "knee", "asis", "psis")
+UP_AXIS_CHOICES = ("x", "y", "z", "auto")
+STATIC_AUTO = "auto"  # `static: auto`: the quietest standing window of the subject's trials
 
 
 @dataclass(frozen=True)
 class FileFormat:
     """How a subject's files are written, declared once so nothing is guessed downstream."""
 
-    up_axis: str = "z"
+    up_axis: str = "z"  # x | y | z | auto (subject files default to auto; a bare FileFormat to z)
     knee_flexion_sign: int = 1
     angle_unit: str | None = None  # 'deg' | 'rad' for files whose header does not say
 
@@ -121,12 +125,12 @@ def load_subject(subject_id: str, directory: Path = SUBJECTS_DIR) -> Subject:
         raise SubjectError(path, f"mass_kg {mass} is not a human mass in kilograms")
     fmt_doc = doc.get("format") or {}
     fmt = FileFormat(
-        up_axis=str(fmt_doc.get("up_axis", "z")).lower(),
+        up_axis=str(fmt_doc.get("up_axis", "auto")).lower(),
         knee_flexion_sign=int(fmt_doc.get("knee_flexion_sign", 1)),
         angle_unit=fmt_doc.get("angle_unit"),
     )
-    if fmt.up_axis not in ("y", "z") or fmt.knee_flexion_sign not in (1, -1):
-        raise SubjectError(path, "format.up_axis must be y or z and knee_flexion_sign 1 or -1")
+    if fmt.up_axis not in UP_AXIS_CHOICES or fmt.knee_flexion_sign not in (1, -1):
+        raise SubjectError(path, "format.up_axis must be x, y, z or auto and knee_flexion_sign 1 or -1")
     trials = tuple(
         TrialSpec(
             id=str(_require(t, "id", path)),
@@ -158,7 +162,9 @@ def load_subject(subject_id: str, directory: Path = SUBJECTS_DIR) -> Subject:
             raise SubjectError(path, "robot_markers.neutral_in_base_m must be [x, y, z] in metres")
     static_doc = doc.get("static")
     static = None
-    if static_doc:
+    if static_doc == STATIC_AUTO:
+        static = StaticSpec(STATIC_AUTO)
+    elif static_doc:
         window = static_doc.get("window_s")
         angles = static_doc.get("angles")
         static = StaticSpec(str(static_doc["markers"]), tuple(window) if window else None,

@@ -129,7 +129,7 @@ def cmd_train(args: argparse.Namespace) -> int:
 
     rec = run_train(args.subject, load_params(args.params), n_envs=args.n_envs,
                     threads=args.threads, steps=args.steps, resume=args.resume, max_wall_s=args.max_wall_s,
-                    subprocess=True if args.subprocess else None, init_from=args.init_from)
+                    subprocess=True if args.subprocess else None, init_from=args.init_from, on_ray=args.ray)
     print(f"{args.subject}: policy at {rec['steps']} steps, {rec['wall_s']:.0f} s of training in total",
           file=sys.stderr)
     return 0
@@ -297,7 +297,8 @@ def add_results_commands(commands: argparse._SubParsersAction) -> None:
     add.add_argument("id", help="new subject id (lower case, digits, _ or -)")
     add.add_argument("--height-m", type=float, required=True)
     add.add_argument("--mass-kg", type=float, required=True)
-    add.add_argument("--static", type=Path, required=True, help="static (scaling) marker file")
+    add.add_argument("--static", type=Path, required=True, help="static (scaling) marker file, or 'auto': "
+                     "the quiet standing before a walk in the trials (checked to be quiet standing)")
     add.add_argument("--trial", action="append", required=True,
                      metavar="COND=MARKERS[,ANGLES[,GRF[,ROBOT_LOG]]]",
                      help="a walking trial: condition and marker file, optionally IK angles and GRF .mot "
@@ -305,7 +306,8 @@ def add_results_commands(commands: argparse._SubParsersAction) -> None:
     add.add_argument("--round-trip-of", metavar="SUBJECT", help="these files are SUBJECT's simulated trials "
                      "exported by `export` and read back: label the subject as a round trip")
     add.add_argument("--markerset", help="marker set in data/markersets/ (default: the one that fits)")
-    add.add_argument("--up-axis", choices=("y", "z"), default="z")
+    add.add_argument("--up-axis", choices=("x", "y", "z", "auto"), default="auto",
+                     help="the files' up axis (default: auto, detected from pelvis and foot markers)")
     add.add_argument("--knee-flexion-sign", type=int, choices=(1, -1), default=1)
     add.add_argument("--dataset", help="dataset label (default: added:<id>)")
     add.set_defaults(func=cmd_add_subject)
@@ -387,6 +389,8 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--subprocess", action="store_true", help="one process per environment")
     train.add_argument("--init-from", metavar="SUBJECT",
                        help="start from SUBJECT's trained policy (transfer) instead of from scratch")
+    train.add_argument("--ray", action="store_true", help="run as one Ray job: on this machine, or on a node "
+                       "of the RAY_ADDRESS cluster (the policy folder comes back when it succeeded)")
     train.set_defaults(func=cmd_train)
 
     evaluate = commands.add_parser("evaluate-policy", help="issue-6 checks of the trained walking policy")

@@ -27,6 +27,7 @@ from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError,
 
 from ingest.errors import GaitloopError
 from ingest.process import IngestParams
+from ingest.static import StaticCheckParams
 from metrics import JOINTS, SpmParams
 from metrics.outcomes import ObjectiveWeights
 from metrics.phases import EventWindow
@@ -151,6 +152,9 @@ class EventsSchema(Schema):
     min_prominence_m: float
     heel_settle_mps: float
     settle_window_s: float
+    start_heel_height_m: float
+    start_heel_speed_mps: float
+    start_toe_descent_mps: float
 
 
 class StridesSchema(Schema):
@@ -174,6 +178,17 @@ class PhasesSchema(Schema):
     min_speed_change_s: float
 
 
+class StaticCheckSchema(Schema):
+    min_duration_s: Annotated[float, Field(gt=0.0)]
+    max_pelvis_speed_mps: Annotated[float, Field(gt=0.0)]
+    max_foot_spread_m: Annotated[float, Field(gt=0.0)]
+    max_knee_flexion_deg: Annotated[float, Field(gt=0.0)]
+    speed_window_s: Annotated[float, Field(gt=0.0)]
+
+    def build(self) -> StaticCheckParams:
+        return StaticCheckParams(**self.model_dump())
+
+
 class IngestSchema(Schema):
     filter: FilterSchema
     gaps: GapsSchema
@@ -182,6 +197,7 @@ class IngestSchema(Schema):
     strides: StridesSchema
     cycles: CyclesSchema
     phases: PhasesSchema
+    static: StaticCheckSchema  # the static trial's check: `ingest.static.StaticCheckParams` (static.build())
 
     def build(self) -> IngestParams:
         return IngestParams.from_dict(self.model_dump())

@@ -3,6 +3,10 @@
 Layout: line 1 file type; lines 2-3 header keys and values (DataRate, NumFrames, NumMarkers,
 Units, ...); line 4 `Frame#`, `Time` and one name per marker (spanning X/Y/Z); line 5 the
 X1 Y1 Z1 ... labels; then tab-separated rows. Empty cells are missing samples (NaN).
+
+Header lines 2-3 and the marker-name line are also read when aligned with repeated tabs or spaces
+(some exporters pad them): keys, values and names never contain spaces, so when the tab cells do
+not pair up, the runs of whitespace separate them. Data rows stay strictly tab-separated.
 """
 
 from __future__ import annotations
@@ -17,11 +21,26 @@ from ingest.readers.table import UNIT_TO_M, MarkerTable
 
 
 def _header_fields(path: Path, keys: str, values: str) -> dict[str, str]:
-    k = keys.rstrip("\r\n").split("\t")
-    v = values.rstrip("\r\n").split("\t")
+    """Header keys (line 2) -> values (line 3): tab cells as written, or, when padding tabs or
+    spaces leave empty cells or unequal counts, the whitespace-separated words."""
+    k = [c.strip() for c in keys.rstrip("\r\n").split("\t")]
+    v = [c.strip() for c in values.rstrip("\r\n").split("\t")]
+    if len(k) != len(v) or any(len(c.split()) != 1 for c in k + v):  # empty cells, or cells with spaces
+        words_k, words_v = keys.split(), values.split()
+        if len(words_k) == len(words_v):
+            k, v = words_k, words_v
     if "DataRate" not in k or "Units" not in k:
         raise IngestError(path, "not a TRC file: header line 2 lacks DataRate/Units")
     return dict(zip(k, v, strict=False))
+
+
+def _marker_names(line: str, n_markers: int) -> tuple[str, ...]:
+    """Marker names of line 4 after `Frame#` and `Time`: the non-empty tab cells (each name is
+    followed by empty cells over its Y and Z columns), else the whitespace-separated words."""
+    cells = [c.strip() for c in line.rstrip("\r\n").split("\t") if c.strip()]
+    if len(cells) - 2 != n_markers and len(line.split()) - 2 == n_markers:
+        cells = line.split()
+    return tuple(cells[2:])
 
 
 def read_trc(path: str | Path) -> MarkerTable:
@@ -43,8 +62,7 @@ def read_trc(path: str | Path) -> MarkerTable:
         n_markers = int(header["NumMarkers"])
     except (KeyError, ValueError) as exc:
         raise IngestError(path, f"bad header value: {exc}") from None
-    cells = lines[3].rstrip("\r\n").split("\t")
-    names = tuple(c.strip() for c in cells[2:] if c.strip())
+    names = _marker_names(lines[3], n_markers)
     if len(names) != n_markers:
         raise IngestError(path, f"header declares {n_markers} markers, line 4 names {len(names)}")
     n_cols = 2 + 3 * n_markers

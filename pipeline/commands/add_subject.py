@@ -12,8 +12,14 @@ swapped.
 
 Everything is checked before anything is written: the id is new, every file exists, every file
 is read by the ingest readers and goes through the canonical frame (units, up axis, body scale)
-with the chosen marker set. params.yaml and the manifest are edited by appending lines, keeping
+with the chosen marker set, and the static trial is quiet standing (`ingest.static.check_static`,
+params `ingest.static`). params.yaml and the manifest are edited by appending lines, keeping
 their comments.
+
+Up axis `auto` (the default): detected per marker file (`ingest.canonical.detect_up_axis`); when
+all files agree the subject file declares that axis (so later runs check it), else `auto`.
+Static `auto`: the quiet standing before a walk in the trials (`ingest.static.find_standing_window`),
+written as that trial's file and `window_s`.
 """
 
 from __future__ import annotations
@@ -25,14 +31,17 @@ from pathlib import Path
 
 import yaml
 
-from ingest.canonical import load_trial
+from ingest.canonical import load_trial, resolve_up_axis
 from ingest.errors import GaitloopError, IngestError, SubjectError
 from ingest.manifest import DEFAULT_MANIFEST, Manifest, Source, sha256_of
 from ingest.readers import read_markers, read_mot, read_robot_log
 from ingest.robot_log import robot_table
+from ingest.static import check_static, find_standing_window
 from ingest.subject import (
     MARKERSETS_DIR,
+    STATIC_AUTO,
     SUBJECTS_DIR,
+    UP_AXIS_CHOICES,
     FileFormat,
     StaticSpec,
     Subject,
@@ -134,11 +143,12 @@ def _append_subject_to_params(text: str, subject_id: str, path: Path) -> str:
     return "".join(lines)
 
 
-def add_subject(subject_id: str, height_m: float, mass_kg: float, static: Path, trials: list[NewTrial], *,
-                markerset: str | None = None, up_axis: str = "z", knee_flexion_sign: int = 1,
-                dataset: str | None = None, round_trip_of: str | None = None,
+def add_subject(subject_id: str, height_m: float, mass_kg: float, static: Path | str,
+                trials: list[NewTrial], *, markerset: str | None = None, up_axis: str = "auto",
+                knee_flexion_sign: int = 1, dataset: str | None = None, round_trip_of: str | None = None,
                 registry: Registry = Registry()) -> Path:
-    """Check and register a subject; returns the new subject file. Raises `SubjectError` or
+    """Check and register a subject; returns the new subject file. `static` is a marker file or
+    "auto", `up_axis` x, y, z or "auto" (module docstring). Raises `SubjectError` or
     `IngestError` naming the id or file at fault, having written nothing."""
     subj_file = registry.subjects_dir / f"{subject_id}.yaml"
     if not ID_PATTERN.match(subject_id):
@@ -154,27 +164,33 @@ def add_subject(subject_id: str, height_m: float, mass_kg: float, static: Path, 
                            "the reference motion of the simulated human is built from those")
     if not 0.5 <= height_m <= 2.5 or not 10 <= mass_kg <= 300:
         raise SubjectError(subject_id, f"height {height_m} m / mass {mass_kg} kg are not a human's")
-    if up_axis not in ("y", "z") or knee_flexion_sign not in (1, -1):
-        raise SubjectError(subject_id, "up axis must be y or z and knee flexion sign 1 or -1")
+    if up_axis not in UP_AXIS_CHOICES or knee_flexion_sign not in (1, -1):
+        raise SubjectError(subject_id, "up axis must be x, y, z or auto and knee flexion sign 1 or -1")
     if round_trip_of is not None and not ID_PATTERN.match(round_trip_of):
         raise SubjectError(round_trip_of, "round_trip_of must be a subject id")
     for t in trials:
         if t.robot_log and t.condition == "free":
             raise SubjectError(t.robot_log, "a robot log belongs to a robot-assisted trial: name the "
                                "controller that ran as the trial's condition, not 'free'")
-    static = _check_file(static, "static")
+    static_auto = str(static) == STATIC_AUTO
+    static = None if static_auto else _check_file(Path(static), "static")
     checked = [NewTrial(t.condition, _check_file(t.markers, "markers"),
                         t.angles and _check_file(t.angles, "angles"), t.grf and _check_file(t.grf, "grf"),
                         t.robot_log and _check_file(t.robot_log, "robot_log"))
                for t in trials]
-    markerset = markerset or fitting_markerset(read_markers(static).names, static, registry.markersets_dir)
+    fit_on = checked[0].markers if static_auto else static
+    markerset = markerset or fitting_markerset(read_markers(fit_on).names, fit_on, registry.markersets_dir)
     roles = load_markerset(markerset, registry.markersets_dir)
+    marker_files = [t.markers for t in checked] if static_auto else [static, *(t.markers for t in checked)]
+    detected = up_axis == "auto"
+    up_axis = _resolved_up_axis(marker_files, roles, up_axis)
+    detected = detected and up_axis != "auto"
 
     manifest = Manifest.load(registry.manifest_path, mirror=registry.mirror)
     by_sha = {s.sha256: k for k, s in manifest.sources.items()}
     new: dict[str, Source] = {}
     key = lambda p: p and _manifest_key(p, manifest, by_sha, subject_id, new)  # noqa: E731
-    static_key = key(static)
+    static_key = None if static_auto else key(static)
     specs, ids = [], set()
     for t in checked:
         trial_id, n = t.markers.stem, 1
@@ -188,8 +204,9 @@ def add_subject(subject_id: str, height_m: float, mass_kg: float, static: Path, 
     # Read every trial exactly as the pipeline will (files mapped to where they lie now).
     fmt = FileFormat(up_axis=up_axis, knee_flexion_sign=knee_flexion_sign)
     subject = Subject(subject_id, float(height_m), float(mass_kg), dataset or f"added:{subject_id}", roles,
-                      fmt, StaticSpec(static_key), tuple(specs))
-    paths = [static, *(p for t in checked for p in (t.markers, t.angles, t.grf, t.robot_log) if p)]
+                      fmt, StaticSpec(static_key or STATIC_AUTO), tuple(specs))
+    paths = [*([] if static_auto else [static]),
+             *(p for t in checked for p in (t.markers, t.angles, t.grf, t.robot_log) if p)]
     files = {key(p): p for p in paths}
     here = _FilesAsTheyLie({k: Source(k, p.as_uri(), sha256_of(p)) for k, p in files.items()}, files)
     for spec in specs:
@@ -200,12 +217,24 @@ def add_subject(subject_id: str, height_m: float, mass_kg: float, static: Path, 
         except GaitloopError as exc:
             raise IngestError(files.get(spec.markers, spec.markers), f"cannot be ingested as subject "
                               f"{subject_id!r}: {getattr(exc, 'problem', exc)}") from None
+    standing_check = params.ingest.static.build()
+    if static_auto:  # the standing before a walk, in the trials (its IK too, for the joint zeros)
+        found = find_standing_window([t.markers for t in checked], subject, standing_check)
+        chosen = next(i for i, t in enumerate(checked) if str(t.markers) == found.source)
+        window = [round(found.t0_s, 3), round(found.t1_s, 3)]
+        static_doc = {"markers": specs[chosen].markers, "window_s": window,
+                      **({"angles": specs[chosen].angles} if specs[chosen].angles else {})}
+        note = (f"static: quiet standing {found.t0_s:.2f}-{found.t1_s:.2f} s of {Path(found.source).name}, "
+                "found by --static auto.\n")
+    else:
+        check_static(static, subject, None, standing_check)  # refuses a walk or jump given as static
+        static_doc, note = {"markers": static_key}, ""
 
     doc = {
         "id": subject_id, "height_m": float(height_m), "mass_kg": float(mass_kg),
         "dataset": subject.dataset, "markerset": markerset,
         "format": {"up_axis": up_axis, "knee_flexion_sign": knee_flexion_sign},
-        "static": {"markers": static_key},
+        "static": static_doc,
         "trials": [{k: v for k, v in dataclasses.asdict(s).items() if v is not None} for s in specs],
         **({"round_trip_of": round_trip_of} if round_trip_of else {}),
     }
@@ -218,7 +247,9 @@ def add_subject(subject_id: str, height_m: float, mass_kg: float, static: Path, 
         targets.append(registry.manifest_path)
     with replacing(*targets) as temps:
         temps[0].write_text(f"# Registered by `python -m pipeline add-subject {subject_id}`.\n"
-                            + yaml.safe_dump(doc, sort_keys=False))
+                            + (f"# up axis {up_axis.upper()} detected in all marker files (--up-axis auto).\n"
+                               if detected else "")
+                            + (f"# {note}" if note else "") + yaml.safe_dump(doc, sort_keys=False))
         temps[1].write_text(params_text)
         if new:
             entries = "".join(f"  {k}:\n    url: {s.url}\n    sha256: {s.sha256}\n"
@@ -226,6 +257,19 @@ def add_subject(subject_id: str, height_m: float, mass_kg: float, static: Path, 
             text = registry.manifest_path.read_text()
             temps[2].write_text(text + ("" if text.endswith("\n") else "\n") + entries)
     return subj_file
+
+
+def _resolved_up_axis(paths: list[Path], roles: dict[str, str], up_axis: str) -> str:
+    """`up_axis` as given, or for `auto` the axis detected in every marker file when they agree
+    (errors name the file whose axis cannot be told); `auto` again when they do not."""
+    if up_axis != "auto":
+        return up_axis
+    fmt = FileFormat(up_axis="auto")
+    found = set()
+    for path in paths:
+        table = read_markers(path)
+        found.add(resolve_up_axis(table.xyz_m, table.names, roles, fmt, str(path))[0])
+    return found.pop() if len(found) == 1 else "auto"
 
 
 @dataclass(frozen=True)

@@ -35,7 +35,8 @@ def run_scale(subject_id: str, params: Params, root: Path = PROCESSED_ROOT,
     """Scale, build, check and render `subject_id`'s human; returns the model folder."""
     subject = load_subject(subject_id)
     p = params.human.build()
-    body = scale_subject(subject, read_static_trial(subject, Manifest.load()), p)
+    static = read_static_trial(subject, Manifest.load(), check=params.ingest.static.build())
+    body = scale_subject(subject, static, p)
     spec = build_human(body, p)
     model = spec.compile()
     xml = spec.to_xml()

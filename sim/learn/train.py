@@ -21,6 +21,7 @@ from __future__ import annotations
 import csv
 import hashlib
 import json
+import tempfile
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, fields
@@ -28,6 +29,7 @@ from functools import partial
 from pathlib import Path
 
 import numpy as np
+import ray
 import torch
 from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList
@@ -36,6 +38,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMoni
 from sim.learn.amp import AMP, AMPCallback, AMPParams
 from sim.learn.walk_env import AMP_SIZE, LEGACY_OBS_SIZE, OBS_SIZE, WalkEnv, WalkEnvParams, make_walk_env
 from sim.motion.reference import ReferenceCycle
+from sim.rollout.cluster import connect
 
 POLICY_FILE, NORM_FILE, AMP_FILE, PROGRESS_FILE = "policy.zip", "vecnormalize.pkl", "amp.pt", "progress.json"
 BODY_FILE, CYCLE_FILE = "human.xml", "cycle.npz"  # the body and reference cycle the policy was trained on
@@ -240,6 +243,51 @@ def train(model_path: str | Path, cycle: ReferenceCycle, p: TrainParams, out_dir
     rec = save()
     log.close()
     venv.close()
+    return rec
+
+
+def _pack(folder: Path) -> dict[str, bytes]:
+    """Every file under `folder` by its relative path (a policy folder is a few MB)."""
+    return {str(f.relative_to(folder)): f.read_bytes() for f in sorted(folder.rglob("*")) if f.is_file()}
+
+
+def _unpack(folder: Path, files: dict[str, bytes]) -> None:
+    for name, data in files.items():
+        (folder / name).parent.mkdir(parents=True, exist_ok=True)
+        (folder / name).write_bytes(data)
+
+
+@ray.remote
+def _train_job(human_xml: bytes, cycle: ReferenceCycle, p: TrainParams, policy: dict[str, bytes],
+               init: dict[str, bytes] | None, kwargs: dict) -> tuple[dict[str, bytes], dict]:
+    with tempfile.TemporaryDirectory() as tmp:
+        root = Path(tmp)
+        (root / "human.xml").write_bytes(human_xml)
+        _unpack(root / "policy", policy)
+        if init is not None:
+            _unpack(root / "init", init)
+        rec = train(root / "human.xml", cycle, p, root / "policy", init_from=root / "init" if init else None,
+                    progress=False, **kwargs)
+        return _pack(root / "policy"), rec
+
+
+def train_on_ray(model_path: str | Path, cycle: ReferenceCycle, p: TrainParams, out_dir: str | Path, *,
+                 cpus: int, init_from: str | Path | None = None, **kwargs: object) -> dict:
+    """`train` as one Ray job of `cpus` CPUs: on this machine or on a node of the `RAY_ADDRESS`
+    cluster (`sim.rollout.cluster`). The body, the policy to resume or start from and the resulting
+    policy folder travel as bytes, so the node needs no shared disk; `out_dir` is written only when
+    the job succeeded (a failed job leaves the committed policy as it was)."""
+    connect(cpus)
+    out = Path(out_dir)
+    policy = _pack(out) if kwargs.get("resume") and out.is_dir() else {}
+    init = _pack(Path(init_from)) if init_from is not None else None
+    files, rec = ray.get(_train_job.options(num_cpus=cpus).remote(Path(model_path).read_bytes(), cycle, p,
+                                                                   policy, init, kwargs))
+    if init_from is not None and "initialised_from" in rec:  # name the real start, not the job's copy
+        rec["initialised_from"] = str(init_from)
+        files[PROGRESS_FILE] = (json.dumps(rec, indent=2) + "\n").encode()
+    out.mkdir(parents=True, exist_ok=True)
+    _unpack(out, files)
     return rec
 
 

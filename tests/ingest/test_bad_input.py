@@ -21,11 +21,13 @@ from ingest.manifest import Manifest, Source, sha256_of
 from ingest.process import IngestParams, process_subject, process_trial
 from ingest.readers import read_robot_log, read_trc
 from ingest.robot_log import robot_table
-from ingest.subject import FileFormat, Subject, TrialSpec, load_subject
+from ingest.static import read_static_trial
+from ingest.subject import FileFormat, StaticSpec, Subject, TrialSpec, load_subject
 
 ROOT = Path(__file__).resolve().parents[2]
 CAMARGO_TRC = "camargo2021_levelground/MarkerData/levelground_ccw_fast_01_01.trc"
 CAMARGO_MOT = "camargo2021_levelground/IK/levelground_ccw_fast_01_01_ik.mot"
+OPENCAP_WALK = "opencap_labval_subject4/MarkerData/walking1.trc"
 UNREACHABLE_URL = "http://127.0.0.1:9/gaitloop-missing"  # refused at once: no network wait
 
 
@@ -183,7 +185,7 @@ def test_millimetre_file_declared_as_such_gives_the_same_strides(corpus, camargo
 def test_y_up_file_declared_z_up(corpus, camargo):
     key = corpus.add(CAMARGO_TRC, corpus.text(CAMARGO_TRC))
     subject, spec = _one_trial(camargo, key, up_axis="z")
-    with _raises(IngestError, corpus.path(key), "up_axis", "Z declared"):
+    with _raises(IngestError, corpus.path(key), "up_axis", "Z declared", "--up-axis"):
         load_trial(subject, spec, corpus.manifest())
 
 
@@ -203,6 +205,58 @@ def test_z_up_copy_declared_z_up_gives_the_same_strides(corpus, camargo, real, p
     ref = _reference(camargo, real, params).strides
     assert zup["kept"].tolist() == ref["kept"].tolist()
     np.testing.assert_allclose(zup["stride_length_m"], ref["stride_length_m"], atol=1e-6)
+
+
+@pytest.mark.parametrize("layout", ["doubled tabs", "keys padded", "spaces", "names padded"])
+def test_trc_header_aligned_with_repeated_tabs_or_spaces_reads_the_same(corpus, layout):
+    """Exporters that align the header columns: keys, values and names padded with runs of tabs or
+    spaces. Read by splitting on whitespace, the same table comes out (it used to say "unknown Units")."""
+    text = corpus.text(CAMARGO_TRC)
+    lines = text.splitlines()
+    if layout == "doubled tabs":
+        lines[1], lines[2] = lines[1].replace("\t", "\t\t"), lines[2].replace("\t", "\t\t")
+    elif layout == "keys padded":
+        lines[1] = lines[1].replace("\t", "\t\t\t")
+    elif layout == "spaces":
+        lines[1] = " ".join(f"{c:<20}" for c in lines[1].split("\t"))
+        lines[2] = " ".join(f"{c:<20}" for c in lines[2].split("\t"))
+    else:
+        lines[3] = lines[3].replace("\t", "\t\t")
+    key = corpus.add(CAMARGO_TRC, "\n".join(lines) + "\n")
+    padded, ref = read_trc(corpus.manifest().resolve(key)), read_trc(corpus.real.resolve(CAMARGO_TRC))
+    assert padded.names == ref.names and padded.rate_hz == ref.rate_hz and padded.declared_unit == "m"
+    np.testing.assert_array_equal(padded.xyz_m, ref.xyz_m)
+
+
+def test_up_axis_auto_refuses_a_tilted_lab(corpus, camargo):
+    """The recording turned 45 deg about X: the pelvis stands ~0.7 m above the feet along both Y and Z,
+    so `auto` cannot choose; the error gives the heights per axis and the way to declare it."""
+    c, s = np.cos(np.pi / 4), np.sin(np.pi / 4)
+
+    def tilt(cells):
+        out = cells[:2]
+        for j in range(2, len(cells) - 2, 3):
+            x, y, z = cells[j:j + 3]
+            if not y.strip():
+                out += [x, y, z]
+                continue
+            out += [x, f"{c * float(y) - s * float(z):.6f}", f"{s * float(y) + c * float(z):.6f}"]
+        return out
+
+    key = corpus.add(CAMARGO_TRC, _trc_edit(corpus.text(CAMARGO_TRC), tilt))
+    subject, spec = _one_trial(camargo, key, up_axis="auto")
+    with _raises(IngestError, corpus.path(key), "cannot detect the up axis", "Y +0.", "Z +0.",
+                 "format.up_axis", "--up-axis"):
+        load_trial(subject, spec, corpus.manifest())
+
+
+def test_walking_trial_given_as_static(corpus):
+    opencap = load_subject("opencap4")
+    key = corpus.add(OPENCAP_WALK, corpus.text(OPENCAP_WALK))
+    subject = dataclasses.replace(opencap, static=StaticSpec(key))
+    with _raises(IngestError, corpus.path(key), "not a static (quiet standing) trial", "pelvis moving",
+                 "> 0.1 m/s"):
+        read_static_trial(subject, corpus.manifest())
 
 
 def _mot_with_header(corpus: Corpus, replace: tuple[str, str] | None) -> str:

@@ -210,3 +210,18 @@ def test_policy_human_refuses_a_world_at_another_timestep(setup, policies_root):
     p = RolloutParams(robot=params.robot.build(), sample_rate_hz=200.0, with_robot=False)
     with pytest.raises(SimulationError, match="trained at 2.000 ms"):
         rollout(mujoco.MjSpec.from_file(str(body)), human, None, p, 0)
+
+
+def test_training_runs_as_a_ray_job_and_resumes(tmp_path, setup, camargo_model):
+    """`train_on_ray`: the same training as one Ray job; the folder comes back and resumes there."""
+    from sim.learn.train import train_on_ray
+
+    _, tp, _, cycle = setup
+    p = replace(tp, n_steps=128, batch_size=256, n_epochs=1, net_arch=(32, 32),
+                amp=replace(tp.amp, hidden=(32, 32)))
+    xml = camargo_model / "human.xml"
+    rec = train_on_ray(xml, cycle, p, tmp_path, cpus=1, n_envs=2, threads=1, total_steps=256)
+    assert rec["steps"] >= 256 and (tmp_path / "policy.zip").is_file()
+    assert json.loads((tmp_path / "progress.json").read_text())["steps"] == rec["steps"]
+    again = train_on_ray(xml, cycle, p, tmp_path, cpus=1, n_envs=2, threads=1, total_steps=512, resume=True)
+    assert again["steps"] >= 512 and len(again["runs"]) == 2
