@@ -32,6 +32,7 @@ from metrics import JOINTS, SpmParams
 from metrics.outcomes import ObjectiveWeights
 from metrics.phases import EventWindow
 from metrics.policy_checks import PolicyChecks
+from metrics.quality import Limits, QualityParams
 from metrics.scenario_checks import ScenarioChecks
 from pipeline.paths import PARAMS_FILE, repo_path
 from pipeline.store import StoreParams
@@ -239,6 +240,31 @@ class MetricsSchema(Schema):
                         joints=self.joints)
         return MetricsParams(self.pool_sides, self.exclude_locked, self.joints, self.tracking_rate_hz, spm,
                              EventWindow(**self.events.model_dump()))
+
+
+class QualitySchema(Schema):
+    """Each limit is [warn, fail] (metrics/quality.py)."""
+
+    marker_rms_m: Pair
+    asymmetry_pct: Pair
+    ik_angle_rms_deg: Pair
+    edge_window_s: Annotated[float, Field(gt=0.0)]
+    edge_strike_share: Pair
+    span_samples: Pair
+    speed_gap_pct: Pair
+    missing_sides: Pair
+    non_steady_share: Pair
+
+    @model_validator(mode="after")
+    def _ordered(self) -> QualitySchema:
+        for name, value in self:
+            if isinstance(value, tuple) and not value[0] <= value[1]:
+                raise ValueError(f"{name}: warn must not exceed fail (got {list(value)})")
+        return self
+
+    def build(self) -> QualityParams:
+        return QualityParams(**{name: Limits(*value) if isinstance(value, tuple) else value
+                                for name, value in self})
 
 
 class StoreSchema(Schema):
@@ -747,6 +773,7 @@ class Params(Schema):
     subjects: tuple[str, ...]
     ingest: IngestSchema
     metrics: MetricsSchema
+    quality: QualitySchema
     store: StoreSchema
     report: ReportSchema
     retarget: RetargetSchema

@@ -17,7 +17,9 @@ condition); their curves and clusters to the test's version. Base tables are `re
 `run_groups` records, for every store run, each group it stored and the version that group resolved
 to; `latest_versions` (and every `latest_<name>` view) holds the groups of each subject's last run,
 so a condition that a subject no longer has drops out of the latest views while its old versions
-stay queryable. `paper_table1..3`, `phase_compliance`, `event_aligned`, `spm_clusters`,
+stay queryable. `quality` holds each subject's quality gates (`metrics.quality`) of every store run
+(`quality_latest`: its last run's; each paper-table row carries its subject's worst status).
+`paper_table1..3`, `phase_compliance`, `event_aligned`, `spm_clusters`,
 `subject_summary` are described in README.md.
 """
 
@@ -97,6 +99,8 @@ TUNING_DDL = ("version_id BIGINT NOT NULL, subject VARCHAR, variant VARCHAR, con
               "search_best_objective DOUBLE, generic_mean DOUBLE, generic_ci95 DOUBLE, generic_falls BIGINT, "
               "tuned_mean DOUBLE, tuned_ci95 DOUBLE, tuned_falls BIGINT, n_heldout BIGINT, "
               "content_hash VARCHAR, run_id BIGINT, created_at TIMESTAMP")
+QUALITY_DDL = ('run_id BIGINT NOT NULL, subject VARCHAR NOT NULL, stage VARCHAR, "check" VARCHAR, '
+               "value DOUBLE, warn_above DOUBLE, fail_above DOUBLE, status VARCHAR, note VARCHAR")
 LINKED = ("spm_curves", "spm_clusters")  # rows that belong to an SPM test's group via test_id
 
 
@@ -125,6 +129,7 @@ class SubjectResults:
     tables: dict[str, pd.DataFrame]
     params_hash: str
     round_trip_of: str | None = None  # its "recorded" trials are this subject's exported simulations
+    quality: pd.DataFrame | None = None  # its quality gates (`metrics.quality.QUALITY_COLUMNS`)
 
 
 @dataclass(frozen=True)
@@ -191,14 +196,26 @@ def _views() -> list[str]:
     views += [f"CREATE OR REPLACE VIEW latest_{t} AS SELECT r.* FROM result_{t} r "
               "JOIN latest_versions USING (version_id)" for t in TABLES]
 
+    views += [
+        # each subject's quality gates as of its last store run, and its worst status
+        "CREATE OR REPLACE VIEW quality_latest AS SELECT q.* FROM quality q WHERE q.run_id = "
+        "(SELECT max(u.run_id) FROM quality u WHERE u.subject = q.subject) "
+        "ORDER BY subject, stage, \"check\"",
+        "CREATE OR REPLACE VIEW quality_worst AS SELECT subject, CASE max(CASE status WHEN 'fail' THEN 2 "
+        "WHEN 'warn' THEN 1 WHEN 'ok' THEN 0 END) WHEN 2 THEN 'fail' WHEN 1 THEN 'warn' WHEN 0 THEN 'ok' "
+        "ELSE 'unknown' END AS quality FROM quality_latest GROUP BY subject",
+    ]
+
     def real_sim(table: str, keys: list[str], values: list[str], where: str = "TRUE") -> str:
         cols = ", ".join([*(f"r.{v} AS real_{v}" for v in values), *(f"s.{v} AS sim_{v}" for v in values)])
         on = " AND ".join(f"s.{k} = r.{k}" for k in keys)
         sel = ", ".join(f"coalesce(s.{k}, r.{k}) AS {k}" for k in keys)
-        return (f"SELECT {sel}, s.human_mode AS sim_human_mode, {cols} FROM "
-                f"(SELECT * FROM latest_{table} WHERE source = 'real' AND {where}) r FULL OUTER JOIN "
-                f"(SELECT * FROM latest_{table} WHERE source = 'sim' AND {where}) s ON {on} "
-                f"ORDER BY {', '.join(keys)}, sim_human_mode")
+        joined = (f"SELECT {sel}, s.human_mode AS sim_human_mode, {cols} FROM "
+                  f"(SELECT * FROM latest_{table} WHERE source = 'real' AND {where}) r FULL OUTER JOIN "
+                  f"(SELECT * FROM latest_{table} WHERE source = 'sim' AND {where}) s ON {on}")
+        return (f"SELECT t.*, coalesce(w.quality, 'unknown') AS quality FROM ({joined}) t "
+                f"LEFT JOIN quality_worst w ON w.subject = t.subject "
+                f"ORDER BY {', '.join(f't.{k}' for k in keys)}, t.sim_human_mode")
 
     views += [
         "CREATE OR REPLACE VIEW paper_table1 AS " + real_sim(
@@ -265,6 +282,7 @@ def ensure_schema(con: duckdb.DuckDBPyConnection) -> None:
                 "code_rev VARCHAR, subjects VARCHAR, n_groups BIGINT, n_new_versions BIGINT)")
     con.execute(f"CREATE TABLE IF NOT EXISTS sweep_results ({SWEEP_DDL})")
     con.execute(f"CREATE TABLE IF NOT EXISTS tuned_gains ({TUNING_DDL})")
+    con.execute(f"CREATE TABLE IF NOT EXISTS quality ({QUALITY_DDL})")
     con.execute("CREATE TABLE IF NOT EXISTS subjects (subject VARCHAR PRIMARY KEY, round_trip_of VARCHAR, "
                 "run_id BIGINT NOT NULL)")
     con.execute("CREATE TABLE IF NOT EXISTS run_groups (run_id BIGINT NOT NULL, subject VARCHAR NOT NULL, "
@@ -369,6 +387,8 @@ def store_results(path: Path, results: list[SubjectResults], params: StoreParams
             for res in results:  # what each subject is, as of its last store run
                 con.execute("INSERT OR REPLACE INTO subjects VALUES (?, ?, ?)",
                             [res.subject, res.round_trip_of, run_id])
+                if res.quality is not None and not res.quality.empty:
+                    _store_quality(con, res, run_id)
             con.execute("INSERT INTO store_runs VALUES (?, ?, ?, ?, ?, ?)",
                         [run_id, now, rev, ",".join(r.subject for r in results), n_groups, len(new)])
             con.execute("COMMIT")
@@ -376,6 +396,18 @@ def store_results(path: Path, results: list[SubjectResults], params: StoreParams
             con.execute("ROLLBACK")
             raise
     return StoreReport(run_id, n_groups, tuple(new), time.perf_counter() - start)
+
+
+def _store_quality(con: duckdb.DuckDBPyConnection, res: SubjectResults, run_id: int) -> None:
+    """The subject's quality rows of this run (`quality_latest` shows the last run's)."""
+    columns = ["subject", "stage", "check", "value", "warn_above", "fail_above", "status", "note"]
+    missing = [c for c in columns if c not in res.quality.columns]
+    if missing:
+        raise StoreError(f"{res.subject}/quality", f"table lacks columns {missing}")
+    rows = res.quality[columns].assign(subject=res.subject, run_id=run_id)
+    con.register("incoming", rows)
+    con.execute("INSERT INTO quality BY NAME SELECT * FROM incoming")
+    con.unregister("incoming")
 
 
 def _store_tuning(con: duckdb.DuckDBPyConnection, tuning: dict, run_id: int, now: datetime) -> None:

@@ -20,7 +20,10 @@ from pathlib import Path
 
 import pandas as pd
 
-from ingest.manifest import sha256_of
+from ingest.errors import GaitloopError
+from ingest.manifest import Manifest, sha256_of
+from ingest.readers import read_markers
+from ingest.readers.mot import read_mot
 from ingest.subject import load_subject
 from metrics import (
     bands_table,
@@ -35,13 +38,15 @@ from metrics import (
 )
 from metrics.errors import MetricsError
 from metrics.phases import event_traces, phase_table
-from metrics.sampling import paper_inputs
+from metrics.quality import TrialSpan, ingest_checks, quality_table, scale_checks, sim_checks
+from metrics.sampling import paper_inputs, paper_strides
 from metrics.tracking import TRACKING_COLUMNS, tracking_table
 from pipeline.params import MetricsParams, Params
 from pipeline.paths import (
     METRICS_ROOT,
     PROCESSED_ROOT,
     metrics_dir,
+    model_dir,
     real_dir,
     sim_dir,
     sim_policy_dir,
@@ -55,7 +60,7 @@ SOURCES = ("real", "sim", "sim_policy")
 SOURCE_DIRS = {"real": real_dir, "sim": sim_dir, "sim_policy": sim_policy_dir}  # under <root>/<subject>/
 # Sections that do not shape the results; the hash of all others identifies a params version
 # (so a section added later, e.g. for a new controller, counts without editing this list).
-NON_RESULT_SECTIONS = ("subjects", "store", "report", "ray", "sweep", "tune")
+NON_RESULT_SECTIONS = ("subjects", "quality", "store", "report", "ray", "sweep", "tune")
 
 
 def params_hash(params: Params) -> str:
@@ -148,8 +153,57 @@ def headline(tables: dict[str, pd.DataFrame]) -> dict:
 
 
 def input_hashes(subject: str, root: Path) -> dict[str, str]:
-    return {str(p.relative_to(root)): sha256_of(p) for source in SOURCES
-            for p in sorted(SOURCE_DIRS[source](root, subject).glob("*.parquet"))}
+    files = [p for source in SOURCES for p in sorted(SOURCE_DIRS[source](root, subject).glob("*.parquet"))]
+    model = model_dir(root, subject)
+    files += [p for p in (model / "model.json", model / "reference.json") if p.is_file()]
+    return {str(p.relative_to(root)): sha256_of(p) for p in files}
+
+
+def _read_json(path: Path) -> dict | None:
+    return json.loads(path.read_text()) if path.is_file() else None
+
+
+def _read_table(path: Path) -> pd.DataFrame:
+    return pd.read_parquet(path) if path.is_file() else pd.DataFrame()
+
+
+def trial_spans(subject: str) -> list[TrialSpan] | None:
+    """The time columns of each trial's marker, angles and GRF files (read as ingest reads them);
+    None when the subject's raw files cannot be read."""
+    try:
+        manifest = Manifest.load()
+        spans = []
+        for spec in load_subject(subject).trials:
+            def times(key, reader):
+                return None if not key else reader(manifest.resolve(key)).time_s
+            spans.append(TrialSpan(spec.id, times(spec.markers, read_markers), times(spec.angles, read_mot),
+                                   times(spec.grf, read_mot)))
+        return spans
+    except (GaitloopError, OSError):
+        return None
+
+
+def quality_checks(subject: str, params: Params, root: Path = PROCESSED_ROOT,
+                   spans: list[TrialSpan] | None = None) -> pd.DataFrame:
+    """The subject's quality gates (`QUALITY_COLUMNS`) from what the earlier stages wrote
+    (`spans`: the raw files' time columns, read with `trial_spans` when None)."""
+    q = params.quality.build()
+    model = _read_json(model_dir(root, subject) / "model.json")
+    reference = _read_json(model_dir(root, subject) / "reference.json")
+    real = {n: _read_table(real_dir(root, subject) / f"{n}.parquet") for n in ("strides", "events", "cycles")}
+    sims = {"replay": _read_table(sim_dir(root, subject) / "strides.parquet")}
+    policy = _read_table(sim_policy_dir(root, subject) / "strides.parquet")
+    table_strides = None
+    if not policy.empty:
+        paper = params.scenarios.paper
+        table_strides = paper_strides(policy[policy["scenario"] == paper.scenario], paper.cycles_per_walk)
+    sims["policy"] = table_strides if table_strides is not None else policy
+    checks = [*scale_checks(subject, model, reference, q),
+              *ingest_checks(subject, real["events"], real["cycles"],
+                             spans if spans is not None else trial_spans(subject),
+                             params.metrics.spm.min_cycles, q),
+              *sim_checks(subject, real["strides"], sims, table_strides, q)]
+    return quality_table(checks)
 
 
 def run_metrics(subject: str, params: Params, root: Path = PROCESSED_ROOT,
@@ -162,6 +216,7 @@ def run_metrics(subject: str, params: Params, root: Path = PROCESSED_ROOT,
         tables = compute(read_inputs(subject, root, (paper.scenario, paper.cycles_per_walk)), p)
     except (KeyError, ValueError) as exc:
         raise MetricsError(str(subject_dir(root, subject)), f"cannot compute metrics ({exc})") from None
+    tables["quality"] = quality_checks(subject, params, root)
     folder = metrics_dir(out_root, subject)
     provenance = {"subject": subject, "params_hash": params_hash(params),
                   "inputs": input_hashes(subject, root),

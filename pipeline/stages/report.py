@@ -3,11 +3,13 @@
 Reads the results store (read-only, one query per table in `QUERIES`), the reference paper's
 published values (`data/paper/wang2025.yaml`, `load_paper`) and each subject's policy evaluation
 (`data/policies/<subject>/evaluation.json`, when present), and writes:
-- `reports/<subject>/report.md` with Tables I-III (Real, Sim and the paper's published columns),
+- `reports/<subject>/report.md`, opening with its quality gates (`quality_latest`, failed and warned
+  first), then Tables I-III (Real, Sim and the paper's published columns),
   the per-phase compliance table, the policy checks, SPM clusters and the figures of `subject_figures` in
   `reports/<subject>/figures/`;
 - `reports/summary.md` and `reports/index.html`: every subject's figures first (`FIGURES`), then the
-  tables side by side, linking the per-subject reports.
+  tables side by side (the subjects' table with each one's worst quality status, coloured in the
+  index), linking the per-subject reports.
 Numbers are printed rounded (cm, N and deg to 2 decimals, m and m/s to 3, the paper's values as
 published); the store keeps them exact.
 """
@@ -37,6 +39,7 @@ from metrics.plots import (
     tracking_figure,
     tuning_figure,
 )
+from metrics.quality import worst
 from pipeline.params import ReportParams
 from pipeline.paths import PAPER_FILE, POLICIES_ROOT, REPORTS_ROOT, policy_dir, report_dir
 from pipeline.stages.outputs import replacing, write_figure
@@ -125,6 +128,7 @@ QUERIES = {
     "harness": "SELECT * FROM latest_harness ORDER BY subject, source, human_mode, condition, quantity",
     "events": "SELECT * FROM event_aligned ORDER BY subject, human_mode, condition, scenario, event, t_s",
     "tuning": "SELECT * FROM tuning_comparison",
+    "quality": 'SELECT * FROM quality_latest ORDER BY subject, stage, "check"',
 }
 # Every figure a report can have, in the order the index shows them, with its caption.
 FIGURES = {
@@ -272,6 +276,22 @@ TABLES = {
 PAPER_TABLES = ("table1", "table2", "table3")
 
 
+NO_GATES = "No quality gates stored for this subject (run `python -m pipeline metrics` and `store`)."
+STATUS_COLOURS = {"ok": "#c8e6c9", "warn": "#ffe08a", "fail": "#f4a6a6", "unknown": "#e0e0e0"}
+
+
+def quality_rows(q: pd.DataFrame) -> tuple[list[str], list[list[str]]]:
+    """The quality gates of one subject, failed first, then warned, then ok."""
+    header = ["Check", "Value", "Warn above", "Fail above", "Status", "Note"]
+    if q.empty:
+        return header, []
+    q = q.assign(_order=q["status"].map({"fail": 0, "warn": 1, "ok": 2}).fillna(3))
+    q = q.sort_values(["_order", "stage", "check"], kind="stable")
+    rows = [[f"{r.stage}/{r.check}", _num(r.value, 4), _num(r.warn_above, 4), _num(r.fail_above, 4), r.status,
+             r.note or ""] for r in q.itertuples(index=False)]
+    return header, rows
+
+
 def _of(df: pd.DataFrame, subject: str) -> pd.DataFrame:
     return df[df["subject"] == subject] if "subject" in df.columns else df.iloc[0:0]
 
@@ -350,15 +370,19 @@ def subject_report(subject: str, data: dict[str, pd.DataFrame], reports: Path = 
     figures = subject_figures(subject, data, p)
     for name, draw in figures.items():
         write_figure(draw(), folder / "figures" / f"{name}.png", p.dpi)
-    lines = [f"# {subject}: HITL gait report", "",
-             "Built from the results store (`data/results.duckdb`, latest version of each subject, "
-             "condition, source and human mode). Real = recorded mocap; Sim = the human digital twin "
-             "walking with the MRBA twin (`replay` or `policy` human).", ""]
     s = summary.iloc[0]
+    lines = [f"# {subject}: HITL gait report", ""]
     if isinstance(s["round_trip_of"], str) and s["round_trip_of"]:
         lines += [f"**Round trip:** this subject's \"recorded\" trials are {s['round_trip_of']}'s simulated "
                   "trials, exported as OpenSim files and robot logs (`python -m pipeline export`) and read "
                   "back; its Real columns test the pipeline, not a person.", ""]
+    header, rows = quality_rows(_of(data["quality"], subject))
+    gates = [md_table(header, rows)] if rows else [NO_GATES, ""]
+    lines += ["## Quality gates", "", *gates,
+              f"Worst status: **{worst(r[4] for r in rows)}**.", "",
+              "Built from the results store (`data/results.duckdb`, latest version of each subject, "
+              "condition, source and human mode). Real = recorded mocap; Sim = the human digital twin "
+              "walking with the MRBA twin (`replay` or `policy` human).", ""]
     lines += [f"Conditions: {s['conditions']}. Sources: {s['sources']}. Kept strides real/sim: "
               f"{_num(s['real_strides'], 0)}/{_num(s['sim_strides'], 0)}. "
               f"SPM tests run: {int(s['spm_tests'])}, "
@@ -442,9 +466,17 @@ def figure_names(subject: str, data: dict[str, pd.DataFrame], p: ReportParams = 
     return list(subject_figures(subject, data, p))
 
 
+def _html_cell(header: str, cell: str) -> str:
+    """A table cell; a quality status is coloured (ok green, warn amber, fail red)."""
+    if header in ("Status", "Quality") and cell in STATUS_COLOURS:
+        return f'<td class="q-{cell}" style="background:{STATUS_COLOURS[cell]}">{html.escape(cell)}</td>'
+    return f"<td>{html.escape(cell)}</td>"
+
+
 def _html_table(header: list[str], rows: list[list[str]]) -> str:
     head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
-    body = "".join("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in r) + "</tr>" for r in rows)
+    body = "".join("<tr>" + "".join(_html_cell(h, c) for h, c in zip(header, r, strict=True)) + "</tr>"
+                   for r in rows)
     return f"<table>\n<thead><tr>{head}</tr></thead>\n<tbody>{body}</tbody>\n</table>\n"
 
 
@@ -475,10 +507,11 @@ def summary_report(subjects: list[str], data: dict[str, pd.DataFrame], reports: 
                      for v in videos]
             md += ["Videos, walk_10m: " + ", ".join(f"[{v.stem}]({s}/{v.name})" for v in videos), ""]
             body.append("<p>Videos of the policy human in walk_10m: " + ", ".join(links) + "</p>")
-    sh = ["Subject", "Conditions", "Sources", "Versions", "Real strides", "Sim strides", "SPM tests",
-          "SPM significant", "Last change"]
-    srows = [[r.subject, r.conditions, r.sources, str(r.n_versions), _num(r.real_strides, 0),
-              _num(r.sim_strides, 0), str(r.spm_tests), str(r.spm_significant), str(r.last_change)[:19]]
+    sh = ["Subject", "Quality", "Conditions", "Sources", "Versions", "Real strides", "Sim strides",
+          "SPM tests", "SPM significant", "Last change"]
+    srows = [[r.subject, worst(_of(data["quality"], r.subject)["status"]), r.conditions, r.sources,
+              str(r.n_versions), _num(r.real_strides, 0), _num(r.sim_strides, 0), str(r.spm_tests),
+              str(r.spm_significant), str(r.last_change)[:19]]
              for r in data["summary"].itertuples(index=False)]
     md += ["## Subjects", "", md_table(sh, srows)]
     body += ["<h2>Subjects</h2>", _html_table(sh, srows)]

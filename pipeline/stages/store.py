@@ -1,8 +1,8 @@
 """Stage `store`: every subject's metric tables -> new versions in the results store.
 
-Reads `<root>/<subject>/<table>.parquet` (root: data/metrics) and `provenance.json` for each subject in
-params.yaml, the sweep study's rows (data/sweeps/<study>/results.parquet) and the tuning results
-(data/tuning) and adds them to `data/results.duckdb` in one transaction (`pipeline.store`).
+Reads `<root>/<subject>/<table>.parquet` (root: data/metrics), `quality.parquet` and `provenance.json`
+for each subject in params.yaml, the sweep study's rows (data/sweeps/<study>/results.parquet) and the
+tuning results (data/tuning) and adds them to `data/results.duckdb` in one transaction (`pipeline.store`).
 """
 
 from __future__ import annotations
@@ -28,7 +28,9 @@ def load_results(subject: str, root: Path = METRICS_ROOT) -> SubjectResults:
     files = {t: folder / f"{t}.parquet" for t in TABLES}
     tables = {t: pd.read_parquet(f) for t, f in files.items() if f.is_file()}
     doc = json.loads(prov.read_text())
-    return SubjectResults(subject, tables, str(doc["params_hash"]), doc.get("round_trip_of"))
+    quality_file = folder / "quality.parquet"
+    quality = pd.read_parquet(quality_file) if quality_file.is_file() else None
+    return SubjectResults(subject, tables, str(doc["params_hash"]), doc.get("round_trip_of"), quality)
 
 
 def load_sweep(study: str, root: Path = SWEEPS_ROOT) -> list[pd.DataFrame]:

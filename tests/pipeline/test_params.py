@@ -64,6 +64,7 @@ def built(params: Params) -> dict[str, object]:
         "PolicyChecks": params.evaluate_policy.checks.build(),
         "ScenarioChecks": params.evaluate_policy.scenario_checks.build(),
         "ProfileParams": params.scenarios.profile.build(),
+        "QualityParams": params.quality.build(),
         "RolloutParams": RolloutParams(robot=params.robot.build(),
                                        max_physics_dt_s=params.rollout.max_physics_dt_s,
                                        start_offset_m=params.rollout.start_offset_m),

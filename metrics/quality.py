@@ -1,0 +1,272 @@
+"""Quality gates: numbers that can be wrong without any stage failing, graded ok / warn / fail.
+
+Each check is one row of `QUALITY_COLUMNS`: the subject, the stage whose output it judges, the check's
+name, its value, the warn and fail thresholds and the status. Most checks are worse the higher the
+value (`status = fail` above `fail_above`); cycle counts are worse the lower (below the thresholds;
+the note says so). A value that cannot be computed is graded `warn` with a note, never `ok`: a wrong
+number never flows silently. Thresholds: params.yaml `quality` (`QualityParams`; gaitloop's choices,
+documented there).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+QUALITY_COLUMNS = ["subject", "stage", "check", "value", "warn_above", "fail_above", "status", "note"]
+STATUS_ORDER = {"ok": 0, "warn": 1, "fail": 2}
+SIDES = ("left", "right")
+PAIRED_SEGMENTS = ("thigh", "shank", "foot", "upper_arm", "forearm", "hand")
+
+
+@dataclass(frozen=True)
+class Limits:
+    """Warn and fail thresholds of one check (the value is graded against them)."""
+
+    warn: float
+    fail: float
+
+
+@dataclass(frozen=True)
+class QualityParams:
+    """The `quality` section of params.yaml."""
+
+    marker_rms_m: Limits = field(default_factory=lambda: Limits(0.02, 0.04))
+    asymmetry_pct: Limits = field(default_factory=lambda: Limits(5.0, 10.0))
+    ik_angle_rms_deg: Limits = field(default_factory=lambda: Limits(5.0, 10.0))
+    edge_window_s: float = 0.05
+    edge_strike_share: Limits = field(default_factory=lambda: Limits(0.2, 0.5))
+    span_samples: Limits = field(default_factory=lambda: Limits(1.0, 10.0))
+    speed_gap_pct: Limits = field(default_factory=lambda: Limits(10.0, 25.0))
+    missing_sides: Limits = field(default_factory=lambda: Limits(0.0, 1.0))
+    non_steady_share: Limits = field(default_factory=lambda: Limits(0.0, 0.25))
+
+
+@dataclass(frozen=True)
+class QualityCheck:
+    """One row of the quality table."""
+
+    subject: str
+    stage: str
+    check: str
+    value: float
+    warn_above: float
+    fail_above: float
+    status: str
+    note: str = ""
+
+
+def _missing(value: float | None) -> bool:
+    return value is None or (isinstance(value, float) and math.isnan(value))
+
+
+def grade(value: float | None, warn: float, fail: float, higher_is_worse: bool = True) -> str:
+    """'fail' past `fail`, 'warn' past `warn`, else 'ok' (past: above, or below when lower is worse);
+    a missing value is 'warn'."""
+    if _missing(value):
+        return "warn"
+    v = float(value)
+    if higher_is_worse:
+        return "fail" if v > fail else "warn" if v > warn else "ok"
+    return "fail" if v < fail else "warn" if v < warn else "ok"
+
+
+def worst(statuses: Iterable[str]) -> str:
+    """The worst of `statuses` (fail > warn > ok); 'unknown' when there are none."""
+    found = [s for s in statuses if s in STATUS_ORDER]
+    return max(found, key=STATUS_ORDER.__getitem__) if found else "unknown"
+
+
+def check(subject: str, stage: str, name: str, value: float | None, limits: Limits, note: str = "",
+          higher_is_worse: bool = True) -> QualityCheck:
+    """A graded row; a missing value gets 'warn' and a note saying so."""
+    status = grade(value, limits.warn, limits.fail, higher_is_worse)
+    if _missing(value):
+        note = note or "value unavailable"
+    elif not higher_is_worse:
+        note = (note + "; " if note else "") + "lower is worse (thresholds are minima)"
+    return QualityCheck(subject, stage, name, float("nan") if _missing(value) else float(value),
+                        limits.warn, limits.fail, status, note)
+
+
+def quality_table(checks: Iterable[QualityCheck]) -> pd.DataFrame:
+    """The checks as a DataFrame of `QUALITY_COLUMNS`."""
+    rows = [[getattr(c, k) for k in QUALITY_COLUMNS] for c in checks]
+    df = pd.DataFrame(rows, columns=QUALITY_COLUMNS)
+    return df.astype({"value": float, "warn_above": float, "fail_above": float})
+
+
+# -- scale and reference ----------------------------------------------------------------------------
+
+def segment_asymmetry_pct(lengths_m: Mapping[str, float]) -> tuple[float, str]:
+    """Largest left/right length difference of the paired segments, % of the pair's mean, and the
+    segment it belongs to (NaN, '' without any pair)."""
+    best, name = float("nan"), ""
+    for seg in PAIRED_SEGMENTS:
+        left, right = lengths_m.get(f"{seg}_l"), lengths_m.get(f"{seg}_r")
+        if left is None or right is None or left + right <= 0:
+            continue
+        pct = 200.0 * abs(left - right) / (left + right)
+        if not pct <= best:
+            best, name = pct, seg
+    return best, name
+
+
+def scale_checks(subject: str, model: Mapping | None, reference: Mapping | None,
+                 p: QualityParams) -> list[QualityCheck]:
+    """Left/right asymmetry of the scaled model (`model.json` segment_lengths_m) and the retarget's
+    marker RMS and joint-angle RMS against the dataset's IK (`reference.json`)."""
+    out = []
+    if model is None:
+        out.append(check(subject, "scale", "segment_asymmetry_pct", None, p.asymmetry_pct, "no model.json"))
+    else:
+        pct, seg = segment_asymmetry_pct(model.get("segment_lengths_m", {}))
+        out.append(check(subject, "scale", "segment_asymmetry_pct", pct, p.asymmetry_pct,
+                         f"largest: {seg}" if seg else "no left/right segment pairs"))
+    if reference is None:
+        out.append(check(subject, "reference", "retarget_marker_rms_m", None, p.marker_rms_m,
+                         "no reference.json"))
+        out.append(check(subject, "reference", "ik_angle_rms_deg", None, p.ik_angle_rms_deg,
+                         "no reference.json"))
+        return out
+    out.append(check(subject, "reference", "retarget_marker_rms_m", reference.get("marker_rms_m"),
+                     p.marker_rms_m, "marker IK on the scaled model, all frames"))
+    angles = {k: v.get("rms_deg") for k, v in (reference.get("angles") or {}).items()
+              if isinstance(v, Mapping) and not _missing(v.get("rms_deg"))}
+    if angles:
+        joint = max(angles, key=angles.get)
+        out.append(check(subject, "reference", "ik_angle_rms_deg", angles[joint], p.ik_angle_rms_deg,
+                         f"retargeted vs the dataset's IK, largest: {joint}"))
+    else:
+        out.append(check(subject, "reference", "ik_angle_rms_deg", None, p.ik_angle_rms_deg,
+                         "no dataset IK angles to compare with"))
+    return out
+
+
+# -- ingest ---------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class TrialSpan:
+    """Time columns of one trial's files: markers and, where the trial has them, angles and GRF (s)."""
+
+    trial: str
+    marker_t: np.ndarray | None
+    angles_t: np.ndarray | None = None
+    grf_t: np.ndarray | None = None
+
+
+def edge_strike_share(events: pd.DataFrame, spans: Mapping[str, tuple[float, float]], window_s: float
+                      ) -> float:
+    """Share of heel strikes within `window_s` of their trial's start or end (`spans`: trial ->
+    (start, end) s); NaN without heel strikes of a spanned trial."""
+    hs = events[(events["event"] == "heel_strike") & events["trial"].isin(list(spans))]
+    if hs.empty:
+        return float("nan")
+    start = hs["trial"].map(lambda t: spans[t][0]).to_numpy(float)
+    end = hs["trial"].map(lambda t: spans[t][1]).to_numpy(float)
+    t = hs["time_s"].to_numpy(float)
+    return float(np.mean((t - start <= window_s) | (end - t <= window_s)))
+
+
+def uncovered_samples(marker_t: np.ndarray, other_t: np.ndarray) -> float:
+    """How many marker samples lie outside `other_t`'s span, at the marker rate (the larger of the
+    start and end gaps)."""
+    marker_t, other_t = np.asarray(marker_t, float), np.asarray(other_t, float)
+    dt = float(np.median(np.diff(marker_t))) if marker_t.size > 1 else 1.0
+    gap = max(other_t.min() - marker_t.min(), marker_t.max() - other_t.max(), 0.0)
+    return gap / dt
+
+
+def kept_cycles(cycles: pd.DataFrame) -> pd.DataFrame:
+    """Distinct cycles per condition and side (columns condition, side, n)."""
+    keys = [c for c in ("condition", "trial", "seed", "side", "stride") if c in cycles.columns]
+    distinct = cycles[keys].drop_duplicates()
+    return distinct.groupby(["condition", "side"]).size().rename("n").reset_index()
+
+
+def ingest_checks(subject: str, events: pd.DataFrame, cycles: pd.DataFrame, spans: list[TrialSpan] | None,
+                  min_cycles: int, p: QualityParams) -> list[QualityCheck]:
+    """Real recordings: heel strikes at the recording edges, files covering the marker span, and
+    enough kept cycles per condition and side for SPM (`min_cycles`, metrics.spm)."""
+    out = []
+    if spans is None:
+        out.append(check(subject, "ingest", "edge_heel_strike_share", None, p.edge_strike_share,
+                         "raw trial files unavailable"))
+    else:
+        edges = {s.trial: (float(np.min(s.marker_t)), float(np.max(s.marker_t)))
+                 for s in spans if s.marker_t is not None and len(s.marker_t)}
+        out.append(check(subject, "ingest", "edge_heel_strike_share",
+                         edge_strike_share(events, edges, p.edge_window_s), p.edge_strike_share,
+                         f"heel strikes within {p.edge_window_s * 1000:g} ms of a trial's start or end"))
+        for s in spans:
+            for kind, t in (("angles", s.angles_t), ("grf", s.grf_t)):
+                if t is None or s.marker_t is None:
+                    continue
+                out.append(check(subject, "ingest", f"{kind}_span_samples:{s.trial}",
+                                 uncovered_samples(s.marker_t, t), p.span_samples,
+                                 f"marker samples outside the {kind} file's span"))
+    counts = kept_cycles(cycles) if not cycles.empty else pd.DataFrame(columns=["condition", "side", "n"])
+    limits = Limits(float(min_cycles), float(min_cycles))
+    for cond in sorted(counts["condition"].unique()) if len(counts) else ["free"]:
+        for side in SIDES:
+            n = counts[(counts["condition"] == cond) & (counts["side"] == side)]["n"].sum()
+            out.append(check(subject, "ingest", f"spm_cycles:{cond}:{side}", float(n), limits,
+                             "real kept cycles", higher_is_worse=False))
+    return out
+
+
+# -- simulate -------------------------------------------------------------------------------------
+
+def speed_gap_pct(real_strides: pd.DataFrame, sim_strides: pd.DataFrame, condition: str = "free") -> float:
+    """|sim - real| / real mean gait speed of the kept strides of `condition`, %; NaN when either
+    has none."""
+    def mean_speed(df: pd.DataFrame) -> float:
+        if df.empty:
+            return float("nan")
+        kept = df[df["kept"].astype(bool) & (df["condition"] == condition)]
+        return float(kept["gait_speed_mps"].mean()) if len(kept) else float("nan")
+
+    real, sim = mean_speed(real_strides), mean_speed(sim_strides)
+    return 100.0 * abs(sim - real) / real if real > 0 else float("nan")
+
+
+def missing_sides(real_strides: pd.DataFrame, sim_strides: pd.DataFrame, condition: str = "free") -> float:
+    """How many sides the real kept strides of `condition` have and the simulated ones lack."""
+    def sides(df: pd.DataFrame) -> set[str]:
+        if df.empty:
+            return set()
+        return set(df[df["kept"].astype(bool) & (df["condition"] == condition)]["side"])
+
+    return float(len(sides(real_strides) - sides(sim_strides)))
+
+
+def non_steady_share(strides: pd.DataFrame) -> float:
+    """Share of the given (table-entering) strides outside the steady phase; NaN when none or no
+    phase column."""
+    if strides.empty or "phase" not in strides.columns:
+        return float("nan")
+    return float((strides["phase"] != "steady").mean())
+
+
+def sim_checks(subject: str, real_strides: pd.DataFrame, sims: Mapping[str, pd.DataFrame],
+               policy_table_strides: pd.DataFrame | None, p: QualityParams) -> list[QualityCheck]:
+    """Sim vs real free-walking speed and sides, per human mode in `sims` (mode -> strides: 'replay'
+    the sim/ human, 'policy' the policy human's free strides of its table scenario); and the share of
+    the policy strides entering the tables outside steady walking."""
+    out = []
+    for mode, strides in sims.items():
+        note = "" if not strides.empty else f"no {mode} simulation"
+        out.append(check(subject, "simulate", f"speed_gap_pct:{mode}", speed_gap_pct(real_strides, strides),
+                         p.speed_gap_pct, note or "free walking, kept strides"))
+        value = missing_sides(real_strides, strides) if not strides.empty else None
+        out.append(check(subject, "simulate", f"missing_sides:{mode}", value, p.missing_sides,
+                         note or "sides with real but without simulated free strides"))
+    if policy_table_strides is not None:
+        share = non_steady_share(policy_table_strides)
+        out.append(check(subject, "simulate", "non_steady_share:policy", share, p.non_steady_share,
+                         "policy strides entering the paper's tables"))
+    return out

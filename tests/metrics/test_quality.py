@@ -1,0 +1,93 @@
+"""Quality gates (metrics/quality.py): grading, the worst status and each check on small inputs."""
+
+import math
+
+import numpy as np
+import pandas as pd
+
+from metrics.quality import (
+    QUALITY_COLUMNS,
+    QualityParams,
+    TrialSpan,
+    edge_strike_share,
+    grade,
+    ingest_checks,
+    missing_sides,
+    non_steady_share,
+    quality_table,
+    scale_checks,
+    segment_asymmetry_pct,
+    sim_checks,
+    speed_gap_pct,
+    uncovered_samples,
+    worst,
+)
+
+P = QualityParams()
+
+
+def strides(speeds, sides=("left", "right"), condition="free", **extra) -> pd.DataFrame:
+    rows = [{"condition": condition, "side": sides[i % len(sides)], "kept": True, "gait_speed_mps": v,
+             **extra} for i, v in enumerate(speeds)]
+    return pd.DataFrame(rows)
+
+
+def test_grade_and_worst():
+    assert grade(0.01, 0.02, 0.04) == "ok"
+    assert grade(0.03, 0.02, 0.04) == "warn"
+    assert grade(0.05, 0.02, 0.04) == "fail"
+    assert grade(0.02, 0.02, 0.04) == "ok"  # at the threshold is still within it
+    assert grade(float("nan"), 0.02, 0.04) == "warn" and grade(None, 1, 2) == "warn"
+    assert grade(1, 2, 2, higher_is_worse=False) == "fail" and grade(2, 2, 2, higher_is_worse=False) == "ok"
+    assert worst(["ok", "warn", "ok"]) == "warn" and worst(["warn", "fail"]) == "fail"
+    assert worst(["ok"]) == "ok" and worst([]) == "unknown"
+
+
+def test_scale_checks_grade_marker_rms_and_asymmetry():
+    lengths = {"thigh_l": 0.40, "thigh_r": 0.44, "shank_l": 0.40, "shank_r": 0.40}
+    pct, seg = segment_asymmetry_pct(lengths)
+    assert seg == "thigh" and math.isclose(pct, 200 * 0.04 / 0.84)
+    rows = quality_table(scale_checks("s", {"segment_lengths_m": lengths},
+                                      {"marker_rms_m": 0.05, "angles": {"knee": {"rms_deg": 3.0}}}, P))
+    assert list(rows.columns) == QUALITY_COLUMNS
+    status = rows.set_index("check")["status"]
+    assert status["segment_asymmetry_pct"] == "warn"  # 9.5 %
+    assert status["retarget_marker_rms_m"] == "fail" and status["ik_angle_rms_deg"] == "ok"
+    missing = quality_table(scale_checks("s", None, None, P))
+    assert set(missing["status"]) == {"warn"} and missing["note"].str.contains("no ").all()
+
+
+def test_ingest_checks_edges_spans_and_cycles():
+    events = pd.DataFrame({"trial": ["t"] * 4, "event": ["heel_strike"] * 3 + ["toe_off"],
+                           "time_s": [0.02, 1.0, 1.97, 0.0]})
+    assert math.isclose(edge_strike_share(events, {"t": (0.0, 2.0)}, 0.05), 2 / 3)
+    marker_t = np.arange(0, 2.0001, 0.01)
+    assert uncovered_samples(marker_t, marker_t) == 0.0
+    assert math.isclose(uncovered_samples(marker_t, marker_t[5:]), 5.0)
+    cycles = pd.DataFrame({"condition": "free", "trial": "t", "side": ["left"] * 3 + ["right"] * 3,
+                           "stride": [0, 0, 1, 0, 0, 0], "pct": [0, 1, 0, 0, 1, 2]})
+    spans = [TrialSpan("t", marker_t, marker_t[20:], marker_t)]
+    rows = quality_table(ingest_checks("s", events, cycles, spans, 2, P)).set_index("check")
+    assert rows.loc["edge_heel_strike_share", "status"] == "fail"
+    assert rows.loc["angles_span_samples:t", "status"] == "fail"
+    assert rows.loc["grf_span_samples:t", "value"] == 0
+    assert tuple(rows.loc["spm_cycles:free:left", ["value", "status"]]) == (2, "ok")
+    assert tuple(rows.loc["spm_cycles:free:right", ["value", "status"]]) == (1, "fail")
+    no_raw = quality_table(ingest_checks("s", events, cycles, None, 2, P)).set_index("check")
+    assert no_raw.loc["edge_heel_strike_share", "status"] == "warn"
+
+
+def test_sim_checks_speed_sides_and_phases():
+    real = strides([1.0, 1.0, 1.2, 1.2])  # mean 1.1
+    assert math.isclose(speed_gap_pct(real, strides([1.21, 1.21])), 10.0)
+    assert missing_sides(real, strides([1.1], sides=("left",))) == 1
+    policy = strides([0.77, 0.77], scenario="walk_10m", phase="steady")  # 30 % slow
+    assert non_steady_share(policy) == 0.0
+    assert non_steady_share(policy.assign(phase=["steady", "start"])) == 0.5
+    rows = quality_table(sim_checks("s", real, {"replay": strides([1.1, 1.1]), "policy": policy}, policy, P))
+    status = rows.set_index("check")["status"]
+    assert status["speed_gap_pct:replay"] == "ok" and status["speed_gap_pct:policy"] == "fail"
+    assert status["missing_sides:policy"] == "ok" and status["non_steady_share:policy"] == "ok"
+    empty = quality_table(sim_checks("s", real, {"replay": pd.DataFrame()}, None, P)).set_index("check")
+    assert empty.loc["speed_gap_pct:replay", "status"] == "warn"
+    assert "no replay simulation" in empty.loc["speed_gap_pct:replay", "note"]

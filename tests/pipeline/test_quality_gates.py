@@ -1,0 +1,57 @@
+"""Quality gates end to end: a subject whose retarget marker RMS (5 cm) and policy free-walking speed
+(30 % slow) must fail -> the metrics stage's quality table, the store's paper tables and the report."""
+
+import json
+
+import pandas as pd
+
+from pipeline.params import load_params
+from pipeline.stages.ingest import run_ingest
+from pipeline.stages.metrics import run_metrics
+from pipeline.stages.report import run_report
+from pipeline.stages.store import load_results
+from pipeline.store import StoreParams, query, store_results
+
+
+def test_a_failing_subject_fails_its_gates_everywhere(tmp_path):
+    params = load_params()
+    processed, metrics = tmp_path / "processed", tmp_path / "metrics"
+    real = run_ingest("camargo", params, processed, progress=False)
+    model = processed / "camargo" / "model"
+    model.mkdir(parents=True)
+    lengths = {"thigh_l": 0.45, "thigh_r": 0.45, "shank_l": 0.42, "shank_r": 0.43}
+    (model / "model.json").write_text(json.dumps({"segment_lengths_m": lengths}))
+    (model / "reference.json").write_text(json.dumps({"marker_rms_m": 0.05, "angles": {}}))
+    policy = processed / "camargo" / "sim_policy"
+    policy.mkdir()
+    paper = params.scenarios.paper
+    extra = {"human_mode": "policy", "seed": 0, "scenario": paper.scenario, "phase": "steady"}
+    strides = pd.read_parquet(real / "strides.parquet")
+    slow = strides.assign(gait_speed_mps=strides["gait_speed_mps"] * 0.7, **extra)
+    slow.to_parquet(policy / "strides.parquet")
+    for name in ("cycles", "robot"):  # robot: the real one, empty
+        pd.read_parquet(real / f"{name}.parquet").assign(**extra).to_parquet(policy / f"{name}.parquet")
+
+    folder = run_metrics("camargo", params, processed, metrics)
+    q = pd.read_parquet(folder / "quality.parquet").set_index("check")
+    assert q.loc["retarget_marker_rms_m", "status"] == "fail"
+    assert q.loc["speed_gap_pct:policy", "status"] == "fail"
+    assert abs(q.loc["speed_gap_pct:policy", "value"] - 30.0) < 1e-6
+    assert q.loc["segment_asymmetry_pct", "status"] == "ok"
+
+    db = tmp_path / "results.duckdb"
+    store_results(db, [load_results("camargo", metrics)], StoreParams())
+    table2 = query(db, "SELECT * FROM paper_table2 WHERE subject = 'camargo'")
+    assert not table2.empty and set(table2["quality"]) == {"fail"}
+    latest = query(db, "SELECT * FROM quality_latest")
+    assert len(latest) == len(q) and "fail" in set(latest["status"])
+
+    reports = tmp_path / "reports"
+    run_report(["camargo"], ["camargo"], db, reports, p=params.report.build())
+    head = (reports / "camargo" / "report.md").read_text().splitlines()[:8]
+    assert head[0].startswith("# camargo") and head[2] == "## Quality gates"
+    first = next(line for line in head if line.startswith("| reference/") or line.startswith("| simulate/"))
+    assert "fail" in first  # failed gates come first
+    summary = (reports / "summary.md").read_text()
+    assert "| camargo | fail |" in summary
+    assert 'class="q-fail"' in (reports / "index.html").read_text()
