@@ -24,6 +24,7 @@ import numpy as np
 
 from ingest.errors import IngestError
 from ingest.manifest import Manifest
+from ingest.markersets import with_derived
 from ingest.readers import MarkerTable, MotTable, read_c3d, read_csv, read_markers, read_mot, read_robot_log
 from ingest.subject import FileFormat, Subject, TrialSpec
 from ingest.trial import ForcePlates, Provenance, Trial
@@ -273,7 +274,7 @@ def load_trial(subject: Subject, spec: TrialSpec, manifest: Manifest, source: st
             angles.update(read_csv(path).angles_deg)
         up, detected = resolve_up_axis(table.xyz_m, table.names, subject.markerset, subject.format, str(path))
         xyz = up_to_z(table.xyz_m, up)
-        markers = {n: xyz[:, j] for j, n in enumerate(table.names)}
+        markers = with_derived({n: xyz[:, j] for j, n in enumerate(table.names)}, subject.markerset)
         _check_body_scale(markers, subject.markerset, str(path), up, table.declared_unit)
         heading = heading_rotation(markers, subject.markerset, table.rate_hz)
         markers = {n: rotate_z(v, heading) for n, v in markers.items()}

@@ -1,9 +1,9 @@
 """Subject registry: `data/subjects/<id>.yaml` describes one person and their recordings.
 
-Fields: id, height_m, mass_kg, dataset, markerset (name of `data/markersets/<name>.yaml`, landmark
-role -> marker name), format (how the files are written: up_axis, knee_flexion_sign, and for
-files without a unit header, angle_unit; up_axis x, y, z or auto, auto when not given:
-`ingest.canonical.detect_up_axis`), static (scaling trial: markers, optional window_s, and
+Fields: id, height_m, mass_kg, dataset, markerset (name of `data/markersets/<name>.yaml` or a YAML
+path, landmark role -> marker name: `ingest.markersets`), format (how the files are written: up_axis,
+knee_flexion_sign, and for files without a unit header, angle_unit; up_axis x, y, z or auto, auto
+when not given: `ingest.canonical.detect_up_axis`), static (scaling trial: markers, optional window_s, and
 optional `angles`, the manifest key of the static pose's IK coordinates, median over the same
 window, used to calibrate the model's joint zeros; or `static: auto`, the quietest standing window
 found in the trials: `ingest.static.find_standing_window`), trials (id, condition, and
@@ -20,11 +20,12 @@ from pathlib import Path
 
 import yaml
 
+from ingest import markersets
 from ingest.errors import SubjectError
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 SUBJECTS_DIR = REPO_ROOT / "data" / "subjects"
-MARKERSETS_DIR = REPO_ROOT / "data" / "markersets"
+MARKERSETS_DIR = markersets.MARKERSETS_DIR
 ROLES = ("heel", "toe", "ankle", "knee", "asis", "psis")
 UP_AXIS_CHOICES = ("x", "y", "z", "auto")
 STATIC_AUTO = "auto"  # `static: auto`: the quietest standing window of the subject's trials
@@ -99,11 +100,9 @@ def _require(doc: dict, key: str, path: Path):
 
 
 def load_markerset(name: str, directory: Path = MARKERSETS_DIR) -> dict[str, str]:
-    path = directory / f"{name}.yaml"
-    if not path.is_file():
-        raise SubjectError(path, f"unknown marker set {name!r}")
-    mapping = yaml.safe_load(path.read_text()) or {}
-    return {str(k): str(v) for k, v in mapping.items()}
+    """Role -> marker name of the marker set `name`: a shipped set's name or a YAML path
+    (`ingest.markersets.load_markerset`)."""
+    return markersets.load_markerset(name, directory)
 
 
 def load_subject(subject_id: str, directory: Path = SUBJECTS_DIR) -> Subject:

@@ -305,7 +305,8 @@ def add_results_commands(commands: argparse._SubParsersAction) -> None:
                      "and, for a robot-assisted trial (condition = the controller), the robot log .csv")
     add.add_argument("--round-trip-of", metavar="SUBJECT", help="these files are SUBJECT's simulated trials "
                      "exported by `export` and read back: label the subject as a round trip")
-    add.add_argument("--markerset", help="marker set in data/markersets/ (default: the one that fits)")
+    add.add_argument("--markerset", help="marker set: a name in data/markersets/ or a YAML file (default: "
+                     "the shipped set that fits the files)")
     add.add_argument("--up-axis", choices=("x", "y", "z", "auto"), default="auto",
                      help="the files' up axis (default: auto, detected from pelvis and foot markers)")
     add.add_argument("--knee-flexion-sign", type=int, choices=(1, -1), default=1)
@@ -333,8 +334,8 @@ def build_parser() -> argparse.ArgumentParser:
     events.add_argument("--subject", help="take the file format and marker set from this subject")
     events.add_argument("--up-axis", choices=("y", "z"),
                         help="the file's up axis (default: the subject's, else z)")
-    events.add_argument("--markerset", help="marker set name in data/markersets/ (default: the one "
-                        "whose markers are all in the file)")
+    events.add_argument("--markerset", help="marker set: a name in data/markersets/ or a YAML file "
+                        "(default: the shipped set that fits the file)")
     events.set_defaults(func=cmd_events)
 
     bench = commands.add_parser("bench", help="time ingest, IK, human, store and rollouts on the real data")

@@ -34,6 +34,7 @@ import yaml
 from ingest.canonical import load_trial, resolve_up_axis
 from ingest.errors import GaitloopError, IngestError, SubjectError
 from ingest.manifest import DEFAULT_MANIFEST, Manifest, Source, sha256_of
+from ingest.markersets import REPO_ROOT, markerset_path
 from ingest.readers import read_markers, read_mot, read_robot_log
 from ingest.robot_log import robot_table
 from ingest.static import check_static, find_standing_window
@@ -143,6 +144,17 @@ def _append_subject_to_params(text: str, subject_id: str, path: Path) -> str:
     return "".join(lines)
 
 
+def _markerset_ref(markerset: str, directory: Path) -> str:
+    """How the subject file names the marker set: a shipped set by name, a YAML file by its path
+    relative to the repository root when inside it (absolute otherwise), so it reads the same from
+    any working directory."""
+    path = markerset_path(markerset, directory)
+    if path.parent.resolve() == directory.resolve():
+        return path.stem
+    path = path.resolve()
+    return str(path.relative_to(REPO_ROOT)) if path.is_relative_to(REPO_ROOT) else str(path)
+
+
 def add_subject(subject_id: str, height_m: float, mass_kg: float, static: Path | str,
                 trials: list[NewTrial], *, markerset: str | None = None, up_axis: str = "auto",
                 knee_flexion_sign: int = 1, dataset: str | None = None, round_trip_of: str | None = None,
@@ -181,6 +193,7 @@ def add_subject(subject_id: str, height_m: float, mass_kg: float, static: Path |
     fit_on = checked[0].markers if static_auto else static
     markerset = markerset or fitting_markerset(read_markers(fit_on).names, fit_on, registry.markersets_dir)
     roles = load_markerset(markerset, registry.markersets_dir)
+    markerset = _markerset_ref(markerset, registry.markersets_dir)
     marker_files = [t.markers for t in checked] if static_auto else [static, *(t.markers for t in checked)]
     detected = up_axis == "auto"
     up_axis = _resolved_up_axis(marker_files, roles, up_axis)

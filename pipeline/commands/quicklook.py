@@ -15,8 +15,9 @@ from pathlib import Path
 import pandas as pd
 
 from ingest.canonical import load_trial
-from ingest.errors import IngestError
+from ingest.errors import IngestError, SubjectError
 from ingest.manifest import Manifest, Source, sha256_of
+from ingest.markersets import pick_markerset
 from ingest.readers import read_markers
 from ingest.subject import MARKERSETS_DIR, FileFormat, Subject, TrialSpec, load_markerset, load_subject
 from ingest.trial import Trial
@@ -25,17 +26,13 @@ EVENT_OUTPUT_COLUMNS = ["side", "event", "time_s"]
 
 
 def fitting_markerset(names: tuple[str, ...], path: Path, directory: Path = MARKERSETS_DIR) -> str:
-    """Name of the one marker set in `directory` whose markers are all among `names`."""
-    present = set(names)
-    fits = [p.stem for p in sorted(directory.glob("*.yaml"))
-            if set(load_markerset(p.stem, directory).values()) <= present]
-    known = ", ".join(p.stem for p in sorted(directory.glob("*.yaml")))
-    if not fits:
-        raise IngestError(path, f"no marker set in {directory} has all its markers in this file "
-                          f"(known: {known}); pass --markerset or --subject")
-    if len(fits) > 1:
-        raise IngestError(path, f"marker sets {', '.join(fits)} all fit this file; pass --markerset")
-    return fits[0]
+    """Name of the shipped marker set in `directory` that fits a file holding markers `names`: every
+    role covered (directly or derived), the fewest derived roles (`ingest.markersets.pick_markerset`);
+    `IngestError` naming the file, with the closest sets' missing roles, when none fits."""
+    try:
+        return pick_markerset(names, path, directory)
+    except SubjectError as exc:
+        raise IngestError(path, f"{exc.problem}; or pass --subject") from None
 
 
 def quicklook_subject(path: Path, subject_id: str | None, up_axis: str | None,
