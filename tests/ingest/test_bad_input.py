@@ -428,6 +428,97 @@ def test_robot_log_shorter_than_the_mocap(corpus):
         robot_table(log, mocap, "camargo", "pid", "bad")
 
 
+def test_robot_log_partial_load_cell(corpus):
+    key = _robot_log(corpus, edit=lambda h, rows: ([*h, "harness_fx [N]", "harness_fy [N]"],
+                                                    [[*r, "1.0", "2.0"] for r in rows]))
+    with _raises(IngestError, corpus.path(key), "partial", "harness_fz"):
+        read_robot_log(corpus.manifest().resolve(key))
+
+
+def test_robot_log_flag_not_zero_or_one(corpus):
+    key = _robot_log(corpus, edit=lambda h, rows: ([*h, "fall [-]"], [[*r, "2" if i == 5 else "0"]
+                                                                       for i, r in enumerate(rows)]))
+    with _raises(IngestError, corpus.path(key), "flag 'fall'"):
+        read_robot_log(corpus.manifest().resolve(key))
+
+
+def test_robot_log_unknown_column(corpus):
+    key = _robot_log(corpus, edit=lambda h, rows: ([*h, "battery [V]"], [[*r, "24"] for r in rows]))
+    with _raises(IngestError, corpus.path(key), "unknown column 'battery'", "arm_forward"):
+        read_robot_log(corpus.manifest().resolve(key))
+
+
+def test_robot_log_non_numeric_cell(corpus):
+    def garble(header, rows):
+        rows[10][1] = "n/a"
+        return header, rows
+
+    key = _robot_log(corpus, edit=garble)
+    with _raises(IngestError, corpus.path(key), "non-numeric cell 'n/a'", "arm_forward"):
+        read_robot_log(corpus.manifest().resolve(key))
+
+
+def test_robot_markers_absent_from_the_marker_file(corpus, camargo, params, real):
+    from ingest.subject import RobotMarkers
+
+    subject = dataclasses.replace(camargo, robot_markers=RobotMarkers("MRBA_front", "MRBA_rear", "MRBA_arm",
+                                                                      (0.55, 0.0, 0.45)))
+    spec = TrialSpec(id="bad", condition="pid", markers=CAMARGO_TRC)
+    with _raises(IngestError, "levelground_ccw_fast_01_01.trc", "robot markers", "MRBA_front"):
+        process_trial(load_trial(subject, spec, real), subject.markerset, params)
+
+
+# --- subject files and marker sets ----------------------------------------------------------------
+
+def _subject_file(tmp_path: Path, **changes) -> Path:
+    doc = yaml.safe_load((ROOT / "data" / "subjects" / "camargo.yaml").read_text())
+    doc.update(changes)
+    (tmp_path / "camargo.yaml").write_text(yaml.safe_dump(doc))
+    return tmp_path / "camargo.yaml"
+
+
+def test_robot_log_on_a_free_trial(tmp_path):
+    doc = yaml.safe_load((ROOT / "data" / "subjects" / "camargo.yaml").read_text())
+    trials = [{**doc["trials"][0], "robot_log": "some/robot.csv"}]
+    path = _subject_file(tmp_path, trials=trials)
+    with _raises(SubjectError, str(path), "free walking but has a robot_log"):
+        load_subject("camargo", tmp_path)
+
+
+def test_robot_markers_without_the_neutral_point(tmp_path):
+    path = _subject_file(tmp_path, robot_markers={"base_front": "A", "base_rear": "B", "arm_end": "C"})
+    with _raises(SubjectError, str(path), "robot_markers needs", "neutral_in_base_m"):
+        load_subject("camargo", tmp_path)
+
+
+def test_marker_set_file_missing_roles(tmp_path):
+    from ingest.subject import load_markerset
+
+    roles = yaml.safe_load((ROOT / "data" / "markersets" / "camargo.yaml").read_text())
+    roles = {k: v for k, v in roles.items() if not k.startswith("psis")}
+    path = tmp_path / "lab.yaml"
+    path.write_text(yaml.safe_dump(roles))
+    with _raises(SubjectError, str(path), "missing roles", "psis_left", "psis_right"):
+        load_markerset(str(path))
+
+
+def test_unknown_marker_set_lists_the_shipped_ones():
+    from ingest.subject import load_markerset
+
+    with _raises(SubjectError, "nolab", "unknown marker set", "camargo"):
+        load_markerset("nolab")
+
+
+def test_grf_file_without_plate_columns(corpus, camargo):
+    from ingest.canonical import plates_from_grf
+    from ingest.readers import read_mot
+
+    text = corpus.text(CAMARGO_MOT)  # joint angles where ground reactions belong
+    key = corpus.add("camargo2021_levelground/ID/not_a_grf.mot", text)
+    with _raises(IngestError, corpus.path(key), "no force plate columns"):
+        plates_from_grf(read_mot(corpus.manifest().resolve(key)), camargo.format, 0.0)
+
+
 # --- registry and manifest ---------------------------------------------------------------------
 
 def test_unknown_subject_lists_known_ones():
