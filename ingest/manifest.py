@@ -3,6 +3,10 @@
 A file is looked up in the mirror folder first (``GAITLOOP_MIRROR``, default ``../shared/data``
 beside the checkout), then in the download cache (``data/raw``), then downloaded from its origin
 into the cache. Its sha256 is verified every time; nothing unverified is ever returned.
+
+An entry may also name a repository-relative ``path``: a copy tracked by DVC (``data/raw/<subject>/``,
+written by ``add-subject``), looked up first, under the repository root. Its ``url`` is then the
+file's public origin, or ``dvc:<path>`` when it has none (``dvc pull`` is the only way to get it).
 """
 
 from __future__ import annotations
@@ -26,11 +30,27 @@ def default_mirror() -> Path:
     return Path(os.environ.get("GAITLOOP_MIRROR", REPO_ROOT.parent / "shared" / "data"))
 
 
+DVC_SCHEME = "dvc:"
+
+
 @dataclass(frozen=True)
 class Source:
+    """A manifest entry: `url` is the public origin (or `dvc:<path>`), `path` a DVC-tracked copy
+    relative to the repository root, if any."""
+
     key: str
     url: str
     sha256: str
+    path: str | None = None
+
+
+def repo_relative(value: object) -> bool:
+    """Whether `value` is a path that stays inside the repository: POSIX, relative, no `..`, no drive
+    or scheme."""
+    text = str(value)
+    parts = text.split("/")
+    return bool(text) and not text.startswith("/") and not any(c in text for c in "\\:") \
+        and ".." not in parts and "" not in parts
 
 
 def sha256_of(path: Path) -> str:
@@ -52,12 +72,15 @@ class Manifest:
     sources: dict[str, Source]
     mirror: Path
     cache: Path
+    root: Path = REPO_ROOT
     _verified: dict[Path, tuple[int, int]] = field(default_factory=dict, compare=False, repr=False)
 
     @classmethod
     def load(
-        cls, path: Path = DEFAULT_MANIFEST, mirror: Path | None = None, cache: Path = DEFAULT_CACHE
+        cls, path: Path = DEFAULT_MANIFEST, mirror: Path | None = None, cache: Path = DEFAULT_CACHE,
+        root: Path = REPO_ROOT,
     ) -> Manifest:
+        """The manifest at `path`; `root` is the repository that entries' `path`s are relative to."""
         try:
             doc = yaml.safe_load(Path(path).read_text())
         except (OSError, yaml.YAMLError) as exc:
@@ -67,8 +90,13 @@ class Manifest:
         for key, entry in files.items():
             if not isinstance(entry, dict) or "sha256" not in entry or "url" not in entry:
                 raise ManifestError(path, f"entry {key!r} needs 'url' and 'sha256'")
-            sources[key] = Source(key, entry["url"], str(entry["sha256"]).lower())
-        return cls(sources, mirror or default_mirror(), cache)
+            url = str(entry["url"])
+            local = entry.get("path") or (url[len(DVC_SCHEME):] if url.startswith(DVC_SCHEME) else None)
+            if local is not None and not repo_relative(local):
+                raise ManifestError(path, f"entry {key!r}: path {local!r} must be relative to the repository "
+                                    "root, without '..'")
+            sources[key] = Source(key, url, str(entry["sha256"]).lower(), local)
+        return cls(sources, mirror or default_mirror(), cache, Path(root))
 
     def resolve(self, key: str) -> Path:
         """Local path of a verified copy of `key`; raises `ManifestError` naming the file."""
@@ -76,6 +104,11 @@ class Manifest:
             source = self.sources[key]
         except KeyError:
             raise ManifestError(key, "not listed in the data manifest (data/sources.yaml)") from None
+        if source.path:  # the repository's own DVC-tracked copy
+            tracked = self.root / source.path
+            if tracked.is_file():
+                self._verify(tracked, source)
+                return tracked
         mirrored = self.mirror / key
         if mirrored.is_file():
             self._verify(mirrored, source)
@@ -84,6 +117,9 @@ class Manifest:
         if cached.is_file():
             self._verify(cached, source)
             return cached
+        if source.url.startswith(DVC_SCHEME):
+            raise ManifestError(key, f"tracked by DVC as {source.path} but not checked out under "
+                                f"{self.root}: run `dvc pull {source.path}.dvc`")
         cached.parent.mkdir(parents=True, exist_ok=True)
         partial = cached.with_name(cached.name + ".part")
         try:

@@ -24,7 +24,8 @@ from ingest.phases import PhaseParams, motion_phases
 from ingest.robot import ROBOT_COLUMNS
 from ingest.robot_log import log_from_markers, robot_table
 from ingest.strides import StrideParams, segment_strides
-from ingest.trial import SIDES, Trial
+from ingest.treadmill import Treadmill, TreadmillParams, check_treadmill, decide, overground_equivalent
+from ingest.trial import SIDES, Provenance, Trial
 
 ID_COLUMNS = ["subject", "source", "condition", "trial"]
 PELVIS_ROLES = ("asis_left", "asis_right", "psis_left", "psis_right")
@@ -46,6 +47,7 @@ class IngestParams:
     events: EventParams = field(default_factory=EventParams)
     strides: StrideParams = field(default_factory=StrideParams)
     phases: PhaseParams = field(default_factory=PhaseParams)
+    treadmill: TreadmillParams = field(default_factory=TreadmillParams)
 
     @classmethod
     def from_dict(cls, d: dict) -> IngestParams:
@@ -62,6 +64,7 @@ class IngestParams:
             events=EventParams(**d["events"]),
             strides=StrideParams(**d["strides"]),
             phases=PhaseParams(**d["phases"]),
+            treadmill=TreadmillParams(**d["treadmill"]),
         )
 
 
@@ -72,6 +75,7 @@ class ProcessedTrial:
     strides: pd.DataFrame
     cycles: pd.DataFrame
     robot: pd.DataFrame = field(default_factory=lambda: pd.DataFrame(columns=ROBOT_COLUMNS))
+    treadmill: Treadmill | None = None  # a treadmill trial, processed as its overground equivalent
 
 
 def clean_markers(trial: Trial, markerset: dict[str, str], p: IngestParams) -> Trial:
@@ -124,10 +128,28 @@ def trial_path(lm: dict[str, np.ndarray], rate_hz: float, p: IngestParams) -> Pe
                        p.max_yaw_rate_deg_s, p.max_facing_angle_deg)
 
 
+def as_overground(clean: Trial, markerset: dict[str, str], p: IngestParams, treadmill: bool | None = None,
+                  belt_speed_mps: float | None = None) -> tuple[Trial, Treadmill | None]:
+    """A cleaned trial, or when it is treadmill walking (declared: `treadmill`, `belt_speed_mps` of
+    the subject file; or detected) its overground equivalent (`ingest.treadmill`), noted in its
+    provenance."""
+    lm = landmarks(clean, markerset)
+    if lm is None or (treadmill is False):
+        return clean, None
+    check = check_treadmill(lm, clean.time_s, clean.rate_hz, p.treadmill)
+    found = decide(check, p.treadmill, treadmill, belt_speed_mps, clean.origin)
+    if found is None:
+        return clean, None
+    walk = overground_equivalent(clean, found)
+    note = Provenance("treadmill", "", found.note)
+    return walk.with_(provenance=(*clean.provenance, note)), found
+
+
 def walk_phases(trial: Trial, markerset: dict[str, str], p: IngestParams) -> np.ndarray:
     """Phase label per frame (standing, start, steady, speed_change, turn, stop) from the trial's
-    gap-filled, filtered pelvis path (`ingest.phases`)."""
-    clean = clean_markers(trial, markerset, p)
+    gap-filled, filtered pelvis path (`ingest.phases`); a treadmill trial's from its overground
+    equivalent."""
+    clean, _ = as_overground(clean_markers(trial, markerset, p), markerset, p)
     lm = landmarks(clean, markerset)
     if lm is None:
         missing = sorted(set(markerset.values()) - set(clean.markers))
@@ -135,9 +157,13 @@ def walk_phases(trial: Trial, markerset: dict[str, str], p: IngestParams) -> np.
     return motion_phases(trial_path(lm, clean.rate_hz, p), clean.rate_hz, p.phases)
 
 
-def process_trial(trial: Trial, markerset: dict[str, str], p: IngestParams) -> ProcessedTrial:
-    """Events, strides and cycles of one trial (see module docstring)."""
-    clean = clean_markers(trial, markerset, p)
+def process_trial(trial: Trial, markerset: dict[str, str], p: IngestParams, treadmill: bool | None = None,
+                  belt_speed_mps: float | None = None) -> ProcessedTrial:
+    """Events, strides and cycles of one trial (see module docstring). `treadmill` True/False
+    declares treadmill or overground walking (None: detected), `belt_speed_mps` the belt speed
+    (None: estimated); a treadmill trial is processed as its overground equivalent
+    (`ingest.treadmill`)."""
+    clean, found = as_overground(clean_markers(trial, markerset, p), markerset, p, treadmill, belt_speed_mps)
     lm = landmarks(clean, markerset)
     kin = force = None
     angles = dict(clean.angles)
@@ -173,7 +199,7 @@ def process_trial(trial: Trial, markerset: dict[str, str], p: IngestParams) -> P
     robot = (robot_table(log, trial.time_s, trial.subject, trial.condition, trial.trial) if log is not None
              else pd.DataFrame(columns=ROBOT_COLUMNS))
     return ProcessedTrial(clean, _with_id(events, ident), _with_id(strides, ident),
-                          _with_id(cycles, ident), robot)
+                          _with_id(cycles, ident), robot, found)
 
 
 def _with_id(df: pd.DataFrame, ident: dict[str, str]) -> pd.DataFrame:
@@ -203,7 +229,8 @@ def process_subject(subject, manifest, p: IngestParams, progress: bool = False) 
 
     results = []
     for spec in tqdm(subject.trials, desc=f"ingest {subject.id}", unit="trial", disable=not progress):
-        results.append(process_trial(load_trial(subject, spec, manifest), subject.markerset, p))
+        results.append(process_trial(load_trial(subject, spec, manifest), subject.markerset, p,
+                                     spec.treadmill, spec.belt_speed_mps))
     logs = [r.robot for r in results if not r.robot.empty]
     robot = pd.concat(logs, ignore_index=True) if logs else pd.DataFrame(columns=ROBOT_COLUMNS)
     tables = SubjectTables(*(pd.concat([getattr(r, name) for r in results], ignore_index=True)

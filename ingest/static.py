@@ -20,6 +20,13 @@ and threshold. `static: auto` (subject file; `--static auto` of add-subject) sea
 trials (`find_standing_window`): in each file the first passing stretch (the standing before the
 walk, where labs have the subject take the calibration pose; standing after a stop is wherever the
 walk ended), across files the longest (the quietest on ties); its angles are the chosen trial's IK.
+
+`static: none` (`--static none`): a subject that never stands still is scaled from its walking
+trials, as AddBiomechanics scales without a static trial (Werling et al. 2023, PLoS ONE 18:e0295152,
+"AddBiomechanics"): `walking_static` synthesises the standing pose's markers from per-segment median
+geometry over all walking frames with the frame-defining markers present (see there). Its angles are
+none: the joint zeros fall back to `static_upright` (`sim.body.scaling`), because the median IK over
+walking frames is not a neutral pose and the synthetic pose has no IK of its own.
 """
 
 from __future__ import annotations
@@ -39,7 +46,7 @@ from ingest.filtering import finite_runs
 from ingest.kinematics import hip_joint_centres
 from ingest.manifest import Manifest
 from ingest.readers import MarkerTable, read_markers, read_mot
-from ingest.subject import MARKERSETS_DIR, STATIC_AUTO, StaticSpec, Subject
+from ingest.subject import MARKERSETS_DIR, STATIC_AUTO, STATIC_NONE, StaticSpec, Subject
 from ingest.trial import SIDES
 
 SCALING_ROLES_DIR = MARKERSETS_DIR / "scaling"
@@ -60,6 +67,7 @@ class StaticCheckParams:
     max_foot_spread_m: float = 0.04
     max_knee_flexion_deg: float = 25.0
     speed_window_s: float = 0.1
+    max_marker_spread_m: float = 0.02  # static: none: a marker rides on a segment this rigidly (median)
 
 
 @dataclass(frozen=True)
@@ -268,6 +276,9 @@ def read_static_trial(subject: Subject, manifest: Manifest, roles_dir: Path = SC
     standing; `static: auto` first finds the window in the subject's trials."""
     if subject.static is None:
         raise SubjectError(subject.path, "no static trial (field 'static') to scale the model from")
+    if subject.static.markers == STATIC_NONE:
+        paths = [manifest.resolve(t.markers) for t in subject.trials if t.markers]
+        return walking_static(subject, paths, scaling_roles(subject, roles_dir), check)
     if subject.static.markers == STATIC_AUTO:
         subject = _with_auto_static(subject, manifest, check)
     path = manifest.resolve(subject.static.markers)
@@ -288,3 +299,162 @@ def _with_auto_static(subject: Subject, manifest: Manifest, p: StaticCheckParams
     trial = trials[[str(x) for x in paths].index(found.source)]
     spec = StaticSpec(trial.markers, (found.t0_s, found.t1_s), trial.angles)
     return dataclasses.replace(subject, static=spec)
+
+
+# static: none. Segment -> the roles whose markers define its frame (they ride on it by construction).
+FRAME_ROLES = {"pelvis": ("asis", "psis"), "thigh": ("knee",), "shank": ("ankle",), "foot": ("heel", "toe")}
+
+
+def _unit_rows(v: np.ndarray) -> np.ndarray:
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def _frames_xy(x: np.ndarray, y_ref: np.ndarray) -> np.ndarray:
+    """(n, 3, 3) frames (columns x, y, z) with x along `x` and y as close to `y_ref` as allowed."""
+    x = _unit_rows(x)
+    z = _unit_rows(np.cross(x, y_ref))
+    return np.stack([x, np.cross(z, x), z], axis=-1)
+
+
+def _frames_zy(z: np.ndarray, y_ref: np.ndarray) -> np.ndarray:
+    """(n, 3, 3) frames with z along `z` and y as close to `y_ref` as allowed."""
+    z = _unit_rows(z)
+    x = _unit_rows(np.cross(y_ref, z))
+    return np.stack([x, np.cross(z, x), z], axis=-1)
+
+
+def _walking_frames(paths: list[Path], subject: Subject) -> tuple[np.ndarray, list[str]]:
+    """All frames of the marker files `paths`, Z up, stacked: ((n, m, 3), names; NaN where a file
+    lacks a marker, and for markers written as exactly (0, 0, 0): the gap convention of Vicon and
+    of kgc6's files, whose static-only landmarks are zeros in the walks)."""
+    tables = []
+    for path in paths:
+        table = read_markers(path)
+        xyz = np.where((table.xyz_m == 0.0).all(axis=2, keepdims=True), np.nan, table.xyz_m)
+        up, _ = resolve_up_axis(xyz, table.names, subject.markerset, subject.format, str(path))
+        tables.append((up_to_z(xyz, up), list(table.names)))
+    names = list(dict.fromkeys(n for _, ns in tables for n in ns))
+    out = []
+    for xyz, ns in tables:
+        full = np.full((len(xyz), len(names), 3), np.nan)
+        full[:, [names.index(n) for n in ns]] = xyz
+        out.append(full)
+    return np.concatenate(out), names
+
+
+def _segment_frames(m: dict[str, np.ndarray]) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Per frame, segment -> (origin (n, 3), frame (n, 3, 3)) from the role markers `m`: pelvis at
+    mid-ASIS (x toward it from mid-PSIS, y left); trunk there, upright, facing the pelvis' heading;
+    thigh at the hip centre (Harrington), z toward it from the knee marker; shank at the knee
+    marker, z toward it from the ankle marker (both y near the pelvis' left); foot at the ankle
+    marker, x heel -> toe, y near the shank's."""
+    pelvis_y = _unit_rows(m["asis_left"] - m["asis_right"])
+    mid_asis = (m["asis_left"] + m["asis_right"]) / 2
+    pelvis = _frames_xy(mid_asis - (m["psis_left"] + m["psis_right"]) / 2, pelvis_y)
+    heading = pelvis[:, :, 0] * [1.0, 1.0, 0.0]
+    out = {"pelvis": (mid_asis, pelvis), "trunk": (mid_asis, _frames_zy(np.tile([0.0, 0.0, 1.0], (len(
+        heading), 1)), np.cross([0.0, 0.0, 1.0], heading)))}
+    hjc = hip_joint_centres(m["asis_left"], m["asis_right"], m["psis_left"], m["psis_right"])
+    for side in SIDES:
+        knee, ankle = m[f"knee_{side}"], m[f"ankle_{side}"]
+        shank = _frames_zy(knee - ankle, pelvis_y)
+        out[f"thigh_{side}"] = (hjc[side], _frames_zy(hjc[side] - knee, pelvis_y))
+        out[f"shank_{side}"] = (knee, shank)
+        out[f"foot_{side}"] = (ankle, _frames_xy(m[f"toe_{side}"] - m[f"heel_{side}"], shank[:, :, 1]))
+    return out
+
+
+def _local(origin: np.ndarray, frame: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """Points `p` (n, 3) in the moving frames (n, 3, 3) at `origin` (n, 3)."""
+    return np.einsum("nji,nj->ni", frame, p - origin)
+
+
+def walking_static(subject: Subject, paths: list[Path], roles: dict[str, str],
+                   p: StaticCheckParams = StaticCheckParams()) -> StaticTrial:
+    """`static: none`: a standing pose synthesised from the walking trials `paths` (Werling et al.
+    2023, AddBiomechanics, scale from motion without a static trial).
+
+    Over every frame with all ASIS, PSIS, knee, ankle, heel and toe markers (Z up), segment frames
+    are built from them (`_segment_frames`) and each marker gets its median position in the frame
+    of the segment it rides on: the frame-defining markers on their own segment (knee on the thigh,
+    ankle on the shank, heel and toe on the foot), any other marker on the segment where that
+    median is the most rigid (median distance from it), kept when at most `max_marker_spread_m`
+    (swinging arms are dropped: stature ratios replace them in scaling). The pose: pelvis with no
+    list or rotation at its median walking tilt; thigh and shank vertical under the hip centre
+    (the hip-knee and knee-ankle marker distances, medians, are kept: segment lengths); each foot
+    at its median toe-out relative to the pelvis' heading, pitched so that heel and toe markers
+    stand at their foot-flat heights (10th percentile over the frames), the heels on them. No
+    angles: the joint zeros are not calibrated (module docstring)."""
+    origin = "walking trials " + ", ".join(Path(x).name for x in paths)
+    if not paths:
+        raise SubjectError(subject.path or subject.id, "static none: the subject has no marker files to "
+                           "scale from")
+    xyz, names = _walking_frames(paths, subject)
+    needed = [f"{r}_{s}" for r in ("asis", "psis", "knee", "ankle", "heel", "toe") for s in SIDES]
+    missing = [f"{r} ({roles.get(r)})" for r in needed if roles.get(r) not in names]
+    if missing:
+        raise IngestError(origin, f"static none: markers missing for {', '.join(missing)}")
+    col = {n: j for j, n in enumerate(names)}
+    complete = np.isfinite(xyz[:, [col[roles[r]] for r in needed]]).all(axis=(1, 2))
+    if complete.sum() < 10:
+        seen = {r: int(np.isfinite(xyz[:, col[roles[r]]]).all(axis=1).sum()) for r in needed}
+        raise IngestError(origin, f"static none: {complete.sum()} frames hold all the frame-defining markers "
+                          f"(frames per role: {', '.join(f'{r} ({roles[r]}) {n}' for r, n in seen.items())})")
+    xyz = xyz[complete]
+    m = {r: xyz[:, col[roles[r]]] for r in needed}
+    frames = _segment_frames(m)
+    fixed = {roles[f"{r}_{s}"]: (seg if seg == "pelvis" else f"{seg}_{s}")
+             for seg, rs in FRAME_ROLES.items() for r in rs for s in SIDES}
+    local: dict[str, tuple[str, np.ndarray]] = {}
+    dropped = []
+    for name, j in col.items():
+        ok = np.isfinite(xyz[:, j]).all(axis=1)
+        if ok.sum() < max(10, 0.1 * len(xyz)):
+            dropped.append(name)
+            continue
+        best = None
+        for seg in [fixed[name]] if name in fixed else list(frames):
+            o, f = frames[seg]
+            loc = _local(o[ok], f[ok], xyz[ok, j])
+            med = np.median(loc, axis=0)
+            spread = float(np.median(np.linalg.norm(loc - med, axis=1)))
+            if best is None or spread < best[0]:
+                best = (spread, seg, med)
+        if name in fixed or best[0] <= p.max_marker_spread_m:
+            local[name] = (best[1], best[2])
+        else:
+            dropped.append(name)
+    if dropped:
+        log.info("%s: static none: markers left out (not rigid on a leg or pelvis segment): %s", subject.id,
+                 ", ".join(dropped))
+
+    x_p = frames["pelvis"][1][:, :, 0]
+    tilt = float(np.median(np.arcsin(np.clip(x_p[:, 2], -1.0, 1.0))))
+    pose = {"pelvis": (np.zeros(3), _frames_xy(np.array([[np.cos(tilt), 0.0, np.sin(tilt)]]),
+                                               np.array([[0.0, 1.0, 0.0]]))[0]),
+            "trunk": (np.zeros(3), np.eye(3))}
+    place = lambda seg, name: pose[seg][0] + pose[seg][1] @ local[name][1]  # noqa: E731
+    pelvis = {r: place("pelvis", roles[r]) for r in ("asis_left", "asis_right", "psis_left", "psis_right")}
+    hjc = hip_joint_centres(*(pelvis[r][None] for r in ("asis_left", "asis_right", "psis_left",
+                                                          "psis_right")))
+    heel_h = {}
+    for side in SIDES:
+        pose[f"thigh_{side}"] = (hjc[side][0], np.eye(3))
+        knee = place(f"thigh_{side}", roles[f"knee_{side}"])
+        pose[f"shank_{side}"] = (knee, np.eye(3))
+        ankle = place(f"shank_{side}", roles[f"ankle_{side}"])
+        heel, toe = m[f"heel_{side}"], m[f"toe_{side}"]
+        along = toe - heel
+        heading = frames["trunk"][1][:, :, 0]
+        cos_sin = np.einsum("ij,ij->i", heading, along), np.cross(heading, along)[:, 2]
+        yaw = float(np.median(np.arctan2(cos_sin[1], cos_sin[0])))
+        h_heel, h_toe = (float(np.percentile(v[:, 2], 10)) for v in (heel, toe))
+        pitch = float(np.arcsin(np.clip((h_toe - h_heel) / np.median(np.linalg.norm(along, axis=1)), -1, 1)))
+        x = np.array([np.cos(pitch) * np.cos(yaw), np.cos(pitch) * np.sin(yaw), np.sin(pitch)])
+        pose[f"foot_{side}"] = (ankle, _frames_xy(x[None], np.array([[0.0, 1.0, 0.0]]))[0])
+        heel_h[side] = (h_heel, place(f"foot_{side}", roles[f"heel_{side}"])[2])
+    lift = np.mean([h - z for h, z in heel_h.values()])
+    markers = {name: place(seg, name) + [0.0, 0.0, lift] for name, (seg, _) in local.items()}
+    log.info("%s: static none: standing pose from %d walking frames of %d files (pelvis tilt %.1f deg)",
+             subject.id, len(xyz), len(paths), np.degrees(tilt))
+    return StaticTrial(subject.id, markers, roles, origin)

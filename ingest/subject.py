@@ -6,11 +6,14 @@ knee_flexion_sign, and for files without a unit header, angle_unit; up_axis x, y
 when not given: `ingest.canonical.detect_up_axis`), static (scaling trial: markers, optional window_s, and
 optional `angles`, the manifest key of the static pose's IK coordinates, median over the same
 window, used to calibrate the model's joint zeros; or `static: auto`, the quietest standing window
-found in the trials: `ingest.static.find_standing_window`), trials (id, condition, and
+found in the trials: `ingest.static.find_standing_window`; or `static: none`, scaled from the
+walking trials: `ingest.static.walking_static`), trials (id, condition, and
 manifest keys of the markers / angles / grf files, and of the `robot_log` of a robot-assisted
-trial: `ingest.readers.robot_log`), `robot_markers` (markers on the robot that stand in for a robot
-log: `RobotMarkers`) and `round_trip_of` (the subject whose simulated trials these files are,
-exported and read back: `python -m pipeline export`; reports and the store label it).
+trial: `ingest.readers.robot_log`; optional `treadmill` true/false and `belt_speed_mps` of a treadmill
+trial, `treadmill` also at the top level for every trial: `ingest.treadmill`), `robot_markers`
+(markers on the robot that stand in for a robot log: `RobotMarkers`) and `round_trip_of` (the
+subject whose simulated trials these files are, exported and read back: `python -m pipeline
+export`; reports and the store label it).
 """
 
 from __future__ import annotations
@@ -29,6 +32,7 @@ MARKERSETS_DIR = markersets.MARKERSETS_DIR
 ROLES = ("heel", "toe", "ankle", "knee", "asis", "psis")
 UP_AXIS_CHOICES = ("x", "y", "z", "auto")
 STATIC_AUTO = "auto"  # `static: auto`: the quietest standing window of the subject's trials
+STATIC_NONE = "none"  # `static: none`: no standing at all; scaled from the walking trials
 
 
 @dataclass(frozen=True)
@@ -48,6 +52,8 @@ class TrialSpec:
     angles: str | None = None
     grf: str | None = None
     robot_log: str | None = None
+    treadmill: bool | None = None  # True: treadmill walking, False: overground, None: detected
+    belt_speed_mps: float | None = None  # declared belt speed (None: estimated: ingest.treadmill)
 
 
 @dataclass(frozen=True)
@@ -105,6 +111,26 @@ def load_markerset(name: str, directory: Path = MARKERSETS_DIR) -> dict[str, str
     return markersets.load_markerset(name, directory)
 
 
+def _treadmill(value, path: Path) -> bool | None:
+    """A trial's `treadmill` (or the subject's, for every trial that does not say): true, false or
+    absent (detected: `ingest.treadmill`)."""
+    if value is None or isinstance(value, bool):
+        return value
+    raise SubjectError(path, f"treadmill must be true or false, not {value!r}")
+
+
+def _belt_speed(value, path: Path) -> float | None:
+    if value is None:
+        return None
+    try:
+        speed = float(value)
+    except (TypeError, ValueError):
+        speed = float("nan")
+    if not 0.0 < speed < 10.0:
+        raise SubjectError(path, f"belt_speed_mps {value!r} is not a belt speed in m/s")
+    return speed
+
+
 def load_subject(subject_id: str, directory: Path = SUBJECTS_DIR) -> Subject:
     """Load and validate `<directory>/<subject_id>.yaml`."""
     path = directory / f"{subject_id}.yaml"
@@ -138,12 +164,16 @@ def load_subject(subject_id: str, directory: Path = SUBJECTS_DIR) -> Subject:
             angles=t.get("angles"),
             grf=t.get("grf"),
             robot_log=t.get("robot_log"),
+            treadmill=_treadmill(t.get("treadmill", doc.get("treadmill")), path),
+            belt_speed_mps=_belt_speed(t.get("belt_speed_mps"), path),
         )
         for t in _require(doc, "trials", path)
     )
     if not trials:
         raise SubjectError(path, "no trials listed")
     for t in trials:
+        if t.belt_speed_mps is not None and t.treadmill is False:
+            raise SubjectError(path, f"trial {t.id!r} has a belt_speed_mps but treadmill: false")
         if t.robot_log and t.condition == "free":
             raise SubjectError(path, f"trial {t.id!r} is free walking but has a robot_log: name the "
                                "controller that ran as its condition")
@@ -161,8 +191,8 @@ def load_subject(subject_id: str, directory: Path = SUBJECTS_DIR) -> Subject:
             raise SubjectError(path, "robot_markers.neutral_in_base_m must be [x, y, z] in metres")
     static_doc = doc.get("static")
     static = None
-    if static_doc == STATIC_AUTO:
-        static = StaticSpec(STATIC_AUTO)
+    if static_doc in (STATIC_AUTO, STATIC_NONE):
+        static = StaticSpec(static_doc)
     elif static_doc:
         window = static_doc.get("window_s")
         angles = static_doc.get("angles")

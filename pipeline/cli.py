@@ -239,7 +239,7 @@ def cmd_add_subject(args: argparse.Namespace) -> int:
     trials = [NewTrial.parse(t) for t in args.trial]
     path = add_subject(args.id, args.height_m, args.mass_kg, args.static, trials, markerset=args.markerset,
                        up_axis=args.up_axis, knee_flexion_sign=args.knee_flexion_sign, dataset=args.dataset,
-                       round_trip_of=args.round_trip_of, registry=registry)
+                       round_trip_of=args.round_trip_of, origin=args.origin, registry=registry)
     print(f"wrote {path} and added {args.id!r} to {args.params}; run `dvc repro`", file=sys.stderr)
     return 0
 
@@ -298,11 +298,14 @@ def add_results_commands(commands: argparse._SubParsersAction) -> None:
     add.add_argument("--height-m", type=float, required=True)
     add.add_argument("--mass-kg", type=float, required=True)
     add.add_argument("--static", type=Path, required=True, help="static (scaling) marker file, or 'auto': "
-                     "the quiet standing before a walk in the trials (checked to be quiet standing)")
+                     "the quiet standing before a walk in the trials (checked to be quiet standing), or "
+                     "'none': no standing, scaled from the walking trials")
     add.add_argument("--trial", action="append", required=True,
                      metavar="COND=MARKERS[,ANGLES[,GRF[,ROBOT_LOG]]]",
                      help="a walking trial: condition and marker file, optionally IK angles and GRF .mot "
                      "and, for a robot-assisted trial (condition = the controller), the robot log .csv")
+    add.add_argument("--origin", metavar="URL", help="public http(s) folder the new files can be downloaded "
+                     "from (their manifest origin); default: tracked by DVC only (dvc push)")
     add.add_argument("--round-trip-of", metavar="SUBJECT", help="these files are SUBJECT's simulated trials "
                      "exported by `export` and read back: label the subject as a round trip")
     add.add_argument("--markerset", help="marker set: a name in data/markersets/ or a YAML file (default: "

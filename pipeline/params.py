@@ -185,9 +185,17 @@ class StaticCheckSchema(Schema):
     max_foot_spread_m: Annotated[float, Field(gt=0.0)]
     max_knee_flexion_deg: Annotated[float, Field(gt=0.0)]
     speed_window_s: Annotated[float, Field(gt=0.0)]
+    max_marker_spread_m: Annotated[float, Field(gt=0.0)]
 
     def build(self) -> StaticCheckParams:
         return StaticCheckParams(**self.model_dump())
+
+
+class TreadmillSchema(Schema):
+    max_pelvis_speed_mps: Annotated[float, Field(gt=0.0)]
+    min_foot_excursion_m: Annotated[float, Field(gt=0.0)]
+    min_belt_speed_mps: Annotated[float, Field(gt=0.0)]
+    stance_height_m: Annotated[float, Field(gt=0.0)]
 
 
 class IngestSchema(Schema):
@@ -199,6 +207,7 @@ class IngestSchema(Schema):
     cycles: CyclesSchema
     phases: PhasesSchema
     static: StaticCheckSchema  # the static trial's check: `ingest.static.StaticCheckParams` (static.build())
+    treadmill: TreadmillSchema  # treadmill detection: `ingest.treadmill.TreadmillParams`
 
     def build(self) -> IngestParams:
         return IngestParams.from_dict(self.model_dump())

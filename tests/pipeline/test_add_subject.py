@@ -1,14 +1,19 @@
-"""add-subject registers a subject from real files into a temp copy of the registry."""
+"""add-subject registers a subject from real files into a temp copy of the registry (a scratch copy:
+new files keep file:// origins) or into a temp DVC repository (new files tracked with DVC; without
+git, see test_add_subject_dvc.py for clones)."""
 
+import importlib.util
 import os
 import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
 import yaml
 
 from ingest.canonical import load_trial
-from ingest.errors import IngestError, SubjectError
+from ingest.errors import IngestError, ManifestError, SubjectError
 from ingest.manifest import Manifest
 from ingest.subject import load_subject
 from pipeline.cli import main
@@ -84,7 +89,7 @@ def test_registers_mirror_files_through_their_manifest_entries(registry):
     assert trial.plates is not None and trial.angles
 
 
-def test_files_outside_the_manifest_get_file_origins(registry, tmp_path):
+def test_files_outside_the_manifest_get_file_origins_in_a_scratch_registry(registry, tmp_path):
     outside = tmp_path / "lab"
     outside.mkdir()
     for name in ("walking2.trc", "static1.trc"):
@@ -162,3 +167,105 @@ def test_cli_add_subject_refuses_duplicate_with_one_line(registry, capsys):
     )
     assert code == 2
     assert "already registered" in capsys.readouterr().err
+
+
+needs_dvc = pytest.mark.skipif(importlib.util.find_spec("dvc") is None, reason="DVC is not installed")
+
+
+@pytest.fixture
+def dvc_repo(tmp_path) -> Registry:
+    """A DVC repository (no git) holding copies of the registry files: new files are tracked there."""
+    root = tmp_path / "repo"
+    (root / "data").mkdir(parents=True)
+    for name in ("subjects", "markersets"):
+        shutil.copytree(ROOT / "data" / name, root / "data" / name)
+    shutil.copy(ROOT / "params.yaml", root / "params.yaml")
+    shutil.copy(ROOT / "data" / "sources.yaml", root / "data" / "sources.yaml")
+    env = {**os.environ, "DVC_NO_ANALYTICS": "1"}
+    subprocess.run([sys.executable, "-m", "dvc", "init", "--no-scm", "-q"], cwd=root, env=env, check=True)
+    subprocess.run([sys.executable, "-m", "dvc", "config", "core.analytics", "false"], cwd=root, env=env,
+                   check=True)
+    return Registry.of_repo(root, mirror=DATA)
+
+
+def lab_files(folder: Path) -> tuple[Path, Path]:
+    """A new walk (opencap4's walking2 with another header: a file the manifest does not know) and an
+    exact copy of the static trial (listed: reuses its entry)."""
+    folder.mkdir()
+    walk, static = folder / "lab_walk.trc", folder / "lab_static.trc"
+    lines = (OC / "MarkerData" / "walking2.trc").read_text().splitlines(keepends=True)
+    walk.write_text("PathFileType\t4\t(X/Y/Z)\tlab_walk.trc\n" + "".join(lines[1:]))
+    shutil.copy(OC / "MarkerData" / "static1.trc", static)
+    return walk, static
+
+
+def registry_files(reg: Registry) -> dict:
+    return {p: p.read_bytes() for p in (reg.params_path, reg.manifest_path, *reg.subjects_dir.glob("*"))}
+
+
+@needs_dvc
+def test_new_files_are_tracked_with_dvc_under_repo_relative_paths(dvc_repo, tmp_path):
+    walk, static = lab_files(tmp_path / "lab")
+    add_subject("lab1", 1.70, 65.0, static, [NewTrial("free", walk)], markerset="opencap_labval",
+                up_axis="y", dataset="lab", registry=dvc_repo)
+    root = dvc_repo.root
+    subject = load_subject("lab1", dvc_repo.subjects_dir)
+    key = subject.trials[0].markers
+    assert key == "local/lab1/lab_walk.trc"
+    assert subject.static.markers == "opencap_labval_subject4/MarkerData/static1.trc"  # same sha256
+    entry = yaml.safe_load(dvc_repo.manifest_path.read_text())["files"][key]
+    assert entry["url"] == "dvc:data/raw/lab1/lab_walk.trc" and entry["path"] == "data/raw/lab1/lab_walk.trc"
+    copy = root / "data" / "raw" / "lab1" / "lab_walk.trc"
+    assert copy.read_bytes() == walk.read_bytes()
+    dvc_file = yaml.safe_load((root / "data" / "raw" / "lab1" / "lab_walk.trc.dvc").read_text())
+    assert dvc_file["outs"][0]["path"] == "lab_walk.trc"
+    for path in (dvc_repo.manifest_path, subject.path, copy.with_name("lab_walk.trc.dvc")):
+        text = path.read_text()
+        assert str(tmp_path) not in text and "file://" not in text, path
+    manifest = Manifest.load(dvc_repo.manifest_path, mirror=DATA, cache=tmp_path / "cache", root=root)
+    assert manifest.resolve(key) == copy  # the DVC-tracked copy, hash checked
+    trial = load_trial(subject, subject.trials[0], manifest)
+    assert trial.time_s.size > 0
+    copy.unlink()  # not checked out (a clone before `dvc pull`): says how to get it
+    with pytest.raises(ManifestError, match="dvc pull data/raw/lab1/lab_walk.trc.dvc"):
+        Manifest.load(dvc_repo.manifest_path, mirror=DATA, cache=tmp_path / "cache", root=root).resolve(key)
+
+
+@needs_dvc
+def test_origin_url_is_the_new_files_origin(dvc_repo, tmp_path):
+    walk, static = lab_files(tmp_path / "lab")
+    with pytest.raises(SubjectError, match="origin must be an http"):
+        add_subject("lab2", 1.70, 65.0, static, [NewTrial("free", walk)], markerset="opencap_labval",
+                    up_axis="y", origin=str(tmp_path), registry=dvc_repo)
+    add_subject("lab2", 1.70, 65.0, static, [NewTrial("free", walk)], markerset="opencap_labval",
+                up_axis="y", origin="https://example.org/lab/", registry=dvc_repo)
+    entry = yaml.safe_load(dvc_repo.manifest_path.read_text())["files"]["local/lab2/lab_walk.trc"]
+    assert entry["url"] == "https://example.org/lab/lab_walk.trc"
+    assert entry["path"] == "data/raw/lab2/lab_walk.trc"
+
+
+@needs_dvc
+def test_dvc_refusals_and_failures_write_nothing(dvc_repo, tmp_path):
+    walk, static = lab_files(tmp_path / "lab")
+    before = registry_files(dvc_repo)
+    raw = dvc_repo.root / "data" / "raw"
+    args = (1.70, 65.0, static, [NewTrial("free", walk)])
+    outside = tmp_path / "my_set.yaml"
+    shutil.copy(ROOT / "data" / "markersets" / "opencap_labval.yaml", outside)
+    with pytest.raises(SubjectError, match="marker set file is outside the repository"):
+        add_subject("lab3", *args, markerset=str(outside), up_axis="y", registry=dvc_repo)
+    (raw / "lab3").mkdir(parents=True)
+    with pytest.raises(SubjectError, match="raw folder of subject 'lab3' already exists"):
+        add_subject("lab3", *args, markerset="opencap_labval", up_axis="y", registry=dvc_repo)
+    (raw / "lab3").rmdir()
+    config = dvc_repo.root / ".dvc" / "config"
+    good = config.read_text()
+    config.write_text("[core\nbroken")  # `dvc add` fails after the copies were made: they are removed
+    with pytest.raises(SubjectError, match="`dvc add` failed"):
+        add_subject("lab3", *args, markerset="opencap_labval", up_axis="y", registry=dvc_repo)
+    assert not (raw / "lab3").exists()
+    config.write_text(good)
+    shutil.rmtree(dvc_repo.root / ".dvc")
+    with pytest.raises(SubjectError, match="not a DVC repository"):
+        add_subject("lab3", *args, markerset="opencap_labval", up_axis="y", registry=dvc_repo)
+    assert registry_files(dvc_repo) == before and not (raw / "lab3").exists()

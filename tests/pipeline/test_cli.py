@@ -90,8 +90,10 @@ def test_bench_writes_report(tmp_path):
     ingest = report["ingest"]
     for key in ("camargo_trial_s", "camargo_frames_per_s", "opencap4_frames_per_s"):
         assert ingest[key] > 0
-    assert ingest["targets"] == {"camargo_trial_s": 0.2}
-    assert ingest["meets_targets"] == (ingest["camargo_trial_s"] <= 0.2)
+    assert ingest["targets"] == {"camargo_trial_s": 0.2, "camargo_floor_fraction": 0.5}
+    assert ingest["meets_targets"] == (ingest["camargo_trial_s"] <= 0.2
+                                       and ingest["camargo_floor_fraction"] >= 0.5)
+    assert 0 < ingest["camargo_floor_s"] < ingest["camargo_trial_s"]
     assert ingest["camargo_frames"] == 3067
     # a partial run refreshes its section and keeps the others' last numbers
     report["rollout"] = {"ratio_to_mj_step": 0.5, "targets": {"ratio_to_mj_step": 0.8},
