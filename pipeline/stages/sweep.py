@@ -99,8 +99,9 @@ def sweep_jobs(params: Params, policy_root: Path = paths.POLICIES_ROOT) -> tuple
     return jobs, notes
 
 
-def job_row(worker: Worker, job: SweepJob, exclude_locked: bool) -> pd.DataFrame:
-    """Run one job on an open world and return its row (`pipeline.store.SWEEP_COLUMNS`)."""
+def job_row(worker: Worker, job: SweepJob, exclude_locked: bool) -> dict:
+    """Run one job on an open world and return its row (`pipeline.store.SWEEP_COLUMNS`; a plain dict:
+    cheaper for Ray to ship than a one-row frame)."""
     start = time.perf_counter()
     o = worker.run(job.rollout_job())
     strides = o.tables.get("strides", pd.DataFrame(columns=["kept", "gait_speed_mps", "stride_length_m"]))
@@ -108,11 +109,11 @@ def job_row(worker: Worker, job: SweepJob, exclude_locked: bool) -> pd.DataFrame
            "condition": job.condition, "gains_hash": job.gains_hash, "scenario": job.scenario,
            "seed": job.seed, "params_hash": job.params_hash,
            **run_row(o.robot, strides, o.fell, exclude_locked), "wall_s": time.perf_counter() - start}
-    return pd.DataFrame([row])[SWEEP_COLUMNS]
+    return {c: row[c] for c in SWEEP_COLUMNS}
 
 
 @ray.remote(num_cpus=1)
-def _run_remote(setup: BatchSetup, job: SweepJob, exclude_locked: bool) -> pd.DataFrame:
+def _run_remote(setup: BatchSetup, job: SweepJob, exclude_locked: bool) -> dict:
     return job_row(cached_worker(setup, Worker), job, exclude_locked)
 
 
@@ -139,7 +140,7 @@ def run_sweep(params: Params, root: Path = paths.SWEEPS_ROOT, policy_root: Path 
                 for ref in done:
                     job = refs[ref]
                     try:
-                        write_outputs(job_dir, {job.key: ray.get(ref)}, {})
+                        write_outputs(job_dir, {job.key: pd.DataFrame([ray.get(ref)])}, {})
                     except Exception as exc:  # retried already: report it, finish the rest
                         failed.append({"job_key": job.key, "subject": job.subject, "condition": job.condition,
                                        "scenario": job.scenario, "seed": job.seed,
