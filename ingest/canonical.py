@@ -57,19 +57,19 @@ FOOT_ROLES = ("heel_left", "heel_right", "toe_left", "toe_right")
 log = logging.getLogger("gaitloop.ingest")
 
 
+# Lab axes -> canonical Z up, right-handed: canonical = lab[..., order] * sign.
+# Y up: (x, y, z) -> (x, -z, y); X up: (x, y, z) -> (y, z, x).
+UP_ROTATIONS = {"x": ((1, 2, 0), (1.0, 1.0, 1.0)), "y": ((0, 2, 1), (1.0, -1.0, 1.0))}
+
+
 def up_to_z(xyz: np.ndarray, up_axis: str) -> np.ndarray:
-    """Rotate lab axes so the declared up axis becomes Z (right-handed: Y-up (x, y, z) -> (x, -z, y);
-    X-up (x, y, z) -> (y, z, x))."""
+    """Rotate lab axes so the declared up axis becomes Z (`UP_ROTATIONS`)."""
     if up_axis == "z":
         return xyz
     if up_axis not in UP_AXES:
         raise ValueError(f"up axis {up_axis!r} is not one of {UP_AXES} (resolve 'auto' first)")
-    out = np.empty_like(xyz)
-    if up_axis == "x":
-        out[..., 0], out[..., 1], out[..., 2] = xyz[..., 1], xyz[..., 2], xyz[..., 0]
-        return out
-    out[..., 0], out[..., 1], out[..., 2] = xyz[..., 0], -xyz[..., 2], xyz[..., 1]
-    return out
+    order, sign = UP_ROTATIONS[up_axis]
+    return xyz[..., list(order)] * np.array(sign)
 
 
 def z_up_to(xyz: np.ndarray, up_axis: str) -> np.ndarray:
@@ -78,12 +78,9 @@ def z_up_to(xyz: np.ndarray, up_axis: str) -> np.ndarray:
         return xyz
     if up_axis not in UP_AXES:
         raise ValueError(f"up axis {up_axis!r} is not one of {UP_AXES}")
-    out = np.empty_like(xyz)
-    if up_axis == "x":
-        out[..., 0], out[..., 1], out[..., 2] = xyz[..., 2], xyz[..., 0], xyz[..., 1]
-        return out
-    out[..., 0], out[..., 1], out[..., 2] = xyz[..., 0], xyz[..., 2], -xyz[..., 1]
-    return out
+    order, sign = UP_ROTATIONS[up_axis]
+    inverse = np.argsort(order)
+    return xyz[..., inverse] * np.array(sign)[inverse]
 
 
 def pelvis_above_feet(xyz: np.ndarray, names: tuple[str, ...] | list[str],

@@ -19,9 +19,23 @@ COLUMNS = [*GROUP, "n_trials", "n_samples", "mean_abs_ex_cm", "sd_abs_ex_cm", "m
            "sd_abs_ey_cm", "max_abs_ex_cm", "max_abs_ey_cm", "fall_rate"]
 
 
+FORCE = ["harness_fx_n", "harness_fy_n", "harness_fz_n"]
+
+
 def following(robot: pd.DataFrame, exclude_locked: bool = True) -> pd.DataFrame:
     """Rows of a robot table where the robot is following (not locked after a fall)."""
     return robot[~robot["locked"].astype(bool)] if exclude_locked else robot
+
+
+def run_means(f: pd.DataFrame) -> tuple[float, float, float]:
+    """Mean |e_x|, |e_y| (cm) and harness |f| RMS (N) of one run's following samples `f` (NaN
+    without any): what a run contributes per phase (`metrics.phases`) or as a sweep row
+    (`metrics.outcomes`)."""
+    if not len(f):
+        return np.nan, np.nan, np.nan
+    force = np.linalg.norm(f[FORCE].to_numpy(float), axis=1)
+    return (float(np.abs(f["e_x_m"]).mean() * 100), float(np.abs(f["e_y_m"]).mean() * 100),
+            float(np.sqrt(np.mean(force ** 2))))
 
 
 def compliance_table(robot: pd.DataFrame, exclude_locked: bool = True) -> pd.DataFrame:

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from metrics.compliance import following
+from metrics.compliance import following, run_means
 
 ROW_COLUMNS = ["mean_abs_ex_cm", "mean_abs_ey_cm", "force_rms_n", "fell", "gait_speed_mps", "stride_length_m",
                "n_strides", "n_samples"]
@@ -31,10 +31,8 @@ def run_row(robot: pd.DataFrame, strides: pd.DataFrame, fell: bool, exclude_lock
            "n_strides": int(len(kept)), "n_samples": 0}
     if not robot.empty:
         f = following(robot, exclude_locked)
-        force = np.linalg.norm(f[["harness_fx_n", "harness_fy_n", "harness_fz_n"]].to_numpy(float), axis=1)
-        out.update(mean_abs_ex_cm=float(np.abs(f["e_x_m"]).mean() * 100) if len(f) else np.nan,
-                   mean_abs_ey_cm=float(np.abs(f["e_y_m"]).mean() * 100) if len(f) else np.nan,
-                   force_rms_n=float(np.sqrt(np.mean(force ** 2))) if len(f) else np.nan, n_samples=len(f))
+        ex, ey, force = run_means(f)
+        out.update(mean_abs_ex_cm=ex, mean_abs_ey_cm=ey, force_rms_n=force, n_samples=len(f))
     return out
 
 

@@ -20,7 +20,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from metrics.compliance import following
+from metrics.compliance import FORCE, following, run_means
 from metrics.groups import GROUP, with_identity
 
 KEYS = [*GROUP, "scenario", "phase"]
@@ -28,7 +28,6 @@ QUANTITIES = {"abs_ex_cm": "mean |e_x| (cm)", "abs_ey_cm": "mean |e_y| (cm)",
               "force_rms_n": "harness |f| RMS (N)"}
 COLUMNS = [*KEYS, "n_runs", "n_samples", "falls",
            *(f"{q}_{s}" for q in QUANTITIES for s in ("mean", "ci95"))]
-FORCE = ["harness_fx_n", "harness_fy_n", "harness_fz_n"]
 
 EVENT_KEYS = [*GROUP, "scenario", "event", "t_s"]
 EVENT_QUANTITIES = {"ex_cm": "e_x (cm)", "ey_cm": "e_y (cm)", "force_n": "harness |f| (N)"}
@@ -59,11 +58,7 @@ def run_values(robot: pd.DataFrame, exclude_locked: bool = True) -> pd.DataFrame
     rows = []
     for key, g in robot.groupby([*KEYS, "trial", "seed"], sort=True):
         f = following(g, exclude_locked)
-        force = np.linalg.norm(f[FORCE].to_numpy(float), axis=1)
-        rows.append((*key, len(f), bool(g["fall"].any()),
-                     float(np.abs(f["e_x_m"]).mean() * 100) if len(f) else np.nan,
-                     float(np.abs(f["e_y_m"]).mean() * 100) if len(f) else np.nan,
-                     float(np.sqrt(np.mean(force ** 2))) if len(f) else np.nan))
+        rows.append((*key, len(f), bool(g["fall"].any()), *run_means(f)))
     return pd.DataFrame(rows, columns=[*KEYS, "trial", "seed", "n_samples", "fell", *QUANTITIES])
 
 

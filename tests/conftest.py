@@ -22,6 +22,12 @@ def params():
 
 
 @pytest.fixture(scope="session")
+def ingest_params(params):
+    """The `ingest` section built (`ingest.process.IngestParams`): what processes a trial."""
+    return params.ingest.build()
+
+
+@pytest.fixture(scope="session")
 def policies_root() -> Path:
     """The committed policies folder (data/policies): one subfolder per trained subject."""
     from pipeline.paths import POLICIES_ROOT

@@ -30,10 +30,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import ray
-from scipy import stats
 from tqdm import tqdm
 
 from metrics.outcomes import ObjectiveWeights, costs, objective, run_row
+from metrics.phases import mean_ci95
 from pipeline import paths
 from pipeline.params import Params, ParamsError
 from pipeline.stages.outputs import write_json
@@ -41,11 +41,10 @@ from pipeline.stages.simulate import policy_setup, scenario_jobs
 from pipeline.stages.sweep import HEALTHY
 from sim.errors import SimulationError
 from sim.rollout.batch import BatchSetup, RolloutJob, Worker
-from sim.rollout.cluster import cached_worker, connect
+from sim.rollout.cluster import cached_worker, completed, connect
 
 VARIANTS = (HEALTHY,)  # the subject's own policy; cohort variants come with the virtual cohort
 METRIC = "objective"
-CI_LEVEL = 0.95
 STUDY = "tune"
 
 
@@ -131,11 +130,8 @@ def parallel_rows(base: BatchSetup, runs: list[tuple[BatchSetup, RolloutJob]], e
     """`rollout_row` of each (setup, job) as Ray tasks, rows in the order given."""
     base_ref = ray.put(base)
     refs = [_rollout_row_task.remote(base_ref, setup, job, exclude_locked) for setup, job in runs]
-    with tqdm(total=len(refs), desc=desc, disable=not progress) as bar:
-        pending = list(refs)
-        while pending:
-            done, pending = ray.wait(pending, num_returns=1)
-            bar.update(len(done))
+    for _ in completed(refs, desc, progress):
+        pass
     return pd.DataFrame(ray.get(refs))
 
 
@@ -152,10 +148,9 @@ def heldout_summary(rows: pd.DataFrame, free_speed_mps: float, w: ObjectiveWeigh
     """Per-rollout cost (the objective of that one rollout): mean, 95 % CI half-width (Student t
     across rollouts; None with one rollout) and the falls."""
     each = costs(rows, free_speed_mps, w)
-    n = len(each)
-    ci = (float(stats.t.ppf(0.5 + CI_LEVEL / 2, n - 1) * each.std(ddof=1) / math.sqrt(n))
-          if n > 1 else None)
-    return {"mean": float(each.mean()), "ci95": ci, "falls": int(rows["fell"].astype(bool).sum()),
+    mean, half = mean_ci95(each)
+    return {"mean": float(mean), "ci95": float(half) if len(each) > 1 else None,
+            "falls": int(rows["fell"].astype(bool).sum()),
             "costs": each.tolist()}
 
 

@@ -24,7 +24,6 @@ from pathlib import Path
 
 import pandas as pd
 import ray
-from tqdm import tqdm
 
 from metrics.outcomes import run_row
 from pipeline import paths
@@ -34,7 +33,7 @@ from pipeline.stages.simulate import policy_setup
 from pipeline.store import SWEEP_COLUMNS
 from sim.learn.policy_human import PolicyWalk
 from sim.rollout.batch import BatchSetup, RolloutJob, Worker
-from sim.rollout.cluster import cached_worker, connect
+from sim.rollout.cluster import cached_worker, completed, connect
 
 HEALTHY = "healthy"  # the subject's own policy; cohort variants come with the virtual cohort
 ROLLOUT_SECTIONS = ("ingest", "metrics", "robot", "rollout", "human", "train", "evaluate_policy", "scenarios")
@@ -133,21 +132,16 @@ def run_sweep(params: Params, root: Path = paths.SWEEPS_ROOT, policy_root: Path 
         setups = {s: ray.put(policy_setup(s, params, policy_root=policy_root)) for s in subjects}
         task = _run_remote.options(max_retries=params.ray.max_retries, retry_exceptions=True)
         refs = {task.remote(setups[j.subject], j, params.metrics.exclude_locked): j for j in todo}
-        pending = list(refs)
-        with tqdm(total=len(todo), desc=f"sweep {params.sweep.study}", disable=not progress) as bar:
-            while pending:
-                done, pending = ray.wait(pending, num_returns=1)
-                for ref in done:
-                    job = refs[ref]
-                    try:
-                        write_outputs(job_dir, {job.key: pd.DataFrame([ray.get(ref)])}, {})
-                    except Exception as exc:  # retried already: report it, finish the rest
-                        failed.append({"job_key": job.key, "subject": job.subject, "condition": job.condition,
-                                       "scenario": job.scenario, "seed": job.seed,
-                                       "error": f"{type(exc).__name__}: {str(exc).splitlines()[0][:300]}"})
-                    bar.update()
-                    if on_result is not None:
-                        on_result(job)
+        for ref in completed(list(refs), f"sweep {params.sweep.study}", progress):
+            job = refs[ref]
+            try:
+                write_outputs(job_dir, {job.key: pd.DataFrame([ray.get(ref)])}, {})
+            except Exception as exc:  # retried already: report it, finish the rest
+                failed.append({"job_key": job.key, "subject": job.subject, "condition": job.condition,
+                               "scenario": job.scenario, "seed": job.seed,
+                               "error": f"{type(exc).__name__}: {str(exc).splitlines()[0][:300]}"})
+            if on_result is not None:
+                on_result(job)
     keys = {j.key for j in jobs}
     files = [job_dir / f"{k}.parquet" for k in sorted(keys)]
     rows = [pd.read_parquet(f) for f in files if f.is_file()]

@@ -34,7 +34,7 @@ from sim.robot.controllers import make_controller
 from sim.robot.controllers.base import Controller
 from sim.robot.controllers.warm_start import WarmStarted
 from sim.robot.mrba import RobotParams
-from sim.rollout.cluster import cached_worker, connect
+from sim.rollout.cluster import cached_worker, completed, connect
 from sim.rollout.loop import RolloutParams, RolloutResult, rollout
 from sim.rollout.world import build_world, robot_info
 
@@ -227,21 +227,12 @@ class BatchRunner:
             ) -> list[RolloutOutcome]:
         """Outcomes in job order, with a progress bar when `progress`."""
         jobs = list(jobs)
-        bar = tqdm(total=len(jobs), desc=desc, disable=not progress)
         if self._setup_ref is None:
-            out = []
-            for job in jobs:
-                out.append(self._local.run(job))
-                bar.update()
-            bar.close()
-            return out
+            return [self._local.run(job) for job in tqdm(jobs, desc=desc, disable=not progress)]
         task = run_job.options(max_retries=self.max_retries)
         refs = [task.remote(self._setup_ref, job) for job in jobs]
-        pending = list(refs)
-        while pending:
-            done, pending = ray.wait(pending, num_returns=1)
-            bar.update(len(done))
-        bar.close()
+        for _ in completed(refs, desc, progress):
+            pass
         return ray.get(refs)
 
 

@@ -17,9 +17,11 @@ import hashlib
 import logging
 import os
 import pickle
+from collections.abc import Iterator
 from typing import Any
 
 import ray
+from tqdm import tqdm
 
 RAY_ADDRESS = "RAY_ADDRESS"
 OBJECT_STORE_MB = 256  # rollout results are small; Ray's default (30 % of RAM) would idle a lot of memory
@@ -39,6 +41,17 @@ def connect(num_cpus: int) -> dict[str, float]:
     return ray.cluster_resources()
 
 
+def completed(refs: list, desc: str = "", progress: bool = False) -> Iterator:
+    """Each of the task references `refs` as soon as its task has finished (completion order), with a
+    progress bar: the one wait loop of the batch runner, the sweep and the tuning."""
+    pending = list(refs)
+    with tqdm(total=len(pending), desc=desc, disable=not progress) as bar:
+        while pending:
+            done, pending = ray.wait(pending, num_returns=1)
+            yield from done
+            bar.update(len(done))
+
+
 def setup_key(setup: Any) -> str:
     """A digest of a picklable setup, naming its open world in a worker's cache."""
     return hashlib.sha256(pickle.dumps(setup)).hexdigest()[:16]
@@ -54,4 +67,4 @@ def cached_worker(setup: Any, make: Any) -> Any:
     return _CACHE[key]
 
 
-__all__ = ["RAY_ADDRESS", "cached_worker", "connect", "setup_key"]
+__all__ = ["RAY_ADDRESS", "cached_worker", "completed", "connect", "setup_key"]

@@ -32,11 +32,6 @@ UNREACHABLE_URL = "http://127.0.0.1:9/gaitloop-missing"  # refused at once: no n
 
 
 @pytest.fixture(scope="module")
-def params() -> IngestParams:
-    return IngestParams.from_dict(yaml.safe_load((ROOT / "params.yaml").read_text())["ingest"])
-
-
-@pytest.fixture(scope="module")
 def real() -> Manifest:
     return Manifest.load()
 
@@ -100,10 +95,10 @@ def _one_trial(subject: Subject, key: str, angles: str | None = None, **fmt) -> 
     return subject, spec
 
 
-def _reference(camargo: Subject, real: Manifest, params: IngestParams):
+def _reference(camargo: Subject, real: Manifest, ingest_params: IngestParams):
     """The unmodified marker file through the same one-trial spec (no GRF, no .mot) as the cases."""
     subject, spec = _one_trial(camargo, CAMARGO_TRC)
-    return process_trial(load_trial(subject, spec, real), subject.markerset, params)
+    return process_trial(load_trial(subject, spec, real), subject.markerset, ingest_params)
 
 
 def _raises(exc_type, *fragments: str):
@@ -163,7 +158,7 @@ def test_header_lies_about_units(corpus, camargo):
         load_trial(subject, spec, corpus.manifest())
 
 
-def test_millimetre_file_declared_as_such_gives_the_same_strides(corpus, camargo, real, params):
+def test_millimetre_file_declared_as_such_gives_the_same_strides(corpus, camargo, real, ingest_params):
     """The same recording honestly in millimetres: converted, not rejected, same numbers."""
     text = corpus.text(CAMARGO_TRC)
     lines = text.splitlines()
@@ -176,8 +171,8 @@ def test_millimetre_file_declared_as_such_gives_the_same_strides(corpus, camargo
 
     key = corpus.add(CAMARGO_TRC, _trc_edit("\n".join(lines) + "\n", to_mm))
     subject, spec = _one_trial(camargo, key)
-    mm = process_trial(load_trial(subject, spec, corpus.manifest()), subject.markerset, params).strides
-    ref = _reference(camargo, real, params).strides
+    mm = process_trial(load_trial(subject, spec, corpus.manifest()), subject.markerset, ingest_params).strides
+    ref = _reference(camargo, real, ingest_params).strides
     assert mm["kept"].tolist() == ref["kept"].tolist()
     np.testing.assert_allclose(mm["stride_length_m"], ref["stride_length_m"], atol=1e-6)
 
@@ -189,7 +184,7 @@ def test_y_up_file_declared_z_up(corpus, camargo):
         load_trial(subject, spec, corpus.manifest())
 
 
-def test_z_up_copy_declared_z_up_gives_the_same_strides(corpus, camargo, real, params):
+def test_z_up_copy_declared_z_up_gives_the_same_strides(corpus, camargo, real, ingest_params):
     """The Y-up recording rotated to Z-up and declared so: the same strides come out."""
 
     def y_to_z(cells):
@@ -201,8 +196,9 @@ def test_z_up_copy_declared_z_up_gives_the_same_strides(corpus, camargo, real, p
 
     key = corpus.add(CAMARGO_TRC, _trc_edit(corpus.text(CAMARGO_TRC), y_to_z))
     subject, spec = _one_trial(camargo, key, up_axis="z")
-    zup = process_trial(load_trial(subject, spec, corpus.manifest()), subject.markerset, params).strides
-    ref = _reference(camargo, real, params).strides
+    zup = process_trial(load_trial(subject, spec, corpus.manifest()), subject.markerset,
+                        ingest_params).strides
+    ref = _reference(camargo, real, ingest_params).strides
     assert zup["kept"].tolist() == ref["kept"].tolist()
     np.testing.assert_allclose(zup["stride_length_m"], ref["stride_length_m"], atol=1e-6)
 
@@ -326,27 +322,27 @@ def _gap(text: str, marker: str, t0: float, t1: float) -> str:
     return _trc_edit(text, blank)
 
 
-def _kept_strides(corpus, camargo, params, text):
+def _kept_strides(corpus, camargo, ingest_params, text):
     key = corpus.add(CAMARGO_TRC, text)
     subject, spec = _one_trial(camargo, key)
-    return process_trial(load_trial(subject, spec, corpus.manifest()), subject.markerset, params)
+    return process_trial(load_trial(subject, spec, corpus.manifest()), subject.markerset, ingest_params)
 
 
-def test_short_marker_gap_is_filled(corpus, camargo, params, real):
+def test_short_marker_gap_is_filled(corpus, camargo, ingest_params, real):
     """A 50 ms heel dropout inside a kept stride: filled, events and strides unchanged within 10 ms."""
     text = corpus.text(CAMARGO_TRC)
-    ref = _reference(camargo, real, params)
-    out = _kept_strides(corpus, camargo, params, _gap(text, "L_Heel", 10.60, 10.65))
+    ref = _reference(camargo, real, ingest_params)
+    out = _kept_strides(corpus, camargo, ingest_params, _gap(text, "L_Heel", 10.60, 10.65))
     assert out.strides["kept"].sum() == ref.strides["kept"].sum()
     hs = lambda ev: ev.query("event == 'heel_strike'")["time_s"].to_numpy()  # noqa: E731
     assert len(hs(out.events)) == len(hs(ref.events))
     assert np.max(np.abs(hs(out.events) - hs(ref.events))) < 0.01
 
 
-def test_long_marker_gap_rejects_the_strides_it_touches(corpus, camargo, params):
+def test_long_marker_gap_rejects_the_strides_it_touches(corpus, camargo, ingest_params):
     """A 0.5 s heel dropout: not invented; strides of that side over it are rejected as 'marker gap'."""
     text = corpus.text(CAMARGO_TRC)
-    out = _kept_strides(corpus, camargo, params, _gap(text, "L_Heel", 10.4, 10.9))
+    out = _kept_strides(corpus, camargo, ingest_params, _gap(text, "L_Heel", 10.4, 10.9))
     left = out.strides.query("side == 'left'")
     over = left[(left["t_start_s"] < 10.9) & (left["t_end_s"] > 10.4)]
     assert len(over) >= 1
@@ -356,17 +352,17 @@ def test_long_marker_gap_rejects_the_strides_it_touches(corpus, camargo, params)
     assert out.strides["kept"].sum() >= 4  # the rest of the trial still counts
 
 
-def test_missing_heel_marker(corpus, camargo, params):
+def test_missing_heel_marker(corpus, camargo, ingest_params):
     text = corpus.text(CAMARGO_TRC)
     lines = text.splitlines()
     lines[3] = lines[3].replace("L_Heel", "L_Hee1")  # renamed: the marker set's heel is absent
     key = corpus.add(CAMARGO_TRC, "\n".join(lines) + "\n")
     subject, spec = _one_trial(camargo, key)
     with _raises(IngestError, corpus.path(key), "L_Heel"):
-        process_trial(load_trial(subject, spec, corpus.manifest()), subject.markerset, params)
+        process_trial(load_trial(subject, spec, corpus.manifest()), subject.markerset, ingest_params)
 
 
-def test_trial_with_no_complete_stride(corpus, camargo, params):
+def test_trial_with_no_complete_stride(corpus, camargo, ingest_params):
     """Only the quiet standing at the start: the subject has nothing to offer downstream."""
     lines = corpus.text(CAMARGO_TRC).splitlines()
     header = lines[:5]
@@ -377,7 +373,7 @@ def test_trial_with_no_complete_stride(corpus, camargo, params):
     key = corpus.add(CAMARGO_TRC, "\n".join(header + rows) + "\n")
     subject, _ = _one_trial(camargo, key)
     with _raises(IngestError, str(camargo.path), "no steady complete stride"):
-        process_subject(subject, corpus.manifest(), params)
+        process_subject(subject, corpus.manifest(), ingest_params)
 
 
 # --- robot logs (synthetic: no robot log in the shared data, on the real trial's clock) ----------
@@ -458,14 +454,14 @@ def test_robot_log_non_numeric_cell(corpus):
         read_robot_log(corpus.manifest().resolve(key))
 
 
-def test_robot_markers_absent_from_the_marker_file(corpus, camargo, params, real):
+def test_robot_markers_absent_from_the_marker_file(corpus, camargo, ingest_params, real):
     from ingest.subject import RobotMarkers
 
     subject = dataclasses.replace(camargo, robot_markers=RobotMarkers("MRBA_front", "MRBA_rear", "MRBA_arm",
                                                                       (0.55, 0.0, 0.45)))
     spec = TrialSpec(id="bad", condition="pid", markers=CAMARGO_TRC)
     with _raises(IngestError, "levelground_ccw_fast_01_01.trc", "robot markers", "MRBA_front"):
-        process_trial(load_trial(subject, spec, real), subject.markerset, params)
+        process_trial(load_trial(subject, spec, real), subject.markerset, ingest_params)
 
 
 # --- subject files and marker sets ----------------------------------------------------------------

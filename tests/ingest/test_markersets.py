@@ -14,7 +14,7 @@ from ingest.canonical import load_trial
 from ingest.errors import SubjectError
 from ingest.manifest import Manifest, Source, sha256_of
 from ingest.markersets import load_markerset, pick_markerset, shipped_markersets
-from ingest.process import IngestParams, landmarks, process_trial
+from ingest.process import landmarks, process_trial
 from ingest.readers import read_markers
 from ingest.readers.trc import write_trc
 from ingest.subject import load_subject
@@ -37,11 +37,6 @@ EXPECTED = {
 
 
 @pytest.fixture(scope="module")
-def params() -> IngestParams:
-    return IngestParams.from_dict(yaml.safe_load((ROOT / "params.yaml").read_text())["ingest"])
-
-
-@pytest.fixture(scope="module")
 def camargo():
     subject = load_subject("camargo")
     return subject, subject.trials[0], Manifest.load()
@@ -57,7 +52,7 @@ def test_every_shipped_set_loads():
         assert len(load_markerset(name)) == 12
 
 
-def test_set_by_path_processes_a_trial(tmp_path, camargo, params):
+def test_set_by_path_processes_a_trial(tmp_path, camargo, ingest_params):
     subject, spec, manifest = camargo
     doc = yaml.safe_load((ROOT / "data/markersets/camargo.yaml").read_text())
     path = _write_set(tmp_path / "mylab.yaml", doc)
@@ -66,7 +61,7 @@ def test_set_by_path_processes_a_trial(tmp_path, camargo, params):
     relative = load_markerset("data/markersets/camargo.yaml")  # relative to the repo root
     assert relative == by_path
     processed = process_trial(load_trial(dataclasses.replace(subject, markerset=by_path), spec, manifest),
-                              by_path, params)
+                              by_path, ingest_params)
     assert processed.strides["kept"].sum() >= 4
 
 
@@ -105,7 +100,7 @@ def test_no_fitting_set_lists_the_missing_roles():
         pick_markerset(read_markers(path).names, path)
 
 
-def test_sacral_psis_derived_back_on_camargo(tmp_path, camargo, params):
+def test_sacral_psis_derived_back_on_camargo(tmp_path, camargo, ingest_params):
     """SACR = the midpoint of Camargo's real PSIS, PSIS dropped, PSIS derived back from SACR."""
     subject, spec, manifest = camargo
     table = read_markers(manifest.resolve(spec.markers))
@@ -127,7 +122,7 @@ def test_sacral_psis_derived_back_on_camargo(tmp_path, camargo, params):
     for role in ("asis_left", "asis_right", "psis_left", "psis_right"):
         error = np.linalg.norm(lm_real[role] - lm_derived[role], axis=1)
         assert np.nanmax(error) < 0.03, role
-    processed = process_trial(derived, derived_set, params)
+    processed = process_trial(derived, derived_set, ingest_params)
     assert processed.strides["kept"].sum() >= 4
 
 

@@ -9,7 +9,6 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-import yaml
 
 from ingest.canonical import canonical_angles, load_trial
 from ingest.manifest import Manifest, Source, sha256_of
@@ -27,11 +26,6 @@ MARKERLESS_MOT = "opencap_markerless_walking/walking1_videoAndMocap.mot"
 @pytest.fixture(scope="module")
 def manifest() -> Manifest:
     return Manifest.load()
-
-
-@pytest.fixture(scope="module")
-def params() -> IngestParams:
-    return IngestParams.from_dict(yaml.safe_load((ROOT / "params.yaml").read_text())["ingest"])
 
 
 def test_trc_header_and_shape(manifest):
@@ -81,24 +75,24 @@ def test_knee_flexion_of_markerless_degrees_positive_source(manifest):
         assert 15 < np.nanmax(hip) < 45 and -30 < np.nanmin(hip) < 0
 
 
-def _roundtrip_trial(tmp_path: Path, key: str, manifest_src: Manifest, params: IngestParams):
+def _roundtrip_trial(tmp_path: Path, key: str, manifest_src: Manifest, ingest_params: IngestParams):
     """Process `key` (written under tmp_path) as the Camargo trial's markers, no GRF."""
     subject = load_subject("camargo")
     path = tmp_path / key
     local = Manifest({key: Source(key, "file:///nowhere", sha256_of(path))}, tmp_path, tmp_path / "cache")
     spec = TrialSpec(id="roundtrip", condition="free", markers=key)
     subject = dataclasses.replace(subject, trials=(spec,))
-    return process_trial(load_trial(subject, spec, local), subject.markerset, params)
+    return process_trial(load_trial(subject, spec, local), subject.markerset, ingest_params)
 
 
-def _reference(manifest: Manifest, params: IngestParams):
+def _reference(manifest: Manifest, ingest_params: IngestParams):
     subject = load_subject("camargo")
     spec = TrialSpec(id="roundtrip", condition="free", markers=CAMARGO_TRC)
     subject = dataclasses.replace(subject, trials=(spec,))
-    return process_trial(load_trial(subject, spec, manifest), subject.markerset, params)
+    return process_trial(load_trial(subject, spec, manifest), subject.markerset, ingest_params)
 
 
-def test_c3d_round_trip_gives_the_same_strides(tmp_path, manifest, params):
+def test_c3d_round_trip_gives_the_same_strides(tmp_path, manifest, ingest_params):
     """The Camargo markers written to C3D in millimetres (float32, as Vicon does) read back to
     within 0.1 mm and give the same kept strides."""
     import ezc3d
@@ -120,14 +114,14 @@ def test_c3d_round_trip_gives_the_same_strides(tmp_path, manifest, params):
     assert np.nanmax(np.abs(back.xyz_m - trc.xyz_m)) < 1e-4
     assert np.array_equal(np.isnan(back.xyz_m), np.isnan(trc.xyz_m))  # gaps stay gaps
 
-    out = _roundtrip_trial(tmp_path, key, manifest, params).strides
-    ref = _reference(manifest, params).strides
+    out = _roundtrip_trial(tmp_path, key, manifest, ingest_params).strides
+    ref = _reference(manifest, ingest_params).strides
     assert out["kept"].sum() == ref["kept"].sum() >= 8
     np.testing.assert_allclose(out.loc[out["kept"], "stride_length_m"],
                                ref.loc[ref["kept"], "stride_length_m"], atol=1e-3)
 
 
-def test_csv_round_trip_in_centimetres(tmp_path, manifest, params):
+def test_csv_round_trip_in_centimetres(tmp_path, manifest, ingest_params):
     """The documented CSV layout with centimetre columns and one angle in radians."""
     trc = read_trc(manifest.resolve(CAMARGO_TRC))
     columns = {"time_s": trc.time_s}
@@ -147,8 +141,8 @@ def test_csv_round_trip_in_centimetres(tmp_path, manifest, params):
     assert rec.angles_deg["knee_flexion_left"][0] == pytest.approx(np.degrees(0.5))
     assert read_markers(tmp_path / key).names == rec.markers.names
 
-    out = _roundtrip_trial(tmp_path, key, manifest, params).strides
-    ref = _reference(manifest, params).strides
+    out = _roundtrip_trial(tmp_path, key, manifest, ingest_params).strides
+    ref = _reference(manifest, ingest_params).strides
     assert out["kept"].tolist() == ref["kept"].tolist()
 
 

@@ -4,28 +4,22 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import yaml
 
 from ingest.manifest import Manifest
-from ingest.process import IngestParams, process_subject
+from ingest.process import process_subject
 from ingest.subject import load_subject
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")
-def params() -> IngestParams:
-    return IngestParams.from_dict(yaml.safe_load((ROOT / "params.yaml").read_text())["ingest"])
+def camargo(ingest_params):
+    return process_subject(load_subject("camargo"), Manifest.load(), ingest_params)
 
 
 @pytest.fixture(scope="module")
-def camargo(params):
-    return process_subject(load_subject("camargo"), Manifest.load(), params)
-
-
-@pytest.fixture(scope="module")
-def opencap4(params):
-    return process_subject(load_subject("opencap4"), Manifest.load(), params)
+def opencap4(ingest_params):
+    return process_subject(load_subject("opencap4"), Manifest.load(), ingest_params)
 
 
 def _pelvis_speed(subject_id: str):

@@ -20,7 +20,7 @@ from ingest.canonical import load_trial
 from ingest.errors import SubjectError
 from ingest.events import side_times
 from ingest.manifest import Manifest, Source, sha256_of
-from ingest.process import PELVIS_ROLES, IngestParams, process_trial
+from ingest.process import PELVIS_ROLES, process_trial
 from ingest.subject import FileFormat, Subject, TrialSpec, load_markerset, load_subject
 from ingest.trial import Trial
 
@@ -30,11 +30,6 @@ KGC6_TREADMILL = ("kgc6_DM_jam-resources/models/knee_tka/grand_challenge/DM/expe
                   "motion_analysis/DM_ngait_tm_ss1_new.trc")
 # Camargo's two straight walks (s): out (with its start) and back (with its stop), turn excluded.
 WINDOWS = [(3.6, 8.0), (9.0, 13.0)]
-
-
-@pytest.fixture(scope="module")
-def params() -> IngestParams:
-    return IngestParams.from_dict(yaml.safe_load((ROOT / "params.yaml").read_text())["ingest"])
 
 
 @pytest.fixture(scope="module")
@@ -65,12 +60,12 @@ def _on_treadmill(trial: Trial, markerset: dict[str, str]) -> tuple[Trial, float
 
 @pytest.mark.parametrize("declared", [True, False], ids=["declared", "detected"])
 @pytest.mark.parametrize("window", WINDOWS, ids=["out", "back"])
-def test_treadmill_copy_matches_overground(camargo, params, window, declared):
+def test_treadmill_copy_matches_overground(camargo, ingest_params, window, declared):
     subject, trial = camargo
     overground = _crop(trial, *window)
     treadmill, speed = _on_treadmill(overground, subject.markerset)
-    og = process_trial(overground, subject.markerset, params)
-    tm = process_trial(treadmill, subject.markerset, params, treadmill=True if declared else None,
+    og = process_trial(overground, subject.markerset, ingest_params)
+    tm = process_trial(treadmill, subject.markerset, ingest_params, treadmill=True if declared else None,
                        belt_speed_mps=speed if declared else None)
     assert og.treadmill is None
     assert tm.treadmill is not None and tm.treadmill.declared is declared
@@ -88,16 +83,16 @@ def test_treadmill_copy_matches_overground(camargo, params, window, declared):
     assert error.max() < 0.02
 
 
-def test_overground_trials_are_not_treadmill(params):
+def test_overground_trials_are_not_treadmill(ingest_params):
     manifest = Manifest.load()
     for subject_id in ("camargo", "opencap4"):
         subject = load_subject(subject_id)
         for spec in subject.trials[:3]:
-            result = process_trial(load_trial(subject, spec, manifest), subject.markerset, params)
+            result = process_trial(load_trial(subject, spec, manifest), subject.markerset, ingest_params)
             assert result.treadmill is None, spec.id
 
 
-def test_real_treadmill_trial_gives_kept_strides(params):
+def test_real_treadmill_trial_gives_kept_strides(ingest_params):
     path = DATA / KGC6_TREADMILL
     if not path.is_file():
         pytest.skip(f"{path} is not in the shared data")
@@ -107,7 +102,7 @@ def test_real_treadmill_trial_gives_kept_strides(params):
     manifest = Manifest({KGC6_TREADMILL: Source(KGC6_TREADMILL, path.as_uri(), sha256_of(path))}, DATA,
                         ROOT / "data" / "raw")
     trial = load_trial(dataclasses.replace(subject, trials=(spec,)), spec, manifest)
-    result = process_trial(trial, subject.markerset, params)
+    result = process_trial(trial, subject.markerset, ingest_params)
     assert result.treadmill is not None and not result.treadmill.declared
     assert 1.1 < result.treadmill.belt_speed_mps < 1.3  # the belt at ~1.2 m/s (stance foot plateau)
     kept = result.strides[result.strides["kept"]]

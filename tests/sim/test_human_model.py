@@ -36,17 +36,6 @@ from sim.motion.retarget import retarget
 SUBJECTS = {"camargo": (74.8, 1.80), "opencap4": (62.6, 1.68)}
 
 
-@pytest.fixture(scope="module")
-def hp(params):
-    """The `human` section: scaling and model parameters."""
-    return params.human.build()
-
-
-@pytest.fixture(scope="module")
-def manifest():
-    return Manifest.load()
-
-
 @pytest.fixture(scope="module", params=sorted(SUBJECTS))
 def human(request, hp, manifest, tmp_path_factory):
     """(subject, body, model) with the model reloaded from its saved MJCF, as the stage writes it."""

@@ -11,23 +11,12 @@ import numpy as np
 import pytest
 
 from ingest.errors import IngestError
-from ingest.manifest import Manifest
 from ingest.static import read_static_trial, walking_static
 from ingest.subject import STATIC_NONE, FileFormat, StaticSpec, Subject, load_markerset, load_subject
 from sim.body.human import build_human, pose_hold_ctrl, pose_hold_gains
 from sim.body.scaling import scale_subject
 
 LENGTHS = ("thigh_l", "thigh_r", "shank_l", "shank_r", "foot_l", "foot_r", "pelvis_width")
-
-
-@pytest.fixture(scope="module")
-def hp(params):
-    return params.human.build()
-
-
-@pytest.fixture(scope="module")
-def manifest():
-    return Manifest.load()
 
 
 @pytest.fixture(scope="module", params=["camargo", "opencap4"])
