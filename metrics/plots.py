@@ -236,3 +236,130 @@ def tuning_figure(tuning: pd.DataFrame, title: str = "Controller tuning: held-ba
     fig.suptitle(title)
     fig.tight_layout(rect=(0, 0.07, 1, 1))
     return fig
+
+
+# -- virtual cohort and fall intervention (issue 13) --------------------------------------------------
+
+# Cohort variants in the order params `cohort` lists them, the subject's own (healthy) twin first; a
+# variant the tables hold that is not named here follows, sorted.
+VARIANT_ORDER = ("healthy", "weak", "hemiparetic_left", "hemiparetic_right", "slow", "unsteady")
+ROBOT_CONDITIONS = ("pid", "adaptive")  # the controllers; a condition not named here follows, sorted
+
+
+def ordered(names, known: tuple[str, ...]) -> list[str]:
+    """The distinct `names` in the order of `known`, the others after it, sorted."""
+    present = set(names)
+    return [n for n in known if n in present] + sorted(present - set(known))
+
+
+# column -> (panel title, colour map); speed change is diverging around 0 (faster / slower than free)
+COHORT_PANELS = {"mean_abs_ex_cm": ("mean |e_x| (cm)", "viridis"),
+                 "mean_abs_ey_cm": ("mean |e_y| (cm)", "viridis"),
+                 "force_rms_n": ("harness force RMS (N)", "magma"),
+                 "speed_change_pct": ("gait speed vs free (%)", "RdBu_r")}
+
+
+def cohort_heatmap(controllers: pd.DataFrame, title: str) -> Figure:
+    """The virtual cohort under each controller (`cohort_controllers`): one panel per metric with its
+    own colour scale, rows = variants, columns = controllers, the value written in each cell (– where
+    there is none). Drawn for scenario `steady`, or the first scenario the table has."""
+    import numpy as np
+
+    scenarios = sorted(set(controllers["scenario"])) if not controllers.empty else []
+    scenario = "steady" if "steady" in scenarios else (scenarios[0] if scenarios else None)
+    t = controllers[controllers["scenario"] == scenario] if scenario else controllers
+    variants, conds = ordered(t["variant"], VARIANT_ORDER), ordered(t["condition"], ROBOT_CONDITIONS)
+    size = (max(1.2 * len(conds) + 1.6, 3.0) * len(COHORT_PANELS), 0.45 * max(len(variants), 1) + 2.0)
+    fig, axes = plt.subplots(1, len(COHORT_PANELS), figsize=size, squeeze=False)
+    for ax, (col, (name, cmap)) in zip(axes[0], COHORT_PANELS.items(), strict=True):
+        ax.set_title(name, fontsize=9)
+        if t.empty:
+            ax.text(0.5, 0.5, "no cohort walks with a robot", ha="center", va="center", fontsize=8,
+                    transform=ax.transAxes)
+            ax.set_xticks([])
+            ax.set_yticks([])
+            continue
+        grid = t.pivot_table(index="variant", columns="condition", values=col, aggfunc="first", dropna=False)
+        values = grid.reindex(index=variants, columns=conds).to_numpy(float)
+        finite = values[np.isfinite(values)]
+        lo, hi = (float(finite.min()), float(finite.max())) if finite.size else (0.0, 1.0)
+        if cmap == "RdBu_r":  # centred on no change
+            lo, hi = -max(abs(lo), abs(hi), 1e-9), max(abs(lo), abs(hi), 1e-9)
+        else:  # from 0, so that close values look close
+            lo, hi = min(lo, 0.0), max(hi, min(lo, 0.0) + 1e-9)
+        image = ax.imshow(np.ma.masked_invalid(values), cmap=cmap, vmin=lo, vmax=hi, aspect="auto")
+        for (i, j), v in np.ndenumerate(values):
+            shade = (v - lo) / (hi - lo) if np.isfinite(v) else 0.5
+            light = 0.25 < shade < 0.75 if cmap == "RdBu_r" else shade > 0.6  # light cell: dark text
+            ax.text(j, i, f"{v:.2f}" if np.isfinite(v) else "–", ha="center", va="center", fontsize=8,
+                    color="k" if light or not np.isfinite(v) else "w")
+        ax.set_xticks(range(len(conds)), conds, fontsize=8)
+        ax.set_yticks(range(len(variants)), variants, fontsize=8)
+        fig.colorbar(image, ax=ax, shrink=0.85)
+    fig.suptitle(f"{title}, scenario {scenario}" if scenario else title)
+    fig.tight_layout()
+    return fig
+
+
+# column -> y label of the fall-intervention panels, left to right
+FALL_PANELS = {"detection_rate": "detected (share of events)", "latency_s": "onset to lock (s)",
+               "pelvis_drop_at_lock_m": "pelvis drop at lock (m)",
+               "peak_harness_force_n": "peak harness |f| (N)"}
+# a second, marker-drawn column in some panels: the share caught of the events that fell free, the
+# worst drop at the lock, the mean of the rollouts' peak forces
+FALL_MARKERS = {"detection_rate": ("caught_rate_falling", "o", "caught, of events falling free"),
+                "pelvis_drop_at_lock_m": ("worst_drop_at_lock_m", "v", "worst drop at lock"),
+                "peak_harness_force_n": ("max_harness_force_n", "D", "mean of rollout peaks")}
+EVENT_ORDER = ("trip", "slip", "collapse", "push")
+
+
+def fall_intervention_figure(fall: pd.DataFrame, title: str, caught_drop_m: float) -> Figure:
+    """How each controller met the scripted balance losses (`fall_intervention`): one row of panels
+    per variant, event types on x, one bar per controller: the share of events detected (marker: the
+    share caught of those that fell walking free), the latency from onset to the lock, the pelvis drop
+    at the lock (marker: the worst; dashed: the caught threshold `caught_drop_m`) and the peak harness
+    force (marker: the mean of the rollouts' peaks). Conditions without a robot (`free`) are left out."""
+    robot = fall[fall["condition"] != "free"] if not fall.empty else fall
+    variants = ordered(robot["variant"], VARIANT_ORDER) or [""]
+    events, conds = ordered(robot["event"], EVENT_ORDER), ordered(robot["condition"], ROBOT_CONDITIONS)
+    size = (3.9 * len(FALL_PANELS), 2.9 * len(variants) + 0.6)
+    fig, axes = plt.subplots(len(variants), len(FALL_PANELS), figsize=size, squeeze=False)
+    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    width = 0.8 / max(len(conds), 1)
+    for i, variant in enumerate(variants):
+        rows = robot[robot["variant"] == variant]
+        for ax, (col, label) in zip(axes[i], FALL_PANELS.items(), strict=True):
+            ax.set_title(f"{variant}: {label}" if variant else label, fontsize=9)
+            if rows.empty:
+                ax.text(0.5, 0.5, "no rollouts with a robot", ha="center", va="center", fontsize=8,
+                        transform=ax.transAxes)
+                continue
+            for k, cond in enumerate(conds):
+                g = rows[rows["condition"] == cond].set_index("event").reindex(events)
+                x = [e + (k - (len(conds) - 1) / 2) * width for e in range(len(events))]
+                heights = g[col].astype(float)
+                ax.bar(x, heights.fillna(0.0), width=width * 0.95, color=colors[k % len(colors)],
+                       label=cond if i == 0 and col == "detection_rate" else None)
+                for xi, h in zip(x, heights, strict=True):  # no value: a dash; zero: a 0 (no bar to see)
+                    if pd.isna(h) or h == 0:
+                        ax.text(xi, 0, "–" if pd.isna(h) else "0", ha="center", va="bottom", fontsize=8)
+                if col in FALL_MARKERS:
+                    other, marker, name = FALL_MARKERS[col]
+                    ax.plot(x, g[other].astype(float), marker, color="k", markerfacecolor="none", ms=5,
+                            linestyle="none", label=name if i == 0 and k == 0 else None)
+            if col == "pelvis_drop_at_lock_m":
+                ax.axhline(caught_drop_m, color="r", linestyle="--", linewidth=0.9,
+                           label=f"caught threshold {caught_drop_m:.2f} m" if i == 0 else None)
+            if col == "detection_rate":
+                ax.set_ylim(0, 1.05)
+            ax.set_xticks(range(len(events)), events, fontsize=8)
+            ax.grid(alpha=0.3, axis="y")
+    handles = {}
+    for ax in axes[0]:
+        for h, lab in zip(*ax.get_legend_handles_labels(), strict=True):
+            handles.setdefault(lab, h)
+    if handles:
+        fig.legend(list(handles.values()), list(handles), loc="lower center", ncol=len(handles), fontsize=8)
+    fig.suptitle(title)
+    fig.tight_layout(rect=(0, 0.05 if handles else 0, 1, 1))
+    return fig

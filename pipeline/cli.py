@@ -129,7 +129,8 @@ def cmd_train(args: argparse.Namespace) -> int:
 
     rec = run_train(args.subject, load_params(args.params), n_envs=args.n_envs,
                     threads=args.threads, steps=args.steps, resume=args.resume, max_wall_s=args.max_wall_s,
-                    subprocess=True if args.subprocess else None, init_from=args.init_from, on_ray=args.ray)
+                    subprocess=True if args.subprocess else None, init_from=args.init_from, on_ray=args.ray,
+                    variant=args.variant)
     print(f"{args.subject}: policy at {rec['steps']} steps, {rec['wall_s']:.0f} s of training in total",
           file=sys.stderr)
     return 0
@@ -168,10 +169,12 @@ def cmd_export(args: argparse.Namespace) -> int:
 def cmd_sweep(args: argparse.Namespace) -> int:
     from pipeline.stages.sweep import run_sweep
 
-    summary = run_sweep(load_params(args.params), args.root or SWEEPS_ROOT)
+    summary = run_sweep(load_params(args.params), args.root or SWEEPS_ROOT, study=args.study)
     for f in summary["failed"]:
-        print(f"failed: {f['subject']} {f['condition']} {f['scenario']} seed {f['seed']}: {f['error']}",
-              file=sys.stderr)
+        print(f"failed: {f['subject']}/{f['variant']} {f['condition']} {f['scenario']} {f['event']} "
+              f"seed {f['seed']}: {f['error']}", file=sys.stderr)
+    for note in summary["notes"]:
+        print(f"left out: {note}", file=sys.stderr)
     print(f"sweep {summary['study']}: {summary['ran']} ran, {summary['resumed']} resumed, "
           f"{len(summary['failed'])} failed of {summary['jobs']} jobs", file=sys.stderr)
     return 0
@@ -395,6 +398,8 @@ def build_parser() -> argparse.ArgumentParser:
                        help="start from SUBJECT's trained policy (transfer) instead of from scratch")
     train.add_argument("--ray", action="store_true", help="run as one Ray job: on this machine, or on a node "
                        "of the RAY_ADDRESS cluster (the policy folder comes back when it succeeded)")
+    train.add_argument("--variant", default="healthy", help="fine-tune a cohort variant (params cohort) from "
+                       "the subject's own policy into data/policies/<subject>/cohort/<variant>/")
     train.set_defaults(func=cmd_train)
 
     evaluate = commands.add_parser("evaluate-policy", help="issue-6 checks of the trained walking policy")
@@ -431,6 +436,7 @@ def build_parser() -> argparse.ArgumentParser:
     sweep = commands.add_parser("sweep", help="run the study of params `sweep` on Ray (resumable; "
                                 "RAY_ADDRESS: on that cluster)")
     sweep.add_argument("--root", type=Path, help="default: data/sweeps")
+    sweep.add_argument("--study", help="params sweep.study (default) or fall_intervention.study")
     sweep.set_defaults(func=cmd_sweep)
 
     tune = commands.add_parser("tune", help="tune a controller's gains for one subject on the policy-human "

@@ -29,6 +29,7 @@ from ingest.errors import GaitloopError
 from ingest.process import IngestParams
 from ingest.static import StaticCheckParams
 from metrics import JOINTS, SpmParams
+from metrics.fall_intervention import FallRuleParams
 from metrics.outcomes import ObjectiveWeights
 from metrics.phases import EventWindow
 from metrics.policy_checks import PolicyChecks
@@ -36,7 +37,9 @@ from metrics.quality import Limits, QualityParams
 from metrics.scenario_checks import ScenarioChecks
 from pipeline.paths import PARAMS_FILE, repo_path
 from pipeline.store import StoreParams
+from sim.body.balance_loss import BalanceLoss
 from sim.body.human_params import HumanParams
+from sim.body.variant import HEALTHY, Variant, variant_from_dict
 from sim.errors import SimulationError
 from sim.motion.reference import ReferenceParams
 from sim.motion.replay import ReplayParams
@@ -736,6 +739,9 @@ class ScenariosSchema(Schema):
 
 # sweeps and tuning (Ray)
 
+NO_EVENT = "none"  # a study's normal walking (no balance-loss event)
+
+
 class RaySchema(Schema):
     num_cpus: Annotated[int, Field(ge=1)]
     max_retries: Annotated[int, Field(ge=0)]
@@ -748,6 +754,58 @@ class SweepSchema(Schema):
     conditions: tuple[str, ...]
     scenarios: tuple[str, ...]
     seeds: Annotated[int, Field(ge=1)]
+    events: tuple[str, ...] = (NO_EVENT,)   # balance-loss events (fall_intervention.balance_loss) or none
+    onset_jitter_s: Annotated[float, Field(ge=0.0)] = 0.3
+
+
+class BalanceLossSchema(Schema):
+    duration_s: Annotated[float, Field(gt=0.0)]
+    magnitude: float
+
+
+class FallInterventionSchema(SweepSchema):
+    balance_loss: dict[Literal["trip", "slip", "collapse", "push"], BalanceLossSchema]
+    detection_window_s: Annotated[float, Field(gt=0.0)]
+    confirm_s: Annotated[float, Field(gt=0.0)]
+    baseline_s: Annotated[float, Field(gt=0.0)]
+    caught_margin_m: Annotated[float, Field(ge=0.0)]
+
+    def events_of(self, names: tuple[str, ...]) -> list[BalanceLoss | None]:
+        """The named events as `BalanceLoss` (no onset: placed per walk), `none` as None."""
+        return [None if n == NO_EVENT else BalanceLoss(n, **self.balance_loss[n].model_dump()) for n in names]
+
+    def rule(self, fall_drop_m: float) -> FallRuleParams:
+        """The rule given the robot's fall-detection drop threshold (`robot.fall.drop_m`)."""
+        return FallRuleParams(self.detection_window_s, self.confirm_s, self.baseline_s,
+                              fall_drop_m + self.caught_margin_m)
+
+
+class VariantSchema(Schema):
+    torque_scale: dict[str, Annotated[float, Field(gt=0.0)]] = {}
+    speed_scale: Annotated[float, Field(gt=0.0)] = 1.0
+    speed_mps: Annotated[float, Field(gt=0.0)] | None = None
+    action_noise: Annotated[float, Field(ge=0.0)] = 0.0
+
+
+class CohortSchema(Schema):
+    subjects: tuple[str, ...]
+    fine_tune_steps: Annotated[int, Field(ge=1)]
+    curriculum_fraction: Annotated[float, Field(ge=0.0, le=1.0)]
+    variants: dict[Annotated[str, Field(pattern=r"^[a-z0-9][a-z0-9_]*$")], VariantSchema]
+
+    @model_validator(mode="after")
+    def _not_healthy(self) -> CohortSchema:
+        if HEALTHY in self.variants:
+            raise ValueError(f"variants: {HEALTHY!r} is the subject's own policy, not a variant to declare")
+        return self
+
+    def variant(self, name: str) -> Variant:
+        """The named variant (`healthy`: nothing changed)."""
+        if name == HEALTHY:
+            return Variant()
+        if name not in self.variants:
+            raise KeyError(f"cohort.variants: no variant {name!r} ({', '.join([HEALTHY, *self.variants])})")
+        return variant_from_dict(name, self.variants[name].model_dump())
 
 
 class TuneSchema(Schema):
@@ -795,6 +853,8 @@ class Params(Schema):
     ray: RaySchema
     sweep: SweepSchema
     tune: TuneSchema
+    cohort: CohortSchema
+    fall_intervention: FallInterventionSchema
 
     _path: Path = PrivateAttr(default=PARAMS_FILE)
 
@@ -809,6 +869,21 @@ class Params(Schema):
             for cond in conditions:
                 if cond != "free" and cond not in controllers:
                     raise ValueError(f"{key}: {cond!r} is neither free nor a controller in robot.controllers")
+        for key, study in (("sweep", self.sweep), ("fall_intervention", self.fall_intervention)):
+            for variant in study.variants:
+                if variant != HEALTHY and variant not in self.cohort.variants:
+                    raise ValueError(f"{key}.variants: no variant {variant!r} in cohort.variants")
+            for event in study.events:
+                if event != NO_EVENT and event not in self.fall_intervention.balance_loss:
+                    raise ValueError(f"{key}.events: no event {event!r} in fall_intervention.balance_loss")
+            for cond in study.conditions:
+                if cond != "free" and cond not in controllers:
+                    raise ValueError(f"{key}.conditions: {cond!r} is neither free nor a controller")
+            for name in study.scenarios:
+                if name not in self.scenarios.commands:
+                    raise ValueError(f"{key}.scenarios: no scenario {name!r} in scenarios.commands")
+        if self.sweep.study == self.fall_intervention.study:
+            raise ValueError("sweep.study and fall_intervention.study must differ")
         for name in self.tune.search:
             if name not in controllers:
                 raise ValueError(f"tune.search.{name}: no controller {name!r} in robot.controllers")
@@ -824,13 +899,14 @@ class Params(Schema):
         """The file these params were read from."""
         return self._path
 
-    def train_params(self) -> TrainParams:
-        """`train` with the scenarios' transition timing in its env: training commands and the
-        evaluated scenarios share one profile."""
+    def train_params(self, variant: str = HEALTHY) -> TrainParams:
+        """`train` with the scenarios' transition timing in its env (training commands and the
+        evaluated scenarios share one profile) and the body and goals of cohort `variant`."""
         from dataclasses import replace
 
         p = self.train.build()
-        return replace(p, env=replace(p.env, profile=self.scenarios.profile.build()))
+        return replace(p, env=replace(p.env, profile=self.scenarios.profile.build(),
+                                      variant=self.cohort.variant(variant)))
 
     def batch_setup(self, subject: str, markerset: dict[str, str], human_xml: str | Path,
                     drivers: DriverSource, process: bool = True) -> BatchSetup:

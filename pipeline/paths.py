@@ -10,6 +10,7 @@ Layout, relative to the repository root (each root can be moved by a command's `
     data/processed/<subject>/sim_policy/  policy-human rollouts (simulate --human policy)
     data/metrics/<subject>/               metric tables and provenance (metrics)
     data/policies/<subject>/              the trained walking policy (train)
+    data/policies/<subject>/cohort/<v>/   a cohort variant's fine-tuned policy (train --variant), committed
     data/sweeps/<study>/                  a study's rollout rows (sweep)
     data/tuning/<subject>/<variant>/      per-subject tuned controller gains (tune), committed
     data/exports/<subject>/<scenario>/    simulated trials as OpenSim files (export), not versioned
@@ -106,9 +107,11 @@ def metrics_dir(root: str | Path, subject: str) -> Path:
     return subject_dir(root, subject)
 
 
-def policy_dir(root: str | Path, subject: str) -> Path:
-    """`<root>/<subject>` (root: data/policies): a subject's trained policy."""
-    return subject_dir(root, subject)
+def policy_dir(root: str | Path, subject: str, variant: str = "healthy") -> Path:
+    """`<root>/<subject>` (root: data/policies): a subject's trained policy; a cohort variant's
+    fine-tuned one in `<root>/<subject>/cohort/<variant>` (`healthy` is the subject's own)."""
+    own = subject_dir(root, subject)
+    return own if variant == "healthy" else own / "cohort" / variant
 
 
 def report_dir(reports: str | Path, subject: str) -> Path:

@@ -81,9 +81,18 @@ SCHEMAS: dict[str, str] = {
 }
 TABLES = tuple(SCHEMAS)
 # Studies (`sweep`): one row per rollout job, stored once per (study, job_key) whatever retried it.
+# The balance-loss event (metrics.fall_intervention) and left/right timing (metrics.gait_symmetry)
+# columns came later: a store from before gets them added (NULL in its old rows).
+SWEEP_EVENT_DDL = {
+    "event": "VARCHAR", "onset_s": "DOUBLE", "human_fall_s": "DOUBLE", "robot_fall_s": "DOUBLE",
+    "before_onset": "BOOLEAN", "detected": "BOOLEAN", "caught": "BOOLEAN", "latency_s": "DOUBLE",
+    "pelvis_drop_at_lock_m": "DOUBLE", "max_pelvis_drop_m": "DOUBLE", "max_harness_force_n": "DOUBLE",
+    "false_alarm": "BOOLEAN", "walk_s": "DOUBLE", "stance_l_s": "DOUBLE", "stance_r_s": "DOUBLE",
+    "swing_l_s": "DOUBLE", "swing_r_s": "DOUBLE", "stance_ratio_lr": "DOUBLE", "swing_ratio_lr": "DOUBLE",
+    "stride_time_cv_pct": "DOUBLE"}
 SWEEP_COLUMNS = ["study", "job_key", "subject", "variant", "condition", "gains_hash", "scenario", "seed",
                  "params_hash", "mean_abs_ex_cm", "mean_abs_ey_cm", "force_rms_n", "fell",
-                 "gait_speed_mps", "stride_length_m", "n_strides", "n_samples", "wall_s"]
+                 "gait_speed_mps", "stride_length_m", "n_strides", "n_samples", *SWEEP_EVENT_DDL, "wall_s"]
 SWEEP_DDL = ("study VARCHAR NOT NULL, job_key VARCHAR NOT NULL, subject VARCHAR, variant VARCHAR, "
              "condition VARCHAR, gains_hash VARCHAR, scenario VARCHAR, seed BIGINT, params_hash VARCHAR, "
              "mean_abs_ex_cm DOUBLE, mean_abs_ey_cm DOUBLE, force_rms_n DOUBLE, fell BOOLEAN, "
@@ -246,10 +255,62 @@ def _views() -> list[str]:
         "u.variant = t.variant AND u.controller = t.controller) ORDER BY subject, variant, controller",
         # a study's rollouts per subject, variant, condition and scenario: mean over seeds
         "CREATE OR REPLACE VIEW sweep_summary AS SELECT study, subject, variant, condition, scenario, "
+        "coalesce(event, 'none') AS event, "
         "count(*) AS n_runs, sum(fell::INT) AS falls, avg(mean_abs_ex_cm) AS mean_abs_ex_cm, "
         "avg(mean_abs_ey_cm) AS mean_abs_ey_cm, avg(force_rms_n) AS force_rms_n, "
         "avg(gait_speed_mps) AS gait_speed_mps, avg(stride_length_m) AS stride_length_m FROM sweep_results "
-        "GROUP BY ALL ORDER BY study, subject, variant, scenario, condition",
+        "GROUP BY ALL ORDER BY study, subject, variant, scenario, event, condition",
+        # every rollout once (a job in two studies is the same rollout: same key)
+        "CREATE OR REPLACE VIEW sweep_rollouts AS SELECT DISTINCT ON (job_key) * EXCLUDE (study, run_id) "
+        "FROM sweep_results ORDER BY job_key, study",
+        # balance loss x controller x variant: was it caught? (metrics.fall_intervention); the same
+        # variant, scenario, event and seed walking free says whether the unsupported person falls
+        "CREATE OR REPLACE VIEW fall_intervention AS WITH ev AS (SELECT * FROM sweep_rollouts "
+        "WHERE coalesce(event, 'none') <> 'none'), "
+        "unsupported AS (SELECT subject, variant, scenario, event, seed, "
+        "human_fall_s IS NOT NULL AS falls_free FROM ev WHERE condition = 'free' AND NOT before_onset) "
+        "SELECT e.subject, e.variant, e.event, e.condition, count(*) AS rollouts, "
+        "count(*) FILTER (WHERE e.before_onset) AS fell_before_onset, "
+        "count(*) FILTER (WHERE NOT e.before_onset) AS events, "
+        "count(*) FILTER (WHERE NOT e.before_onset AND u.falls_free) AS events_falling_free, "
+        "count(*) FILTER (WHERE NOT e.before_onset AND e.human_fall_s IS NOT NULL) AS human_falls, "
+        "avg(e.detected::INT) FILTER (WHERE NOT e.before_onset) AS detection_rate, "
+        "avg(e.detected::INT) FILTER (WHERE NOT e.before_onset AND u.falls_free) AS detection_rate_falling, "
+        "avg(e.caught::INT) FILTER (WHERE NOT e.before_onset AND u.falls_free) AS caught_rate_falling, "
+        "avg(e.latency_s) FILTER (WHERE e.detected) AS latency_s, "
+        "avg(e.pelvis_drop_at_lock_m) FILTER (WHERE e.detected) AS pelvis_drop_at_lock_m, "
+        "max(e.pelvis_drop_at_lock_m) FILTER (WHERE e.detected) AS worst_drop_at_lock_m, "
+        "avg(e.max_harness_force_n) FILTER (WHERE NOT e.before_onset) AS max_harness_force_n, "
+        "max(e.max_harness_force_n) FILTER (WHERE NOT e.before_onset) AS peak_harness_force_n "
+        "FROM ev e LEFT JOIN unsupported u USING (subject, variant, scenario, event, seed) "
+        "GROUP BY ALL ORDER BY e.subject, e.variant, e.event, e.condition",
+        # locks of the arm in normal walking with the robot, over every study, scenario and variant
+        "CREATE OR REPLACE VIEW false_alarms AS SELECT subject, variant, condition, count(*) AS rollouts, "
+        "sum(walk_s) / 3600.0 AS walking_h, count(*) FILTER (WHERE robot_fall_s IS NOT NULL) AS alarms, "
+        "count(*) FILTER (WHERE false_alarm) AS false_alarms, "
+        "count(*) FILTER (WHERE false_alarm) / nullif(sum(walk_s) / 3600.0, 0) AS false_alarms_per_h "
+        "FROM sweep_rollouts WHERE coalesce(event, 'none') = 'none' AND condition <> 'free' "
+        "AND walk_s IS NOT NULL GROUP BY ALL ORDER BY subject, variant, condition",
+        # each variant's gait signature walking free without events (metrics.gait_symmetry)
+        "CREATE OR REPLACE VIEW cohort_gait AS SELECT subject, variant, scenario, count(*) AS walks, "
+        "sum(fell::INT) AS falls, avg(gait_speed_mps) AS gait_speed_mps, "
+        "stddev_samp(gait_speed_mps) AS gait_speed_sd, avg(stride_length_m) AS stride_length_m, "
+        "avg(stance_ratio_lr) AS stance_ratio_lr, avg(swing_ratio_lr) AS swing_ratio_lr, "
+        "avg(stride_time_cv_pct) AS stride_time_cv_pct, sum(n_strides) AS strides "
+        "FROM sweep_rollouts WHERE coalesce(event, 'none') = 'none' AND condition = 'free' "
+        "GROUP BY ALL ORDER BY subject, scenario, variant",
+        # cohort x controller: following, harness force, and the gait change versus the same variant free
+        "CREATE OR REPLACE VIEW cohort_controllers AS WITH normal AS (SELECT * FROM sweep_rollouts "
+        "WHERE coalesce(event, 'none') = 'none'), free AS (SELECT subject, variant, scenario, "
+        "avg(gait_speed_mps) AS free_speed, avg(stride_length_m) AS free_stride, "
+        "avg(stride_time_cv_pct) AS free_cv FROM normal WHERE condition = 'free' GROUP BY ALL) "
+        "SELECT n.subject, n.variant, n.condition, n.scenario, count(*) AS walks, sum(n.fell::INT) AS falls, "
+        "avg(n.mean_abs_ex_cm) AS mean_abs_ex_cm, avg(n.mean_abs_ey_cm) AS mean_abs_ey_cm, "
+        "avg(n.force_rms_n) AS force_rms_n, 100 * (avg(n.gait_speed_mps) / any_value(f.free_speed) - 1) "
+        "AS speed_change_pct, 100 * (avg(n.stride_length_m) / any_value(f.free_stride) - 1) "
+        "AS stride_change_pct, avg(n.stride_time_cv_pct) - any_value(f.free_cv) AS cv_change_pct "
+        "FROM normal n LEFT JOIN free f USING (subject, variant, scenario) WHERE n.condition <> 'free' "
+        "GROUP BY ALL ORDER BY n.subject, n.scenario, n.variant, n.condition",
         "CREATE OR REPLACE VIEW subject_summary AS SELECT v.subject, "
         "count(*) AS n_groups, "
         "(SELECT count(*) FROM versions a WHERE a.subject = v.subject) AS n_versions, "
@@ -281,6 +342,8 @@ def ensure_schema(con: duckdb.DuckDBPyConnection) -> None:
     con.execute("CREATE TABLE IF NOT EXISTS store_runs (run_id BIGINT PRIMARY KEY, created_at TIMESTAMP, "
                 "code_rev VARCHAR, subjects VARCHAR, n_groups BIGINT, n_new_versions BIGINT)")
     con.execute(f"CREATE TABLE IF NOT EXISTS sweep_results ({SWEEP_DDL})")
+    for col, kind in SWEEP_EVENT_DDL.items():
+        con.execute(f"ALTER TABLE sweep_results ADD COLUMN IF NOT EXISTS {col} {kind}")
     con.execute(f"CREATE TABLE IF NOT EXISTS tuned_gains ({TUNING_DDL})")
     con.execute(f"CREATE TABLE IF NOT EXISTS quality ({QUALITY_DDL})")
     con.execute("CREATE TABLE IF NOT EXISTS subjects (subject VARCHAR PRIMARY KEY, round_trip_of VARCHAR, "
@@ -378,8 +441,8 @@ def store_results(path: Path, results: list[SubjectResults], params: StoreParams
                             progress(f"{res.subject}/{'/'.join(key[1:])}/{name}")
                     new.append(next_id)
                     next_id += 1
-            for sweep in sweeps:  # a job's rows once, however often it ran
-                con.register("incoming", sweep[SWEEP_COLUMNS].assign(run_id=run_id))
+            for sweep in sweeps:  # a job's rows once, however often it ran (older rows lack newer columns)
+                con.register("incoming", sweep.reindex(columns=SWEEP_COLUMNS).assign(run_id=run_id))
                 con.execute("INSERT OR IGNORE INTO sweep_results BY NAME SELECT * FROM incoming")
                 con.unregister("incoming")
             for tuning in tunings:

@@ -38,12 +38,11 @@ from pipeline import paths
 from pipeline.params import Params, ParamsError
 from pipeline.stages.outputs import write_json
 from pipeline.stages.simulate import policy_setup, scenario_jobs
-from pipeline.stages.sweep import HEALTHY
+from sim.body.variant import HEALTHY
 from sim.errors import SimulationError
 from sim.rollout.batch import BatchSetup, RolloutJob, Worker
 from sim.rollout.cluster import cached_worker, completed, connect
 
-VARIANTS = (HEALTHY,)  # the subject's own policy; cohort variants come with the virtual cohort
 METRIC = "objective"
 STUDY = "tune"
 
@@ -229,15 +228,15 @@ def run_tune(subject: str, controller: str, params: Params, variant: str = HEALT
              n_trials: int | None = None, out_root: Path = paths.TUNING_ROOT, progress: bool = True) -> Path:
     """Tune `controller`'s gains for `subject`'s policy human (variant `healthy`: its own policy),
     compare with the generic gains on held-back walks; returns the written JSON's path."""
-    if variant not in VARIANTS:
-        raise SimulationError(f"variant {variant!r}", "only the subject's own policy ('healthy') exists "
-                                                      "until the virtual cohort lands")
+    if variant != HEALTHY and variant not in params.cohort.variants:
+        raise ParamsError(params.path, f"cohort.variants: no variant {variant!r} "
+                                       f"({', '.join([HEALTHY, *params.cohort.variants])})")
     space = search_space(params, controller)
     n_trials = params.tune.n_trials if n_trials is None else int(n_trials)
     if n_trials < 1:
         raise ParamsError(params.path, f"--n-trials {n_trials}: at least one trial")
     t0 = time.perf_counter()
-    base = policy_setup(subject, params)
+    base = policy_setup(subject, params, variant=variant)
     t, exclude, w = params.tune, params.metrics.exclude_locked, params.tune.weights()
     connect(params.ray.num_cpus)
 

@@ -1,11 +1,14 @@
 """Stage `report`: the store's latest results -> Markdown reports, figures and a static index.
 
 Reads the results store (read-only, one query per table in `QUERIES`), the reference paper's
-published values (`data/paper/wang2025.yaml`, `load_paper`) and each subject's policy evaluation
+published values (`data/paper/wang2025.yaml`, `load_paper`), the published clinical ranges
+(`data/paper/clinical_ranges.yaml`, `load_clinical_ranges`) and each subject's policy evaluation
 (`data/policies/<subject>/evaluation.json`, when present), and writes:
 - `reports/<subject>/report.md`, opening with its quality gates (`quality_latest`, failed and warned
   first), then Tables I-III (Real, Sim and the paper's published columns),
-  the per-phase compliance table, the policy checks, SPM clusters and the figures of `subject_figures` in
+  the per-phase compliance table, the policy checks, SPM clusters, controller tuning, the virtual
+  cohort (each variant's gait beside the clinical ranges, and with each controller) and the fall
+  intervention (scripted balance losses and false alarms), with the figures of `subject_figures` in
   `reports/<subject>/figures/`;
 - `reports/summary.md` and `reports/index.html`: every subject's figures first (`FIGURES`), then the
   tables side by side (the subjects' table with each one's worst quality status, coloured in the
@@ -21,20 +24,27 @@ import json
 import math
 from collections.abc import Callable
 from pathlib import Path
-from typing import Literal
+from typing import Annotated, Literal, TypeVar
 
 import duckdb
 import pandas as pd
 import yaml
 from matplotlib.figure import Figure
-from pydantic import BaseModel, ConfigDict, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, RootModel, ValidationError, model_validator
 
 from ingest.errors import GaitloopError
+from metrics.fall_intervention import FallRuleParams
 from metrics.plots import (
+    EVENT_ORDER,
+    ROBOT_CONDITIONS,
+    VARIANT_ORDER,
+    cohort_heatmap,
     event_figure,
+    fall_intervention_figure,
     group_label,
     harness_figure,
     kinematics_figure,
+    ordered,
     spm_figure,
     tracking_figure,
     tuning_figure,
@@ -55,7 +65,8 @@ Source = Literal["real", "sim"]
 
 
 class PaperError(GaitloopError):
-    """The paper values file is missing, not YAML, or not in the expected layout."""
+    """A file of published values (the paper's, the clinical ranges) is missing, not YAML, or not in
+    the expected layout."""
 
     def __init__(self, path: str | Path, problem: str) -> None:
         super().__init__(f"{path}: {problem}")
@@ -95,18 +106,88 @@ class PaperValues(_Strict):
                 "They describe another person and robot: shown for orientation only, not as targets.")
 
 
-def load_paper(path: Path = PAPER_FILE) -> PaperValues:
-    """Read and check the paper values file; `PaperError` names the file and the problem."""
+M = TypeVar("M", bound=BaseModel)
+
+
+def _published(path: Path, model: type[M], what: str) -> M:
+    """Read a YAML file of published values and check it against `model`; `PaperError` names the
+    file and the problem."""
     try:
-        return PaperValues.model_validate(yaml.safe_load(Path(path).read_text()))
+        return model.model_validate(yaml.safe_load(Path(path).read_text()))
     except OSError as exc:
-        raise PaperError(path, f"cannot read the paper values ({exc.strerror})") from None
+        raise PaperError(path, f"cannot read the {what} ({exc.strerror})") from None
     except yaml.YAMLError as exc:
         raise PaperError(path, f"not YAML ({exc})") from None
     except ValidationError as exc:
         first = exc.errors()[0]
         where = ".".join(str(k) for k in first["loc"])
         raise PaperError(path, f"{where}: {first['msg']}") from None
+
+
+def load_paper(path: Path = PAPER_FILE) -> PaperValues:
+    """Read and check the paper values file; `PaperError` names the file and the problem."""
+    return _published(path, PaperValues, "paper values")
+
+
+# -- published clinical reference values (data/paper/clinical_ranges.yaml) ---------------------------
+# Printed beside the virtual cohort's gait so a reader can place each variant: the stroke walking
+# categories, healthy adults' comfortable speed, the symmetry ratios counted as asymmetric and the
+# stride-time variability of healthy young adults, each with its citation.
+
+CLINICAL_FILE = PAPER_FILE.parent / "clinical_ranges.yaml"
+# measure key (unit in the name) -> how the report names it
+CLINICAL_MEASURES = {"speed_mps": "gait speed (m/s)",
+                     "stance_ratio": "stance time ratio, larger / smaller side",
+                     "swing_ratio": "swing time ratio, larger / smaller side",
+                     "step_length_ratio": "step length ratio, larger / smaller side",
+                     "stride_time_cv_pct": "stride time CV (%)"}
+Bound = float | None
+
+
+class ClinicalRange(_Strict):
+    """One published reference: exactly one measure, as [low, high] (None: an open end) or a single
+    published value, what it describes (`meaning`) and where it was published (`source`)."""
+
+    speed_mps: tuple[Bound, Bound] | float | None = None
+    stance_ratio: tuple[Bound, Bound] | float | None = None
+    swing_ratio: tuple[Bound, Bound] | float | None = None
+    step_length_ratio: tuple[Bound, Bound] | float | None = None
+    stride_time_cv_pct: tuple[Bound, Bound] | float | None = None
+    meaning: Annotated[str, Field(min_length=1)]
+    source: Annotated[str, Field(min_length=1)]
+
+    @model_validator(mode="after")
+    def _one_measure(self) -> ClinicalRange:
+        given = [m for m in CLINICAL_MEASURES if getattr(self, m) is not None]
+        if len(given) != 1:
+            raise ValueError(f"needs exactly one measure of {list(CLINICAL_MEASURES)}, got {given}")
+        value = getattr(self, given[0])
+        low, high = value if isinstance(value, tuple) else (value, value)
+        if (low is None and high is None) or (None not in (low, high) and low > high):
+            raise ValueError(f"{given[0]}: [low, high] needs low <= high and one end at least, "
+                             f"got {list(value)}")
+        return self
+
+    @property
+    def measure(self) -> str:
+        return next(m for m in CLINICAL_MEASURES if getattr(self, m) is not None)
+
+    def value_text(self) -> str:
+        """The value as printed: "0.4–0.8", "< 0.4", "> 0.8" or the single value."""
+        value = getattr(self, self.measure)
+        if not isinstance(value, tuple):
+            return f"{value:g}"
+        low, high = value
+        return f"< {high:g}" if low is None else f"> {low:g}" if high is None else f"{low:g}–{high:g}"
+
+
+class ClinicalRanges(RootModel[dict[str, ClinicalRange]]):
+    """The whole file: entry name -> `ClinicalRange`."""
+
+
+def load_clinical_ranges(path: Path = CLINICAL_FILE) -> dict[str, ClinicalRange]:
+    """Read and check the clinical ranges file; `PaperError` names the file and the problem."""
+    return _published(path, ClinicalRanges, "clinical ranges").root
 
 
 # -- the store's tables -------------------------------------------------------------------------------
@@ -129,6 +210,10 @@ QUERIES = {
     "events": "SELECT * FROM event_aligned ORDER BY subject, human_mode, condition, scenario, event, t_s",
     "tuning": "SELECT * FROM tuning_comparison",
     "quality": 'SELECT * FROM quality_latest ORDER BY subject, stage, "check"',
+    "fall": "SELECT * FROM fall_intervention ORDER BY subject, variant, event, condition",
+    "false_alarms": "SELECT * FROM false_alarms ORDER BY subject, variant, condition",
+    "cohort_gait": "SELECT * FROM cohort_gait ORDER BY subject, variant, scenario",
+    "cohort_controllers": "SELECT * FROM cohort_controllers ORDER BY subject, variant, scenario, condition",
 }
 # Every figure a report can have, in the order the index shows them, with its caption.
 FIGURES = {
@@ -143,7 +228,18 @@ FIGURES = {
     "tuning": "Per-subject controller tuning (`tune`): the objective of metrics/outcomes.py on the held-back "
               "walks with the generic and the tuned gains (mean and 95 % CI across rollouts; falls above "
               "each bar)",
+    "cohort": "Virtual cohort with each controller, walking without events: mean |e_x|, |e_y|, harness force "
+              "RMS and gait speed change versus the same variant walking free, per variant (rows) and "
+              "controller (columns), each panel on its own colour scale",
+    "fall_intervention": "Scripted balance losses per event type and controller: share detected (circles: "
+                         "share caught of the events that fell walking free), onset-to-lock latency, "
+                         "pelvis drop at the lock (triangles: worst; dashed: caught threshold) and peak "
+                         "harness force",
 }
+# caught: the arm locked with the pelvis at most this far below its walking height. params.yaml sets
+# it as robot.fall.drop_m + fall_intervention.caught_margin_m; the report is given no params, so it
+# takes the library default, which tests/pipeline/test_report_cohort.py holds equal to params.yaml.
+CAUGHT_DROP_M = FallRuleParams().caught_drop_m
 
 # Columns the report reads from views that have grown over time: a store file whose views predate
 # this code is named as such instead of failing on a missing attribute.
@@ -313,6 +409,7 @@ def subject_figures(subject: str, data: dict[str, pd.DataFrame], p: ReportParams
     tracking, harness = _of(data["tracking"], subject), _of(data["harness"], subject)
     statistic = "F" if (tests["test"] == "anova1").all() else "t"
     tuning = _of(data["tuning"], subject)
+    cohort, fall = _of(data["cohort_controllers"], subject), _of(data["fall"], subject)
     figures = {
         "events": lambda: event_figure(events, list(p.event_scenarios),
                                        f"{subject}: around the commanded events (mean, 95 % CI across runs)"),
@@ -325,9 +422,13 @@ def subject_figures(subject: str, data: dict[str, pd.DataFrame], p: ReportParams
         "spm": lambda: spm_figure(tests, curves, f"{subject}: SPM{{{statistic}}} (alpha 0.05)"),
         "tuning": lambda: tuning_figure(tuning, f"{subject}: controller tuning, held-back objective "
                                                 "(mean, 95 % CI)"),
+        "cohort": lambda: cohort_heatmap(cohort, f"{subject}: virtual cohort with each controller"),
+        "fall_intervention": lambda: fall_intervention_figure(
+            fall, f"{subject}: scripted balance losses per controller", CAUGHT_DROP_M),
     }
     present = {"events": not events.empty, "kinematics_policy": not policy.empty,
-               "tracking": not tracking.empty, "harness": not harness.empty, "tuning": not tuning.empty}
+               "tracking": not tracking.empty, "harness": not harness.empty, "tuning": not tuning.empty,
+               "cohort": not cohort.empty, "fall_intervention": (fall["condition"] != "free").any()}
     return {name: draw for name, draw in figures.items() if present.get(name, True)}
 
 
@@ -359,10 +460,12 @@ def policy_check_lines(doc: dict | None) -> list[str]:
 
 def subject_report(subject: str, data: dict[str, pd.DataFrame], reports: Path = REPORTS_ROOT,
                    p: ReportParams = ReportParams(), paper: PaperValues | None = None,
-                   evaluation: dict | None = None) -> Path:
+                   evaluation: dict | None = None, clinical: dict[str, ClinicalRange] | None = None) -> Path:
     """Write `reports/<subject>/report.md` and its figures; returns the report path. `evaluation`:
-    the evaluate-policy result of its policy, if any."""
+    the evaluate-policy result of its policy, if any; `clinical`: the clinical ranges (default: read
+    from `CLINICAL_FILE`)."""
     paper = paper or load_paper(PAPER_FILE)
+    clinical = load_clinical_ranges(CLINICAL_FILE) if clinical is None else clinical
     summary = _of(data["summary"], subject)
     if summary.empty:
         raise StoreError(subject, "no stored results for this subject: run `python -m pipeline store`")
@@ -409,6 +512,10 @@ def subject_report(subject: str, data: dict[str, pd.DataFrame], reports: Path = 
     if "tracking" not in figures and "harness" not in figures:
         lines += ["## Tracking and harness force", "", "No simulated robot runs for this subject yet.", ""]
     lines += tuning_lines(_of(data["tuning"], subject), "tuning" in figures)
+    lines += cohort_lines(_of(data["cohort_gait"], subject), _of(data["cohort_controllers"], subject),
+                          clinical, "cohort" in figures)
+    lines += fall_lines(_of(data["fall"], subject), _of(data["false_alarms"], subject),
+                        "fall_intervention" in figures)
     path = folder / "report.md"
     with replacing(path) as (temp,):
         temp.write_text("\n".join(lines))
@@ -441,6 +548,171 @@ def tuning_lines(tuning: pd.DataFrame, figure: bool) -> list[str]:
               md_table(["Controller", "Variant", "Search", "Generic gains", "Tuned gains",
                         "Tuned gain values"], rows)]
     return lines + (_image("tuning") if figure else [])
+
+
+# -- virtual cohort and fall intervention (issue 13; views cohort_gait, cohort_controllers,
+#    fall_intervention, false_alarms of pipeline/store.py) ---------------------------------------------
+
+NO_COHORT = ("No cohort walks stored for this subject yet (run the sweep studies, `python -m pipeline sweep` "
+             "and `python -m pipeline sweep --study fall_intervention`, then `store`).")
+NO_FALLS = ("No fall-intervention rollouts stored for this subject yet (run `python -m pipeline sweep "
+            "--study fall_intervention`, then `store`).")
+ORDERS = {"variant": VARIANT_ORDER, "event": EVENT_ORDER, "condition": ROBOT_CONDITIONS}
+
+
+def _in_order(df: pd.DataFrame, *columns: str) -> pd.DataFrame:
+    """`df` sorted by `columns`, variants, events and controllers in their usual order (`ORDERS`),
+    other columns and unknown values alphabetically after them."""
+    if df.empty:
+        return df
+
+    def rank(col: pd.Series) -> pd.Series:
+        if col.name not in ORDERS:
+            return col
+        return col.map({v: i for i, v in enumerate(ordered(col, ORDERS[col.name]))})
+
+    return df.sort_values(list(columns), key=rank, kind="stable")
+
+
+def _count(rate, n) -> str:
+    """A share written as the count it is of `n` ("3/4"); "–" without a rate or with n = 0."""
+    if _num(rate, 4) == "–" or _num(n, 0) in ("–", "0"):
+        return "–"
+    return f"{round(float(rate) * int(n))}/{int(n)}"
+
+
+def _falls_of(falls, walks) -> str:
+    return "–" if _num(falls, 0) == "–" else f"{int(falls)}/{int(walks)}"
+
+
+def _missing_variants(*tables: pd.DataFrame) -> str:
+    """The sentence naming the cohort variants that have no rows in any of `tables`."""
+    present = set().union(*(set(t["variant"]) for t in tables))
+    missing = [v for v in VARIANT_ORDER if v not in present]
+    text = ("A variant without a fine-tuned policy (`python -m pipeline train <subject> --variant V`), or "
+            "not swept yet, has no walks and is missing from these tables")
+    return text + (f": here {', '.join(missing)}." if missing else "; none is missing here.")
+
+
+def clinical_rows(ranges: dict[str, ClinicalRange]) -> tuple[list[str], list[list[str]]]:
+    """The published reference values, one row each: measure, value, what it means, source."""
+    header = ["Measure", "Published value", "Meaning", "Source"]
+    rows = [[CLINICAL_MEASURES[r.measure], r.value_text(), r.meaning, r.source] for r in ranges.values()]
+    return header, rows
+
+
+def cohort_lines(gait: pd.DataFrame, controllers: pd.DataFrame, ranges: dict[str, ClinicalRange],
+                 figure: bool) -> list[str]:
+    """The "Virtual cohort" section: each variant's gait walking free (`cohort_gait`) beside the
+    published clinical ranges, then each variant with each controller (`cohort_controllers`)."""
+    lines = ["## Virtual cohort", ""]
+    if gait.empty and controllers.empty:
+        return lines + [NO_COHORT, ""]
+    lines += ["Variants of this subject's policy human (sim/body/variant.py, params `cohort`): healthy is "
+              "the subject's own twin; weak has lower torque limits everywhere, hemiparetic_left / _right "
+              "on one leg's hip, knee and ankle, slow a lower preferred speed, unsteady noise on its "
+              "actions. Each walks with its own policy, fine-tuned for that body. "
+              + _missing_variants(gait, controllers), "",
+              "### Gait signature, walking free", "",
+              "Walking without robot and without scripted events, per scenario. Falls: walks in which the "
+              "human fell, of all walks. Gait speed: mean ± SD across walks. Stride length: mean over walks. "
+              "Stance (swing) ratio L/R: the left leg's mean stance (swing) time divided by the right's; "
+              "1 is symmetric, above 1 the left leg's phase lasts longer. Stride time CV: the SD of the kept "
+              "strides' durations over their mean in one walk (%), averaged over walks; higher is less "
+              "steady. Strides: kept strides over all walks.", ""]
+    header = ["Variant", "Scenario", "Walks", "Falls", "Gait speed (m/s)", "Stride length (m)",
+              "Stance ratio L/R", "Swing ratio L/R", "Stride time CV (%)", "Strides"]
+    rows = [[r.variant, r.scenario, _num(r.walks, 0), _falls_of(r.falls, r.walks),
+             _mean_sd(r.gait_speed_mps, r.gait_speed_sd, 3), _num(r.stride_length_m, 3),
+             _num(r.stance_ratio_lr, 3), _num(r.swing_ratio_lr, 3), _num(r.stride_time_cv_pct, 2),
+             _num(r.strides, 0)]
+            for r in _in_order(gait, "variant", "scenario").itertuples(index=False)]
+    lines += [md_table(header, rows)]
+    if ranges:
+        lines += ["Published clinical reference values to compare with (data/paper/clinical_ranges.yaml). "
+                  "They describe real people; the variants are simulated bodies, so this places them, it "
+                  "does not score them. The symmetry ratios there are the larger side over the smaller: for "
+                  "a ratio L/R below 1 compare its inverse.", "", md_table(*clinical_rows(ranges))]
+    lines += ["### With each controller", "",
+              "Walking without scripted events with the robot. Mean abs e_x, e_y: mean absolute forward and "
+              "lateral offset of the pelvis from the arm's neutral point (cm); harness force RMS (N); the "
+              "changes are versus the same variant walking free in the same scenario: gait speed and stride "
+              "length in %, stride time CV in percentage points (negative: steadier). Means over walks.", ""]
+    header = ["Variant", "Scenario", "Controller", "Walks", "Falls", "Mean abs e_x (cm)", "Mean abs e_y (cm)",
+              "Harness force RMS (N)", "Gait speed change (%)", "Stride length change (%)",
+              "Stride time CV change (points)"]
+    rows = [[r.variant, r.scenario, r.condition, _num(r.walks, 0), _falls_of(r.falls, r.walks),
+             _num(r.mean_abs_ex_cm, 2), _num(r.mean_abs_ey_cm, 2), _num(r.force_rms_n, 2),
+             _num(r.speed_change_pct, 2), _num(r.stride_change_pct, 2), _num(r.cv_change_pct, 2)]
+            for r in _in_order(controllers, "variant", "scenario", "condition").itertuples(index=False)]
+    lines += [md_table(header, rows)]
+    return lines + (_image("cohort") if figure else [])
+
+
+def fall_rows(fall: pd.DataFrame) -> tuple[list[str], list[list[str]]]:
+    """One row per variant, event and controller (conditions with a robot) of `fall_intervention`;
+    "Falls free" is "–" where the same variant and event have no walks without the robot."""
+    header = ["Variant", "Event", "Controller", "Events", "Excluded (fell before onset)", "Falls free",
+              "Human falls", "Detected", "Latency (s)", "Drop at lock (m), mean (worst)",
+              "Caught, of falls free", "Peak harness force (N), max (mean)"]
+    free = {(r.variant, r.event) for r in fall[fall["condition"] == "free"].itertuples(index=False)}
+    robot = _in_order(fall[fall["condition"] != "free"], "variant", "event", "condition")
+    rows = []
+    for r in robot.itertuples(index=False):
+        has_free = (r.variant, r.event) in free
+        drop = "–" if _num(r.pelvis_drop_at_lock_m, 3) == "–" else \
+            f"{_num(r.pelvis_drop_at_lock_m, 3)} ({_num(r.worst_drop_at_lock_m, 3)})"
+        force = "–" if _num(r.peak_harness_force_n, 0) == "–" else \
+            f"{_num(r.peak_harness_force_n, 0)} ({_num(r.max_harness_force_n, 0)})"
+        rows.append([r.variant, r.event, r.condition, _num(r.events, 0), _num(r.fell_before_onset, 0),
+                     f"{int(r.events_falling_free)}/{int(r.events)}" if has_free else "–",
+                     f"{int(r.human_falls)}/{int(r.events)}", _count(r.detection_rate, r.events),
+                     _num(r.latency_s, 2), drop,
+                     _count(r.caught_rate_falling, r.events_falling_free) if has_free else "–", force])
+    return header, rows
+
+
+def false_alarm_rows(alarms: pd.DataFrame) -> tuple[list[str], list[list[str]]]:
+    """One row per variant and controller of `false_alarms`."""
+    header = ["Variant", "Controller", "Rollouts", "Walking (h)", "Arm locks", "False alarms",
+              "False alarms per hour"]
+    rows = [[r.variant, r.condition, _num(r.rollouts, 0), _num(r.walking_h, 3), _num(r.alarms, 0),
+             _num(r.false_alarms, 0), _num(r.false_alarms_per_h, 2)]
+            for r in _in_order(alarms, "variant", "condition").itertuples(index=False)]
+    return header, rows
+
+
+def fall_lines(fall: pd.DataFrame, alarms: pd.DataFrame, figure: bool) -> list[str]:
+    """The "Fall intervention" section: how each controller met the scripted balance losses of each
+    variant (`fall_intervention`), and how often it locked the arm in normal walking (`false_alarms`)."""
+    lines = ["## Fall intervention", ""]
+    if fall.empty and alarms.empty:
+        return lines + [NO_FALLS, ""]
+    lines += ["Scripted balance losses mid-walk (sim/body/balance_loss.py, params `fall_intervention`): trip "
+              "(the swing foot held in place), slip (the stance foot on a slippery floor), collapse (the "
+              "torque limits cut for a moment), push (a sideways push). Each is walked free (no robot: would "
+              "the person fall unsupported?) and with each controller, with the same seeds. "
+              + _missing_variants(fall, alarms), "",
+              "Per variant, event and controller: Events: rollouts in which the human was still walking "
+              "at the onset; Excluded: rollouts left out because the human had already fallen, or the arm "
+              "locked, before it. Falls free: of these events, how many the same seed walking free fell "
+              "(the falls the robot should catch; – without free walks). Human falls: events after which "
+              "the human fell (pelvis below the fall height or trunk past its tilt limit) with this "
+              "controller. Detected: events where the arm locked within the detection window after the "
+              "onset (params `fall_intervention.detection_window_s`). Latency: mean time from the onset to "
+              "the lock over the detected events. Drop at lock: how far the pelvis was below its walking "
+              "height when the arm locked, mean (worst) over the detected events; negative is above. "
+              "Caught: of the events that fell free, those where the arm locked with the pelvis at most "
+              f"{CAUGHT_DROP_M:.2f} m down (the fall rule's drop threshold + "
+              "`fall_intervention.caught_margin_m`). Peak harness force: the largest harness force from the "
+              "onset on, max over the rollouts (mean of their peaks).", "",
+              md_table(*fall_rows(fall)),
+              "### False alarms", "",
+              "Normal walking with the robot (no scripted event; every study and scenario): Arm locks: "
+              "rollouts whose arm locked; a lock that no fall of the human follows within params "
+              "`fall_intervention.confirm_s` is a false alarm. Walking (h): walking time before any lock, "
+              "summed; false alarms per hour of it.", "", md_table(*false_alarm_rows(alarms))]
+    return lines + (_image("fall_intervention") if figure else [])
 
 
 def _spm_lines(tests: pd.DataFrame, clusters: pd.DataFrame) -> list[str]:
@@ -546,7 +818,8 @@ def run_report(subjects: list[str], all_subjects: list[str], db: Path, reports: 
     """Reports of `subjects`, then (with `summary`) the summary and index over `all_subjects`."""
     data = load_report_data(db, busy_timeout_s)
     paper = load_paper(PAPER_FILE)
-    written = [subject_report(s, data, reports, p, paper, _evaluation(s)) for s in subjects]
+    clinical = load_clinical_ranges(CLINICAL_FILE) if subjects else {}
+    written = [subject_report(s, data, reports, p, paper, _evaluation(s), clinical) for s in subjects]
     if summary:
         written += list(summary_report(all_subjects, data, reports, p, paper))
     return written

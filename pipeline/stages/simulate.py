@@ -29,6 +29,7 @@ from metrics.tracking import tracking_table
 from pipeline import paths
 from pipeline.params import Params
 from pipeline.stages.outputs import write_figure, write_outputs
+from sim.body.variant import HEALTHY
 from sim.errors import SimulationError
 from sim.motion.reference import load_reference
 from sim.motion.replay import ReplaySegment, ReplaySource
@@ -78,18 +79,20 @@ def replay_jobs(subject: str, params: Params, root: Path = paths.PROCESSED_ROOT,
 
 
 def policy_setup(subject: str, params: Params, root: Path = paths.PROCESSED_ROOT,
-                 policy_root: Path = paths.POLICIES_ROOT) -> BatchSetup:
-    """The batch runner's setup for `subject`'s trained walking policy, on the policy's own body,
-    sampled at `rollout.policy_sample_rate_hz` (its physics step must be the training timestep)."""
+                 policy_root: Path = paths.POLICIES_ROOT, variant: str = HEALTHY) -> BatchSetup:
+    """The batch runner's setup for `subject`'s trained walking policy (or cohort `variant`'s
+    fine-tuned one, on the variant's body), sampled at `rollout.policy_sample_rate_hz` (its physics
+    step must be the training timestep)."""
     from sim.learn.policy_human import PolicySource  # torch and SB3: only for the policy human
     from sim.learn.train import BODY_FILE, CYCLE_FILE, POLICY_FILE
 
-    folder = paths.policy_dir(policy_root, subject)
+    folder = paths.policy_dir(policy_root, subject, variant)
     for f in (POLICY_FILE, BODY_FILE, CYCLE_FILE):
         if not (folder / f).exists():
-            raise SimulationError(folder / f, f"no trained policy: run `python -m pipeline train {subject}`")
+            how = f"train {subject}" + ("" if variant == HEALTHY else f" --variant {variant}")
+            raise SimulationError(folder / f, f"no trained policy: run `python -m pipeline {how}`")
     scenarios = {name: tuple(segs) for name, segs in params.scenarios.build().items()}
-    source = PolicySource(str(folder), params.train_params().env, params.rollout.policy_sample_rate_hz,
+    source = PolicySource(str(folder), params.train_params(variant).env, params.rollout.policy_sample_rate_hz,
                           params.evaluate_policy.fall_height_fraction, scenarios,
                           params.scenarios.profile.build())
     return params.batch_setup(subject, load_subject(subject).markerset, folder / BODY_FILE, source)

@@ -1,7 +1,8 @@
 """Stage `store`: every subject's metric tables -> new versions in the results store.
 
 Reads `<root>/<subject>/<table>.parquet` (root: data/metrics), `quality.parquet` and `provenance.json`
-for each subject in params.yaml, the sweep study's rows (data/sweeps/<study>/results.parquet) and the
+for each subject in params.yaml, the rows of the sweep and fall-intervention studies
+(data/sweeps/<study>/results.parquet) and the
 tuning results (data/tuning) and adds them to `data/results.duckdb` in one transaction (`pipeline.store`).
 """
 
@@ -62,7 +63,8 @@ def run_store(params: Params, root: Path = METRICS_ROOT, db: Path | None = None,
     bar = tqdm(desc="store", unit="table", disable=not progress, leave=False)
     try:
         return store_results(db or p.path, results, p, progress=lambda _: bar.update(),
-                             sweeps=load_sweep(params.sweep.study, sweeps_root),
+                             sweeps=[*load_sweep(params.sweep.study, sweeps_root),
+                                     *load_sweep(params.fall_intervention.study, sweeps_root)],
                              tunings=load_tunings(tuning_root))
     finally:
         bar.close()

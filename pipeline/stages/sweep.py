@@ -1,20 +1,24 @@
-"""Stage `sweep`: a study of subjects x variants x conditions x scenarios x seeds on Ray.
+"""Stage `sweep`: a study of subjects x variants x conditions x scenarios x balance-loss events x
+seeds on Ray (params `sweep`, or `fall_intervention` with `--study fall_intervention`).
 
 Each job is one policy-human rollout, a pure function of (subject, variant, condition and its gains,
-scenario, seed, params hash); its key is the hash of exactly those, so a job that ran (or was retried
-after its worker died) gives the same row, and a rerun with nothing changed runs nothing. Jobs run as
+scenario, event and its definition, seed, params hash); its key is the hash of exactly those, so a
+job that ran (or was retried after its worker died) gives the same row, and a rerun with nothing
+changed runs nothing. Jobs run as
 Ray tasks (`sim.rollout.cluster`: local, or the cluster of `RAY_ADDRESS`) on the batch runner's
 worker (`sim.rollout.batch.Worker`); a task is retried `ray.max_retries` times, whether its worker
 died or it raised, and a job that still fails is reported with its error while the rest completes.
 
 Outputs in `<root>/<study>/` (root: data/sweeps): `jobs/<key>.parquet` (one row per finished job,
 written as results come back: an interrupted study resumes where it stopped), `results.parquet`
-(the rows of the current jobs; `metrics.outcomes.run_row` plus identity) and `summary.json`. The
+(the rows of the current jobs: identity, `metrics.outcomes.run_row`, the event's
+`metrics.fall_intervention.event_metrics` and `metrics.gait_symmetry.symmetry_row`) and `summary.json`. The
 store stage adds the rows to `sweep_results`, once per (study, job key).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import time
@@ -22,21 +26,25 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import ray
 
+from metrics.fall_intervention import FallRuleParams, event_metrics
+from metrics.gait_symmetry import symmetry_row
 from metrics.outcomes import run_row
 from pipeline import paths
-from pipeline.params import Params
+from pipeline.params import NO_EVENT, Params, ParamsError, SweepSchema
 from pipeline.stages.outputs import write_outputs
 from pipeline.stages.simulate import policy_setup
 from pipeline.store import SWEEP_COLUMNS
+from sim.body.balance_loss import BalanceLoss
 from sim.learn.policy_human import PolicyWalk
 from sim.rollout.batch import BatchSetup, RolloutJob, Worker
 from sim.rollout.cluster import cached_worker, completed, connect
 
-HEALTHY = "healthy"  # the subject's own policy; cohort variants come with the virtual cohort
-ROLLOUT_SECTIONS = ("ingest", "metrics", "robot", "rollout", "human", "train", "evaluate_policy", "scenarios")
+ROLLOUT_SECTIONS = ("ingest", "metrics", "robot", "rollout", "human", "train", "evaluate_policy", "scenarios",
+                    "cohort")
 
 
 @dataclass(frozen=True)
@@ -51,6 +59,12 @@ class SweepJob:
     scenario: str
     seed: int
     params_hash: str
+    event: BalanceLoss | None = None  # None: normal walking
+    onset_jitter_s: float = 0.0
+
+    @property
+    def event_name(self) -> str:
+        return NO_EVENT if self.event is None else self.event.kind
 
     @property
     def gains_hash(self) -> str:
@@ -60,11 +74,15 @@ class SweepJob:
     def key(self) -> str:
         doc = [self.subject, self.variant, self.condition, self.gains, self.scenario, self.seed,
                self.params_hash]
+        if self.event is not None:  # normal-walking keys stay as they were before events existed
+            doc += [dataclasses.asdict(self.event), self.onset_jitter_s]
         return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()[:20]
 
     def rollout_job(self) -> RolloutJob:
-        return RolloutJob(self.condition, self.seed, f"{self.scenario}_{self.condition}_seed{self.seed}",
-                          PolicyWalk(scenario=self.scenario))
+        tag = "" if self.event is None else f"_{self.event.kind}"
+        walk = PolicyWalk(scenario=self.scenario, event=self.event, event_jitter_s=self.onset_jitter_s)
+        trial = f"{self.scenario}{tag}_{self.condition}_seed{self.seed}"
+        return RolloutJob(self.condition, self.seed, trial, walk)
 
 
 def rollout_params_hash(params: Params) -> str:
@@ -76,10 +94,22 @@ def rollout_params_hash(params: Params) -> str:
     return hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
 
-def sweep_jobs(params: Params, policy_root: Path = paths.POLICIES_ROOT) -> tuple[list[SweepJob], list[str]]:
-    """The study's jobs from params `sweep`, grouped by subject; and notes on what was left out
-    (a subject without a trained policy, a variant that does not exist yet)."""
-    sw, controllers = params.sweep, params.robot.controller_specs()
+def study_params(params: Params, study: str | None = None) -> SweepSchema:
+    """The study named `study`: params `sweep` (default) or `fall_intervention`."""
+    if study is None or study == params.sweep.study:
+        return params.sweep
+    if study == params.fall_intervention.study:
+        return params.fall_intervention
+    raise ParamsError(params.path, f"no study {study!r} (sweep.study {params.sweep.study!r} or "
+                                   f"fall_intervention.study {params.fall_intervention.study!r})")
+
+
+def sweep_jobs(params: Params, policy_root: Path = paths.POLICIES_ROOT,
+               sw: SweepSchema | None = None) -> tuple[list[SweepJob], list[str]]:
+    """The study's jobs (default params `sweep`), grouped by subject; and notes on what was left out
+    (a subject without a trained policy, a variant without its fine-tuned policy)."""
+    sw, controllers = sw or params.sweep, params.robot.controller_specs()
+    events = params.fall_intervention.events_of(sw.events)
     digest = rollout_params_hash(params)
     jobs, notes = [], []
     for subject in sw.subjects:
@@ -87,58 +117,74 @@ def sweep_jobs(params: Params, policy_root: Path = paths.POLICIES_ROOT) -> tuple
             notes.append(f"{subject}: no trained policy in {paths.policy_dir(policy_root, subject)}")
             continue
         for variant in sw.variants:
-            if variant != HEALTHY:
-                notes.append(f"{subject}/{variant}: no such variant yet (only {HEALTHY!r}, the subject's own "
-                             "policy)")
+            folder = paths.policy_dir(policy_root, subject, variant)
+            if not (folder / "policy.zip").is_file():
+                notes.append(f"{subject}/{variant}: no fine-tuned policy in {folder} "
+                             f"(`python -m pipeline train {subject} --variant {variant}`)")
                 continue
             for condition in sw.conditions:
                 gains = {} if condition == "free" else dict(controllers[condition].get("gains", {}))
-                jobs += [SweepJob(sw.study, subject, variant, condition, gains, scenario, seed, digest)
-                         for scenario in sw.scenarios for seed in range(sw.seeds)]
+                jobs += [SweepJob(sw.study, subject, variant, condition, gains, scenario, seed, digest, event,
+                                  sw.onset_jitter_s if event is not None else 0.0)
+                         for scenario in sw.scenarios for event in events for seed in range(sw.seeds)]
     return jobs, notes
 
 
-def job_row(worker: Worker, job: SweepJob, exclude_locked: bool) -> dict:
+def job_row(worker: Worker, job: SweepJob, exclude_locked: bool,
+            fall_rule: FallRuleParams | None = None) -> dict:
     """Run one job on an open world and return its row (`pipeline.store.SWEEP_COLUMNS`; a plain dict:
     cheaper for Ray to ship than a one-row frame)."""
     start = time.perf_counter()
-    o = worker.run(job.rollout_job())
+    o = worker.run(job.rollout_job(), keep_result=job.event is not None)
     strides = o.tables.get("strides", pd.DataFrame(columns=["kept", "gait_speed_mps", "stride_length_m"]))
+    events = o.tables.get("events", pd.DataFrame())
+    onset = o.human.driver.event.onset_s if job.event is not None else None
+    t = np.arange(len(o.pelvis_z)) / o.sample_rate_hz
     row = {"study": job.study, "job_key": job.key, "subject": job.subject, "variant": job.variant,
            "condition": job.condition, "gains_hash": job.gains_hash, "scenario": job.scenario,
            "seed": job.seed, "params_hash": job.params_hash,
-           **run_row(o.robot, strides, o.fell, exclude_locked), "wall_s": time.perf_counter() - start}
+           **run_row(o.robot, strides, o.fell, exclude_locked),
+           **event_metrics(job.event_name, onset, t, o.pelvis_z, o.robot, o.robot_fall_s, o.human_fall_s,
+                           fall_rule or FallRuleParams()),
+           **symmetry_row(strides, events), "wall_s": time.perf_counter() - start}
     return {c: row[c] for c in SWEEP_COLUMNS}
 
 
 @ray.remote(num_cpus=1)
-def _run_remote(setup: BatchSetup, job: SweepJob, exclude_locked: bool) -> dict:
-    return job_row(cached_worker(setup, Worker), job, exclude_locked)
+def _run_remote(setup: BatchSetup, job: SweepJob, exclude_locked: bool, fall_rule: FallRuleParams) -> dict:
+    return job_row(cached_worker(setup, Worker), job, exclude_locked, fall_rule)
 
 
 def run_sweep(params: Params, root: Path = paths.SWEEPS_ROOT, policy_root: Path = paths.POLICIES_ROOT,
-              progress: bool = True, on_result: Callable[[SweepJob], None] | None = None) -> dict:
+              progress: bool = True, on_result: Callable[[SweepJob], None] | None = None,
+              study: str | None = None) -> dict:
     """Run the study's missing jobs on Ray and write its outputs; returns the summary. `on_result`:
-    called after each finished job (tests use it to kill a worker mid-sweep)."""
-    jobs, notes = sweep_jobs(params, policy_root)
-    folder = paths.sweep_dir(root, params.sweep.study)
+    called after each finished job (tests use it to kill a worker mid-sweep); `study`: default the
+    params' `sweep` study (`study_params`)."""
+    sw = study_params(params, study)
+    jobs, notes = sweep_jobs(params, policy_root, sw)
+    fall_rule = params.fall_intervention.rule(params.robot.fall.drop_m)
+    folder = paths.sweep_dir(root, sw.study)
     job_dir = folder / "jobs"
     job_dir.mkdir(parents=True, exist_ok=True)
     todo = [j for j in jobs if not (job_dir / f"{j.key}.parquet").is_file()]
     failed: list[dict] = []
     if todo:
         connect(params.ray.num_cpus)
-        subjects = dict.fromkeys(j.subject for j in todo)
-        setups = {s: ray.put(policy_setup(s, params, policy_root=policy_root)) for s in subjects}
+        bodies = dict.fromkeys((j.subject, j.variant) for j in todo)
+        setups = {(s, v): ray.put(policy_setup(s, params, policy_root=policy_root, variant=v))
+                  for s, v in bodies}
         task = _run_remote.options(max_retries=params.ray.max_retries, retry_exceptions=True)
-        refs = {task.remote(setups[j.subject], j, params.metrics.exclude_locked): j for j in todo}
-        for ref in completed(list(refs), f"sweep {params.sweep.study}", progress):
+        refs = {task.remote(setups[j.subject, j.variant], j, params.metrics.exclude_locked, fall_rule): j
+                for j in todo}
+        for ref in completed(list(refs), f"sweep {sw.study}", progress):
             job = refs[ref]
             try:
                 write_outputs(job_dir, {job.key: pd.DataFrame([ray.get(ref)])}, {})
             except Exception as exc:  # retried already: report it, finish the rest
-                failed.append({"job_key": job.key, "subject": job.subject, "condition": job.condition,
-                               "scenario": job.scenario, "seed": job.seed,
+                failed.append({"job_key": job.key, "subject": job.subject, "variant": job.variant,
+                               "condition": job.condition, "scenario": job.scenario, "event": job.event_name,
+                               "seed": job.seed,
                                "error": f"{type(exc).__name__}: {str(exc).splitlines()[0][:300]}"})
             if on_result is not None:
                 on_result(job)
@@ -146,7 +192,7 @@ def run_sweep(params: Params, root: Path = paths.SWEEPS_ROOT, policy_root: Path 
     files = [job_dir / f"{k}.parquet" for k in sorted(keys)]
     rows = [pd.read_parquet(f) for f in files if f.is_file()]
     results = pd.concat(rows, ignore_index=True) if rows else pd.DataFrame(columns=SWEEP_COLUMNS)
-    summary = {"study": params.sweep.study, "jobs": len(jobs), "ran": len(todo) - len(failed),
+    summary = {"study": sw.study, "jobs": len(jobs), "ran": len(todo) - len(failed),
                "resumed": len(jobs) - len(todo), "failed": failed, "notes": notes}
     ran = results[results["job_key"].isin({j.key for j in todo})]
     if len(ran):
@@ -155,4 +201,4 @@ def run_sweep(params: Params, root: Path = paths.SWEEPS_ROOT, policy_root: Path 
     return summary
 
 
-__all__ = ["SweepJob", "job_row", "run_sweep", "sweep_jobs"]
+__all__ = ["SweepJob", "job_row", "run_sweep", "study_params", "sweep_jobs"]

@@ -11,6 +11,7 @@ from pathlib import Path
 
 from pipeline import paths
 from pipeline.params import Params
+from sim.body.variant import HEALTHY
 from sim.errors import SimulationError
 from sim.learn.train import POLICY_FILE, train, train_on_ray
 from sim.motion.reference import load_reference
@@ -28,12 +29,22 @@ def _inputs(subject: str, root: Path) -> tuple[Path, Path]:
 def run_train(subject: str, params: Params, *, n_envs: int | None, threads: int | None, steps: int | None,
               resume: bool, root: Path = paths.PROCESSED_ROOT, out_root: Path = paths.POLICIES_ROOT,
               max_wall_s: float | None = None, subprocess: bool | None = None,
-              init_from: str | None = None, on_ray: bool = False) -> dict:
+              init_from: str | None = None, on_ray: bool = False, variant: str = HEALTHY) -> dict:
     """Train `subject`'s policy; `init_from`: another subject whose committed policy is the start;
     `on_ray`: as one Ray job (`sim.learn.train.train_on_ray`: locally, or on a node of the
-    `RAY_ADDRESS` cluster) of as many CPUs as it uses (its environment processes, else its threads)."""
-    p = params.train_params()
+    `RAY_ADDRESS` cluster) of as many CPUs as it uses (its environment processes, else its threads).
+    `variant`: fine-tune cohort variant `variant` from the subject's own policy (params `cohort`:
+    its body and goals, `fine_tune_steps` unless `steps`) into `data/policies/<subject>/cohort/<variant>`."""
+    p = params.train_params(variant)
     start = None
+    if variant != HEALTHY:
+        if init_from is not None:
+            raise SimulationError(f"train {subject} --variant {variant}",
+                                  "a variant starts from the subject's own policy: drop --init-from")
+        init_from, steps = subject, steps or params.cohort.fine_tune_steps
+        curriculum = int(params.cohort.curriculum_fraction * steps)
+    else:
+        curriculum = 0
     if init_from is not None and not resume:
         start = paths.policy_dir(out_root, init_from)
         if not (start / POLICY_FILE).exists():
@@ -42,10 +53,11 @@ def run_train(subject: str, params: Params, *, n_envs: int | None, threads: int 
     cycle = load_reference(npz).cycle
     command = "python -m pipeline train " + " ".join(sys.argv[2:]) if sys.argv[1:2] == ["train"] else ""
     kwargs = {"n_envs": n_envs, "threads": threads, "total_steps": steps, "resume": resume,
-              "max_wall_s": max_wall_s, "subprocess": subprocess, "command": command}
+              "max_wall_s": max_wall_s, "subprocess": subprocess, "command": command,
+              "curriculum_steps": curriculum}
     if on_ray:
         in_processes = p.subprocess if subprocess is None else subprocess
         cpus = (n_envs or p.n_envs) if in_processes else (threads or p.threads)
-        return train_on_ray(xml, cycle, p, paths.policy_dir(out_root, subject), cpus=cpus, init_from=start,
-                            **kwargs)
-    return train(xml, cycle, p, paths.policy_dir(out_root, subject), init_from=start, **kwargs)
+        return train_on_ray(xml, cycle, p, paths.policy_dir(out_root, subject, variant), cpus=cpus,
+                            init_from=start, **kwargs)
+    return train(xml, cycle, p, paths.policy_dir(out_root, subject, variant), init_from=start, **kwargs)

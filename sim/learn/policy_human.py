@@ -15,8 +15,9 @@ observation stays zero: the committed policy was trained without the robot, so f
 it never saw would be extrapolation; the harness still pushes and pulls the body through the
 physics.
 
-An optional scripted push (`Push`) applies a horizontal force at the pelvis for a duration (the
-evaluation's 200 N / 0.2 s lateral push); nothing else acts on the body from outside.
+An optional scripted balance-loss event (`sim.body.balance_loss`: trip, slip, collapse, or a push
+such as the evaluation's 200 N / 0.2 s lateral one) acts at its onset; nothing else acts on the
+body from outside.
 """
 
 from __future__ import annotations
@@ -26,12 +27,14 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
+from sim.body.balance_loss import BalanceLoss, BalanceLossRun, add_trip_constraints, steady_onset
 from sim.errors import SimulationError
 from sim.learn.steering import command_at
 from sim.learn.walk_env import (
     AMP_SIZE,
     LEGACY_OBS_SIZE,
     OBS_SIZE,
+    SIDE_SUFFIXES,
     BodyIndex,
     GaitState,
     ReferenceTable,
@@ -46,14 +49,7 @@ from sim.motion.driver import HumanDriver
 from sim.motion.reference import ReferenceCycle
 from sim.rollout.scenarios import CommandProfile, ProfileParams, Segment, command_profile
 
-
-@dataclass(frozen=True)
-class Push:
-    """A horizontal force `force_n` (x, y in the world) on the pelvis from `time_s` for `duration_s`."""
-
-    time_s: float
-    force_n: tuple[float, float]
-    duration_s: float
+FEET = tuple(f"foot_{s}" for s in SIDE_SUFFIXES)  # the foot bodies, in `BodyIndex.feet` order
 
 
 class PolicyHuman(HumanDriver):
@@ -69,13 +65,15 @@ class PolicyHuman(HumanDriver):
     mode = "policy"
 
     def __init__(self, policy, ref: ReferenceTable, cycle: ReferenceCycle, p: WalkEnvParams,
-                 duration_s: float, start_phase: float = 0.0, push: Push | None = None,
+                 duration_s: float, start_phase: float = 0.0, event: BalanceLoss | None = None,
                  fall_height_fraction: float = 0.7, root: str = "root",
-                 commands: CommandProfile | None = None) -> None:
+                 commands: CommandProfile | None = None, seed: int = 0) -> None:
         self.policy, self.cycle, self.p = policy, cycle, p
+        self.noise = np.random.default_rng(seed)  # the variant's motor noise (`Variant.action_noise`)
         self.commands = commands
         self.duration_s = float(duration_s if commands is None else commands.time_s[-1])
-        self.start_phase, self.push, self.root = float(start_phase) % 1.0, push, root
+        self.start_phase, self.event, self.root = float(start_phase) % 1.0, event, root
+        self.event_run: BalanceLossRun | None = None
         self.fall_height_fraction = fall_height_fraction
         k = int(self.start_phase * len(cycle.phase)) % len(cycle.phase)
         self.k0 = k
@@ -88,6 +86,8 @@ class PolicyHuman(HumanDriver):
 
     def prepare(self, spec: mujoco.MjSpec) -> None:
         pd_servo_spec(spec, self.p)
+        if self.event is not None and self.event.kind == "trip":
+            add_trip_constraints(spec, FEET, self.event.magnitude)
 
     def start_pose(self) -> tuple[np.ndarray, float]:
         z = self.ref.stand_height if self.standing_start else self.cycle.qpos[self.k0, 2]
@@ -95,7 +95,8 @@ class PolicyHuman(HumanDriver):
 
     def _commands_at(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         if self.commands is None:
-            return np.full(len(times), self.ref.speed_mps), np.zeros(len(times))
+            speed = self.p.variant.preferred_speed(self.ref.speed_mps)
+            return np.full(len(times), speed), np.zeros(len(times))
         c = self.commands
         return np.interp(times, c.time_s, c.speed_mps), np.interp(times, c.time_s, c.heading_rad)
 
@@ -136,6 +137,9 @@ class PolicyHuman(HumanDriver):
                                        np.cumsum(step * np.sin(np.r_[0.0, self.heading[:-1]]))])
         mujoco.mj_forward(model, data)
         data.ctrl[self.idx.act] = ctrl
+        if self.event is not None:
+            self.event_run = BalanceLossRun(self.event, self.idx.pelvis, self.idx.feet, FEET, self.idx.act,
+                                            lambda t: float(np.interp(t, sample_times_s, self.heading)))
 
     def _command(self, k: int) -> tuple[float, float, float]:
         """(speed, heading, yaw rate) commanded at sample `k` (held after the last sample)."""
@@ -149,12 +153,12 @@ class PolicyHuman(HumanDriver):
             amp_features(data, self.idx, self.amp)
             observe(data, self.idx, self.amp, self.gait, self.wrench, self.obs)
             action = np.clip(np.asarray(self.policy(self.obs), float).reshape(-1), -1.0, 1.0)
+            if self.p.variant.action_noise:
+                action = action + self.noise.normal(0.0, self.p.variant.action_noise, len(action))
             self.gait.advance(self.step_phase, *self._command(k + self.every))
             data.ctrl[self.idx.act] = self.gait.targets(action, self.p, self.lo, self.hi)
-        if self.push is not None:
-            t = self.times[k]
-            on = self.push.time_s <= t < self.push.time_s + self.push.duration_s
-            data.xfrc_applied[self.idx.pelvis, :2] = self.push.force_n if on else (0.0, 0.0)
+        if self.event_run is not None:
+            self.event_run.apply(model, data, float(self.times[k]))
 
     def record(self, model: mujoco.MjModel, data: mujoco.MjData, k: int) -> None:
         """Not called: the samples come from the world qpos (`from_world_qpos`)."""
@@ -217,13 +221,16 @@ class ActorMlp:
 class PolicyWalk:
     """One policy-human job: a walk of `duration_s` from a random phase (the seed's), or the
     scenario `scenario` (its commands set the length), optionally with a lateral pelvis push of
-    `push_n` (signed, world y) at `push_time_s`."""
+    `push_n` (signed, left of the heading) at `push_time_s`, or a balance-loss `event`; an event
+    without an onset happens mid-way through the first steady phase, +- `event_jitter_s` by seed."""
 
     duration_s: float = 0.0
     push_n: float = 0.0
     push_time_s: float = 0.0
     push_duration_s: float = 0.0
     scenario: str | None = None
+    event: BalanceLoss | None = None
+    event_jitter_s: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -255,19 +262,26 @@ class PolicySource:
 
         def make(walk: PolicyWalk, seed: int) -> HumanRun:
             rng = np.random.default_rng(seed)
-            push = Push(walk.push_time_s, (0.0, walk.push_n), walk.push_duration_s) if walk.push_n else None
             commands = None
             if walk.scenario is not None:
                 if walk.scenario not in self.scenarios:
                     raise SimulationError(f"scenario {walk.scenario!r}", f"not in params scenarios "
                                           f"({', '.join(self.scenarios)})")
                 commands = command_profile(walk.scenario, list(self.scenarios[walk.scenario]),
-                                           cycle.speed_mps,
+                                           self.env.variant.preferred_speed(cycle.speed_mps),
                                            self.sample_rate_hz, self.profile)
+            start_phase = float(rng.random())
+            event = walk.event
+            if walk.push_n:
+                event = BalanceLoss("push", walk.push_duration_s, walk.push_n, walk.push_time_s)
+            elif event is not None and event.onset_s is None:
+                spans = commands.spans() if commands is not None else [("steady", 0.0, walk.duration_s)]
+                event = event.at(steady_onset(spans, rng, walk.event_jitter_s))
             human = PolicyHuman(policy, ref, cycle, self.env, walk.duration_s,
-                                start_phase=float(rng.random()), push=push,
-                                fall_height_fraction=self.fall_height_fraction, commands=commands)
-            v0 = cycle.speed_mps if commands is None else float(commands.speed_mps[0])
+                                start_phase=start_phase, event=event,
+                                fall_height_fraction=self.fall_height_fraction, commands=commands, seed=seed)
+            v0 = self.env.variant.preferred_speed(cycle.speed_mps) if commands is None \
+                else float(commands.speed_mps[0])
             return HumanRun(human, self.sample_rate_hz, warm_speed_mps=v0 if v0 > 0 else None)
 
         return make

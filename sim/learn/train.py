@@ -104,6 +104,29 @@ def make_vec_env(model_path: str | Path, cycle: ReferenceCycle, p: TrainParams, 
     return VecMonitor(venv)
 
 
+class _Curriculum(BaseCallback):
+    """Fine-tuning a cohort variant from a healthy policy: the variant's torque limits and preferred
+    speed ramp in linearly (`WalkEnv.variant_weight` 0 -> 1) over the first `steps` env steps, so
+    the policy is never dropped into a body it cannot yet walk with (a curriculum, as Yu, Turk and
+    Liu, SIGGRAPH 2018, fade out the assistance of their learning walkers)."""
+
+    def __init__(self, steps: int) -> None:
+        super().__init__()
+        self.steps = steps
+
+    def _weight(self) -> None:
+        self.training_env.set_attr("variant_weight", min(1.0, self.num_timesteps / self.steps))
+
+    def _on_training_start(self) -> None:
+        self._weight()
+
+    def _on_rollout_start(self) -> None:
+        self._weight()
+
+    def _on_step(self) -> bool:
+        return True
+
+
 class _Budget(BaseCallback):
     """Progress bar, periodic checkpoints and a wall-time limit."""
 
@@ -172,9 +195,11 @@ class MetricsLog:
 def train(model_path: str | Path, cycle: ReferenceCycle, p: TrainParams, out_dir: str | Path, *,
           n_envs: int | None = None, threads: int | None = None, total_steps: int | None = None,
           resume: bool = False, max_wall_s: float | None = None, subprocess: bool | None = None,
-          progress: bool = True, command: str = "", init_from: str | Path | None = None) -> dict:
+          progress: bool = True, command: str = "", init_from: str | Path | None = None,
+          curriculum_steps: int = 0) -> dict:
     """Train (or continue training) the walking policy; returns the progress record (also written
-    to `out_dir/progress.json`). `init_from`: a policy folder to start from (module docstring)."""
+    to `out_dir/progress.json`). `init_from`: a policy folder to start from (module docstring);
+    `curriculum_steps`: ramp a cohort variant's body and speed in over this many steps (`_Curriculum`)."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     n_envs = n_envs or p.n_envs
@@ -234,8 +259,11 @@ def train(model_path: str | Path, cycle: ReferenceCycle, p: TrainParams, out_dir
         (out / PROGRESS_FILE).write_text(json.dumps(rec, indent=2) + "\n")
         return rec
 
-    callbacks = CallbackList([AMPCallback(amp, p.env.w_style, 6, log),
-                              _Budget(total, p.checkpoint_steps, save, max_wall_s, progress)])
+    callbacks = [AMPCallback(amp, p.env.w_style, 6, log),
+                 _Budget(total, p.checkpoint_steps, save, max_wall_s, progress)]
+    if curriculum_steps > 0:
+        callbacks.append(_Curriculum(curriculum_steps))
+    callbacks = CallbackList(callbacks)
     remaining = max(total - steps0, 0)
     if remaining:
         model.learn(total_timesteps=remaining, callback=callbacks, reset_num_timesteps=not prior,

@@ -40,6 +40,7 @@ import mujoco
 import numpy as np
 
 from sim.body.human_params import joint_kind
+from sim.body.variant import Variant
 from sim.errors import SimulationError
 from sim.learn.steering import (
     CommandSampling,
@@ -89,6 +90,7 @@ class WalkEnvParams:
     heading_scale: float = 2.0              # task x exp(-scale (1 - cos heading error))
     commands: CommandSampling = field(default_factory=CommandSampling)
     profile: ProfileParams = field(default_factory=ProfileParams)  # the scenarios' transitions
+    variant: Variant = field(default_factory=Variant)  # cohort variant: torque limits, speed, noise
 
     @classmethod
     def from_dict(cls, d: dict) -> WalkEnvParams:
@@ -114,7 +116,8 @@ class WalkEnvParams:
 
 def pd_servo_spec(spec: mujoco.MjSpec, p: WalkEnvParams) -> None:
     """Turn the human's joint motors into torque-limited PD servos (in place): gear -> unit axis,
-    force range -> +-the motor's torque limit, gain kp and bias (-kp, -kd) by joint kind."""
+    force range -> +-the motor's torque limit (x the cohort variant's factor), gain kp and bias
+    (-kp, -kd) by joint kind."""
     for act in spec.actuators:
         gear = np.array(act.gear[:3], dtype=float)
         limit = float(np.linalg.norm(gear))
@@ -130,6 +133,7 @@ def pd_servo_spec(spec: mujoco.MjSpec, p: WalkEnvParams) -> None:
         act.ctrllimited = False
         act.forcelimited = True
         act.forcerange = [-limit, limit]
+    p.variant.scale_torques(spec)
 
 
 AMP_LEVELS = (0.0, 0.25, 0.5, 0.75, 1.0)  # gait amplitudes of the AMP reference transitions
@@ -300,6 +304,10 @@ class WalkEnv(gym.Env):
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, (OBS_SIZE,), np.float32)
         self.action_space = gym.spaces.Box(-1.0, 1.0, (model.nu,), np.float32)
         self.ctrl_lo, self.ctrl_hi = servo_ranges(model, np.arange(model.nu))
+        names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, i) for i in range(model.nu)]
+        self._torque_factor = np.array([p.variant.torque_factor(n) for n in names])
+        self._variant_range = model.actuator_forcerange.copy()
+        self.variant_weight = 1.0  # fine-tuning curriculum: 0 the healthy body and speed .. 1 the variant's
         self.wrench = np.zeros(6)
         self._obs = np.zeros(OBS_SIZE, np.float32)
         self._amp_prev = np.zeros(AMP_SIZE)
@@ -323,8 +331,12 @@ class WalkEnv(gym.Env):
         rng, options = self.np_random, options or {}
         d = self.data
         mujoco.mj_resetData(self.model, d)
+        w, v0 = self.variant_weight, self.ref.speed_mps
+        factor = (1.0 + (self._torque_factor - 1.0) * w) / self._torque_factor
+        self.model.actuator_forcerange[:] = self._variant_range * factor[:, None]
+        speed = v0 + (self.p.variant.preferred_speed(v0) - v0) * w
         self.commands = options.get("commands") or sample_commands(
-            rng, self.ref.speed_mps, self.p.episode_s + 1.0, 1.0 / self.dt, self.p.commands, self.p.profile)
+            rng, speed, self.p.episode_s + 1.0, 1.0 / self.dt, self.p.commands, self.p.profile)
         phase = float(options["phase"]) if "phase" in options else float(rng.random())
         k = int(phase * self.ref.n) % self.ref.n
         self.gait.start(k / self.ref.n, *self._command(0))
@@ -363,6 +375,9 @@ class WalkEnv(gym.Env):
     def step(self, action):
         d = self.data
         self.gait.advance(self.step_phase, *self._command(self.steps + 1))
+        if self.p.variant.action_noise:
+            noise = self.np_random.normal(0.0, self.p.variant.action_noise, self.model.nu)
+            action = np.asarray(action) + noise
         d.ctrl[:] = self.gait.targets(action, self.p, self.ctrl_lo, self.ctrl_hi)
         if self.pushes:
             self._push()

@@ -98,6 +98,7 @@ class RolloutOutcome:
     distance_m: float
     robot: pd.DataFrame
     pelvis_xy: np.ndarray | None = None   # (n, 2) the human's root position per recorded sample
+    pelvis_z: np.ndarray | None = None    # (n,) its height
     sample_rate_hz: float = 0.0
     tables: dict[str, pd.DataFrame] = field(default_factory=dict)
     skipped: str | None = None
@@ -154,7 +155,8 @@ class Worker:
             robot_fall_s=result.fall_time_s, human_fall_s=human_fall, wall_s=result.wall_s,
             sim_s=result.n_physics_steps * result.physics_dt_s,
             distance_m=float(result.human_qpos[-1, 0] - result.human_qpos[0, 0]), robot=result.robot,
-            pelvis_xy=result.human_qpos[:, :2].copy(), sample_rate_hz=run.sample_rate_hz,
+            pelvis_xy=result.human_qpos[:, :2].copy(), pelvis_z=result.human_qpos[:, 2].copy(),
+            sample_rate_hz=run.sample_rate_hz,
             result=result if keep_result else None, world=world if keep_result else None,
             human=run if keep_result else None, probe=probing)
         if not self.setup.process:

@@ -22,7 +22,7 @@ from pipeline.stages.ingest import run_ingest
 from pipeline.stages.metrics import run_metrics
 from pipeline.stages.report import ReportParams, run_report
 from pipeline.stages.store import load_results
-from pipeline.store import StoreError, StoreParams, query, store_results
+from pipeline.store import SWEEP_COLUMNS, StoreError, StoreParams, query, store_results
 
 ROBOT_FORCES = [
     "harness_fx_n",
@@ -80,11 +80,48 @@ def policy_robot(subject: str, condition: str, scenario: str, seed: int, amp_m: 
     return df
 
 
+def sweep_row(subject: str, variant: str, cond: str, event: str, seed: int) -> dict:
+    """One sweep rollout (`SWEEP_COLUMNS`; test input for the report, not a simulation). Both variants
+    fall free after a trip at 3 s and the robot catches it at 3.25 s; only weak falls free after a push,
+    and the robot locks at 3.7 s, too late; pid's seed 1 locks once in normal walking: a false alarm."""
+    robot, onset = cond != "free", (np.nan if event == "none" else 3.0)
+    locks = {"none": 5.0 if (cond, seed) == ("pid", 1) else np.nan, "trip": 3.25,
+             "push": 3.7 if variant == "weak" else np.nan}
+    lock = locks[event] if robot else np.nan
+    falls_free = event == "trip" or (event == "push" and variant == "weak")
+    human_fall = 3.9 if falls_free and (not robot or event == "push") else np.nan
+    drop = (0.05 if event == "trip" else 0.3) if onset > 0 and lock > 0 else np.nan  # NaN > 0 is False
+    speed = (1.7 if variant == "healthy" else 1.1) - (0.02 if robot else 0.0) + 0.01 * seed
+    row = dict.fromkeys(SWEEP_COLUMNS, np.nan)
+    row.update(study="test", job_key=f"{subject}-{variant}-{cond}-{event}-{seed}", subject=subject,
+               variant=variant, condition=cond, gains_hash="g", scenario="steady", seed=seed, params_hash="p",
+               mean_abs_ex_cm=(1.0 if cond == "pid" else 0.5) if robot else np.nan,
+               mean_abs_ey_cm=0.8 if robot else np.nan, force_rms_n=20.0 if robot else np.nan,
+               fell=not np.isnan(human_fall), gait_speed_mps=speed, stride_length_m=0.9 * speed, n_strides=12,
+               n_samples=1000, event=event, onset_s=onset, human_fall_s=human_fall, robot_fall_s=lock,
+               before_onset=False, detected=bool(lock - onset <= 1.5), caught=event == "trip" and robot,
+               latency_s=lock - onset, pelvis_drop_at_lock_m=drop,
+               max_pelvis_drop_m=0.4, max_harness_force_n=300.0 + 100 * seed if robot else np.nan,
+               false_alarm=event == "none" and not np.isnan(lock),
+               walk_s=3.0 if event != "none" else (10.0 if np.isnan(lock) else lock),
+               stance_l_s=0.62, stance_r_s=0.6, swing_l_s=0.4, swing_r_s=0.42, stance_ratio_lr=0.62 / 0.6,
+               swing_ratio_lr=0.4 / 0.42, stride_time_cv_pct=1.5 if variant == "healthy" else 3.0, wall_s=1.0)
+    return row
+
+
+def sweep_rows(subject: str) -> pd.DataFrame:
+    """Two cohort variants walking free and with pid / adaptive, without an event and with a trip and
+    a push, two seeds each (`sweep_row`)."""
+    rows = [sweep_row(subject, v, c, e, seed) for v in ("healthy", "weak")
+            for c in ("free", "pid", "adaptive") for e in ("none", "trip", "push") for seed in (0, 1)]
+    return pd.DataFrame(rows, columns=SWEEP_COLUMNS)
+
+
 @pytest.fixture(scope="module")
 def store(tmp_path_factory):
     """camargo with real tables, sim-like replay free/pid tables and robot logs, and a policy human
     (walk_10m strides and cycles in free/pid/adaptive, robot logs of walk_10m and turn_90 with their
-    phases); opencap4 real only."""
+    phases) and cohort sweep rollouts (`sweep_rows`); opencap4 real only."""
     root = tmp_path_factory.mktemp("report")
     params = load_params()
     rng = np.random.default_rng(1)
@@ -115,7 +152,8 @@ def store(tmp_path_factory):
             pd.concat(logs).to_parquet(policy / "robot.parquet")
         run_metrics(sid, params, root / "processed", root / "metrics")
     db = root / "results.duckdb"
-    store_results(db, [load_results(s, root / "metrics") for s in ("camargo", "opencap4")], StoreParams())
+    store_results(db, [load_results(s, root / "metrics") for s in ("camargo", "opencap4")], StoreParams(),
+                  sweeps=[sweep_rows("camargo")])
     return root, db
 
 
@@ -145,7 +183,8 @@ def reports(store, tmp_path_factory):
     return out
 
 
-CAMARGO_FIGURES = ("events", "kinematics_policy", "tracking", "harness", "kinematics", "spm")
+CAMARGO_FIGURES = ("events", "kinematics_policy", "tracking", "harness", "kinematics", "spm", "cohort",
+                   "fall_intervention")
 
 
 def test_reports_index_and_figures_resolve(reports):
@@ -224,6 +263,29 @@ def test_table1_numbers_match_the_query(store, reports):
             ("within_source", "pid"), ("within_source", "adaptive")} == set(
         zip(tests["comparison"], tests["condition_b"], strict=True)
     )
+
+
+def test_cohort_and_fall_sections_match_the_views(store, reports):
+    """The "Virtual cohort" and "Fall intervention" sections print the store's views (`sweep_rows`)."""
+    _, db = store
+    md = (reports / "camargo" / "report.md").read_text()
+    assert md.index("## Virtual cohort") < md.index("## Fall intervention")
+    assert "is missing from these tables: here hemiparetic_left, hemiparetic_right, slow, unsteady." in md
+    gait = query(db, "select * from cohort_gait where subject = 'camargo' order by variant")
+    assert list(gait["variant"]) == ["healthy", "weak"]
+    for r in gait.itertuples():
+        assert (f"| {r.variant} | steady | 2 | 0/2 | {r.gait_speed_mps:.3f} ± {r.gait_speed_sd:.3f} | "
+                f"{r.stride_length_m:.3f} | {r.stance_ratio_lr:.3f} | {r.swing_ratio_lr:.3f} | "
+                f"{r.stride_time_cv_pct:.2f} | 24 |") in md
+    assert "Perry J, Garrett M, Gronley JK, Mulroy SJ" in md  # the clinical ranges with their sources
+    # both fall free after the trip and are caught; weak falls free after the push, locked 0.7 s late
+    assert "| healthy | trip | pid | 2 | 0 | 2/2 | 0/2 | 2/2 | 0.25 | 0.050 (0.050) | 2/2 | 400 (350) |" in md
+    assert "| healthy | push | adaptive | 2 | 0 | 0/2 | 0/2 | 0/2 | – | – | – | 400 (350) |" in md
+    assert "| weak | push | pid | 2 | 0 | 2/2 | 2/2 | 2/2 | 0.70 | 0.300 (0.300) | 0/2 | 400 (350) |" in md
+    assert "| weak | pid | 2 | 0.004 | 1 | 1 | 240.00 |" in md  # 15 s of walking, one false alarm
+    assert "| healthy | adaptive | 2 | 0.006 | 0 | 0 | 0.00 |" in md
+    assert "no stored results" not in md and "No fall-intervention rollouts" in (
+        reports / "opencap4" / "report.md").read_text()
 
 
 def test_unknown_subject_is_refused(store, tmp_path):

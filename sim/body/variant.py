@@ -1,0 +1,63 @@
+"""Cohort variants of a subject's simulated human: the same body with changed strength, goals or
+steadiness (issue 13's virtual cohort).
+
+A variant changes three things, each measured by the same ingest code afterwards, never asserted:
+- `torque_scale`: factors on the torque limits of the motors whose names start with a key (``all``
+  for every motor): ``weak`` x0.6 everywhere, ``hemiparetic_left`` x0.4 on hip_l, knee_l, ankle_l;
+- the preferred speed: `speed_mps` (absolute) or `speed_scale` (x the subject's own);
+- `action_noise`: the std of Gaussian noise added to the policy's actions (in its [-1, 1] units,
+  x `action_scale_rad` in joint targets) every policy step, so steps vary from one to the next
+  (``unsteady``); seeded by the rollout's seed.
+The healthy twin is the variant with nothing changed. Training a variant (fine-tuning from the
+subject's own policy) and rolling it out use the same `Variant`, so the policy learns the body it
+is evaluated on.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+
+HEALTHY = "healthy"
+
+
+@dataclass(frozen=True)
+class Variant:
+    name: str = HEALTHY
+    torque_scale: tuple[tuple[str, float], ...] = ()  # (motor-name prefix or "all", factor)
+    speed_scale: float = 1.0
+    speed_mps: float | None = None
+    action_noise: float = 0.0
+
+    @property
+    def healthy(self) -> bool:
+        return not self.torque_scale and self.speed_scale == 1.0 and self.speed_mps is None \
+            and self.action_noise == 0.0
+
+    def torque_factor(self, motor: str) -> float:
+        """The product of every factor whose key matches `motor` (1 when none does)."""
+        f = 1.0
+        for key, factor in self.torque_scale:
+            if key == "all" or motor.startswith(key):
+                f *= factor
+        return f
+
+    def scale_torques(self, spec: mujoco.MjSpec) -> None:
+        """Scale the force ranges of the spec's actuators in place (after `pd_servo_spec`)."""
+        for act in spec.actuators:
+            f = self.torque_factor(act.name)
+            if f != 1.0:
+                act.forcerange = [float(act.forcerange[0]) * f, float(act.forcerange[1]) * f]
+
+    def preferred_speed(self, subject_speed_mps: float) -> float:
+        """The variant's preferred walking speed, given the subject's own (its reference cycle's)."""
+        return float(self.speed_mps) if self.speed_mps is not None else self.speed_scale * subject_speed_mps
+
+
+def variant_from_dict(name: str, d: dict) -> Variant:
+    """A variant from its params entry (`cohort.variants.<name>`)."""
+    scale = tuple((str(k), float(v)) for k, v in (d.get("torque_scale") or {}).items())
+    speed = d.get("speed_mps")
+    return Variant(name, scale, float(d.get("speed_scale", 1.0)), None if speed is None else float(speed),
+                   float(d.get("action_noise", 0.0)))

@@ -1,0 +1,175 @@
+"""Scripted balance loss (issue 13): each event type happens when scheduled and the rollout stays
+numerically stable; the robot's answer to it is measured per rollout and stored once per job."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pandas as pd
+import pytest
+
+from metrics.fall_intervention import FallRuleParams, event_metrics
+from pipeline.params import parse_params
+from pipeline.stages.simulate import policy_setup
+from pipeline.stages.sweep import run_sweep
+from pipeline.store import query, store_results
+from sim.body.balance_loss import BalanceLoss
+from sim.learn.policy_human import PolicyWalk
+from sim.learn.walk_env import HUMAN_ACTUATORS
+from sim.rollout.batch import RolloutJob, Worker
+
+ONSET_S = 4.0
+WALK_S = 7.0
+
+
+class Probe:
+    """Per sample: the feet's world positions, the pelvis's applied force, the human's largest motor
+    force as a share of its normal limit, and the feet's friction coefficients."""
+
+    def __init__(self, model: mujoco.MjModel) -> None:
+        body = mujoco.mjtObj.mjOBJ_BODY
+        self.feet = [mujoco.mj_name2id(model, body, f"foot_{s}") for s in ("l", "r")]
+        self.pelvis = mujoco.mj_name2id(model, body, "pelvis")
+        act = mujoco.mjtObj.mjOBJ_ACTUATOR
+        self.motors = np.array([mujoco.mj_name2id(model, act, n) for n in HUMAN_ACTUATORS])
+        self.limit = np.abs(model.actuator_forcerange[self.motors, 1]).copy()
+        self.foot_geoms = [np.flatnonzero(np.isin(model.geom_bodyid, self._below(model, f)))
+                           for f in self.feet]
+        self.rows: list[tuple] = []
+
+    @staticmethod
+    def _below(model: mujoco.MjModel, root: int) -> list[int]:
+        out = {root}
+        for b in range(model.nbody):
+            if model.body_parentid[b] in out and b != root:
+                out.add(b)
+        return sorted(out)
+
+    def __call__(self, model: mujoco.MjModel, data: mujoco.MjData, k: int) -> None:
+        force = np.abs(data.actuator_force[self.motors]) / self.limit
+        friction = [float(model.geom_friction[g, 0].min()) for g in self.foot_geoms]
+        self.rows.append((data.time, data.xpos[self.feet].copy(), data.xfrc_applied[self.pelvis, :3].copy(),
+                          float(force.max()), friction))
+
+    def frame(self) -> dict[str, np.ndarray]:
+        t, feet, push, force, friction = zip(*self.rows, strict=True)
+        return {"t": np.array(t), "feet": np.array(feet), "push": np.array(push), "force": np.array(force),
+                "friction": np.array(friction)}
+
+
+@pytest.fixture(scope="module")
+def worker(params, camargo_model, policies_root):
+    from dataclasses import replace
+
+    doc = params.document()
+    doc["scenarios"]["commands"]["steady"] = [{"walk_s": WALK_S, "speed": 1.0}]
+    setup = policy_setup("camargo", parse_params(doc), camargo_model.parents[1], policies_root)
+    return Worker(replace(setup, process=False))
+
+
+def _run(worker: Worker, event: BalanceLoss | None) -> tuple[object, dict]:
+    probes: list[Probe] = []
+
+    def make(model: mujoco.MjModel) -> Probe:
+        probes.append(Probe(model))
+        return probes[-1]
+
+    o = worker.run(RolloutJob("free", 0, "event", PolicyWalk(scenario="steady", event=event)), probe=make)
+    assert o.stable, o.warnings
+    assert np.isfinite(o.pelvis_z).all() and np.isfinite(o.pelvis_xy).all()
+    return o, probes[0].frame()
+
+
+def _window(f: dict, event: BalanceLoss) -> np.ndarray:
+    return (f["t"] > event.onset_s + 0.02) & (f["t"] < event.onset_s + event.duration_s - 0.02)
+
+
+def test_trip_holds_the_swing_foot(worker):
+    event = BalanceLoss("trip", 0.3, 0.005, ONSET_S)
+    o, f = _run(worker, event)
+    on = _window(f, event)
+    k0 = int(np.flatnonzero(f["t"] >= event.onset_s)[0])
+    swing = int(np.argmax(f["feet"][k0, :, 2]))
+    moved = np.linalg.norm(f["feet"][on, swing] - f["feet"][k0, swing], axis=1)
+    assert moved.max() < 0.01, moved.max()                          # held in place (1 cm)
+    before = np.linalg.norm(np.diff(f["feet"][k0 - 30:k0, swing, :2], axis=0), axis=1).sum()
+    assert before > 0.2                                              # it was swinging before the onset
+
+
+def test_slip_drops_the_stance_foot_friction_for_its_duration(worker):
+    event = BalanceLoss("slip", 0.5, 0.05, ONSET_S)
+    o, f = _run(worker, event)
+    on = _window(f, event)
+    k0 = int(np.flatnonzero(f["t"] >= event.onset_s)[0])
+    stance = int(np.argmin(f["feet"][k0, :, 2]))
+    assert np.allclose(f["friction"][on, stance], 0.05)
+    assert np.allclose(f["friction"][on, 1 - stance], f["friction"][0, 1 - stance])
+    after = f["t"] > event.onset_s + event.duration_s + 0.05
+    assert np.allclose(f["friction"][after], f["friction"][0])      # restored
+    _, base = _run(worker, None)
+    slide = np.abs(np.diff(f["feet"][on, stance, :2], axis=0)).sum()
+    slide0 = np.abs(np.diff(base["feet"][on, stance, :2], axis=0)).sum()
+    assert slide != pytest.approx(slide0, rel=1e-3)                  # the slip changed the motion
+
+
+def test_collapse_caps_every_motor_at_its_fraction(worker):
+    event = BalanceLoss("collapse", 0.5, 0.1, ONSET_S)
+    o, f = _run(worker, event)
+    on = _window(f, event)
+    assert f["force"][on].max() <= 0.1 + 1e-6
+    assert f["force"][f["t"] < event.onset_s].max() > 0.1         # walking needs more than that
+    assert o.human_fall_s is not None and o.human_fall_s > event.onset_s
+
+
+def test_push_is_lateral_and_only_for_its_duration(worker):
+    event = BalanceLoss("push", 0.3, 400.0, ONSET_S)
+    o, f = _run(worker, event)
+    on = _window(f, event)
+    assert np.allclose(np.linalg.norm(f["push"][on, :2], axis=1), 400.0)
+    assert np.abs(f["push"][on, 1]).min() > 390.0                  # straight walk along x: lateral is y
+    off = (f["t"] < event.onset_s - 0.02) | (f["t"] > event.onset_s + event.duration_s + 0.02)
+    assert np.abs(f["push"][off]).max() == 0.0
+
+
+def test_event_metrics_detection_latency_and_false_alarms():
+    t = np.arange(0, 10, 0.01)
+    z = np.full_like(t, 0.95)
+    z[t > 5.1] -= 0.3 * (t[t > 5.1] - 5.1)
+    robot = pd.DataFrame({"time_s": t, "harness_fx_n": 0.0, "harness_fy_n": 0.0,
+                          "harness_fz_n": np.where(t > 5.3, 900.0, 20.0)})
+    p = FallRuleParams(detection_window_s=1.5, confirm_s=1.0, baseline_s=2.0, caught_drop_m=0.22)
+    row = event_metrics("trip", 5.0, t, z, robot, robot_fall_s=5.3, human_fall_s=6.0, p=p)
+    assert row["detected"] and row["caught"]
+    assert row["latency_s"] == pytest.approx(0.3)
+    assert row["pelvis_drop_at_lock_m"] == pytest.approx(0.06, abs=1e-3)
+    assert row["max_harness_force_n"] == 900.0
+    late = event_metrics("trip", 5.0, t, z, robot, robot_fall_s=7.0, human_fall_s=6.0, p=p)
+    assert not late["detected"] and not late["caught"]
+    early = event_metrics("trip", 5.0, t, z, robot, robot_fall_s=4.0, human_fall_s=None, p=p)
+    assert early["before_onset"] and not early["detected"]
+    alarm = event_metrics("none", None, t, z, robot, robot_fall_s=3.0, human_fall_s=None, p=p)
+    assert alarm["false_alarm"] and alarm["walk_s"] == 3.0
+    true = event_metrics("none", None, t, z, robot, robot_fall_s=3.0, human_fall_s=3.5, p=p)
+    assert not true["false_alarm"]
+
+
+def test_fall_intervention_study_is_stored_and_summarised(tmp_path, params, policies_root):
+    doc = params.document()
+    doc["fall_intervention"].update(subjects=["camargo"], variants=["healthy"], conditions=["free", "pid"],
+                                    scenarios=["steady"], seeds=1, events=["none", "collapse"])
+    doc["scenarios"]["commands"]["steady"] = [{"walk_s": 6.0, "speed": 1.0}]
+    p = parse_params(doc)
+    summary = run_sweep(p, tmp_path / "sweeps", policies_root, progress=False, study="fall_intervention")
+    assert summary["ran"] == 4 and not summary["failed"]
+    rows = pd.read_parquet(tmp_path / "sweeps" / "fall_intervention" / "results.parquet")
+    collapse = rows[rows["event"] == "collapse"].set_index("condition")
+    assert collapse.loc["free", "human_fall_s"] > collapse.loc["free", "onset_s"]   # unsupported: falls
+    assert bool(collapse.loc["pid", "detected"])
+    db = tmp_path / "results.duckdb"
+    store_results(db, [], sweeps=[rows])
+    store_results(db, [], sweeps=[rows])                                # stored once per job
+    assert query(db, "SELECT count(*) AS n FROM sweep_results")["n"].iloc[0] == 4
+    fi = query(db, "SELECT * FROM fall_intervention WHERE condition = 'pid'")
+    assert fi["events_falling_free"].iloc[0] == 1 and fi["detection_rate_falling"].iloc[0] == 1.0
+    fa = query(db, "SELECT * FROM false_alarms")
+    assert fa["rollouts"].iloc[0] == 1
