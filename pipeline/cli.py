@@ -113,7 +113,10 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         from pipeline.stages.simulate import run_simulate_policy
 
         doc = run_simulate_policy(args.subject, params, args.root or PROCESSED_ROOT)
-        print(f"{args.subject} policy: falls {doc['falls']}, {doc['conditions']}", file=sys.stderr)
+        if "note" in doc:  # no trained policy: empty tables
+            print(f"{args.subject} policy: {doc['note']}", file=sys.stderr)
+        else:
+            print(f"{args.subject} policy: falls {doc['falls']}, {doc['conditions']}", file=sys.stderr)
         return 0
 
     doc = run_simulate(args.subject, params, args.root or PROCESSED_ROOT, args.reports or REPORTS_ROOT)
@@ -255,7 +258,7 @@ def cmd_report(args: argparse.Namespace) -> int:
     all_subjects = list(params.subjects)
     subjects = [] if args.summary_only else (args.subjects or all_subjects)
     written = run_report(subjects, all_subjects, args.db or p.path, args.reports, not args.no_summary,
-                         params.report.build(), p.busy_timeout_s)
+                         params.report_params(), p.busy_timeout_s)
     print("wrote " + ", ".join(str(w) for w in written), file=sys.stderr)
     return 0
 

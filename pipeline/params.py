@@ -90,6 +90,7 @@ class ReportParams:
     # event -> the scenario its column of the phase-aligned figure is drawn from
     event_scenarios: dict[str, str] = field(default_factory=lambda: {"start": "walk_10m", "turn": "turn_90",
                                                                      "stop": "walk_10m"})
+    caught_drop_m: float = 0.22  # fall intervention: robot.fall.drop_m + fall_intervention.caught_margin_m
 
 
 @dataclass(frozen=True)
@@ -907,6 +908,13 @@ class Params(Schema):
         p = self.train.build()
         return replace(p, env=replace(p.env, profile=self.scenarios.profile.build(),
                                       variant=self.cohort.variant(variant)))
+
+    def report_params(self) -> ReportParams:
+        """`report`, with the fall-intervention caught threshold (`FallInterventionSchema.rule`)."""
+        from dataclasses import replace
+
+        rule = self.fall_intervention.rule(self.robot.fall.drop_m)
+        return replace(self.report.build(), caught_drop_m=rule.caught_drop_m)
 
     def batch_setup(self, subject: str, markerset: dict[str, str], human_xml: str | Path,
                     drivers: DriverSource, process: bool = True) -> BatchSetup:

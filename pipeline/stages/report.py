@@ -33,7 +33,6 @@ from matplotlib.figure import Figure
 from pydantic import BaseModel, ConfigDict, Field, RootModel, ValidationError, model_validator
 
 from ingest.errors import GaitloopError
-from metrics.fall_intervention import FallRuleParams
 from metrics.plots import (
     EVENT_ORDER,
     ROBOT_CONDITIONS,
@@ -236,10 +235,6 @@ FIGURES = {
                          "pelvis drop at the lock (triangles: worst; dashed: caught threshold) and peak "
                          "harness force",
 }
-# caught: the arm locked with the pelvis at most this far below its walking height. params.yaml sets
-# it as robot.fall.drop_m + fall_intervention.caught_margin_m; the report is given no params, so it
-# takes the library default, which tests/pipeline/test_report_cohort.py holds equal to params.yaml.
-CAUGHT_DROP_M = FallRuleParams().caught_drop_m
 
 # Columns the report reads from views that have grown over time: a store file whose views predate
 # this code is named as such instead of failing on a missing attribute.
@@ -424,7 +419,7 @@ def subject_figures(subject: str, data: dict[str, pd.DataFrame], p: ReportParams
                                                 "(mean, 95 % CI)"),
         "cohort": lambda: cohort_heatmap(cohort, f"{subject}: virtual cohort with each controller"),
         "fall_intervention": lambda: fall_intervention_figure(
-            fall, f"{subject}: scripted balance losses per controller", CAUGHT_DROP_M),
+            fall, f"{subject}: scripted balance losses per controller", p.caught_drop_m),
     }
     present = {"events": not events.empty, "kinematics_policy": not policy.empty,
                "tracking": not tracking.empty, "harness": not harness.empty, "tuning": not tuning.empty,
@@ -515,7 +510,7 @@ def subject_report(subject: str, data: dict[str, pd.DataFrame], reports: Path = 
     lines += cohort_lines(_of(data["cohort_gait"], subject), _of(data["cohort_controllers"], subject),
                           clinical, "cohort" in figures)
     lines += fall_lines(_of(data["fall"], subject), _of(data["false_alarms"], subject),
-                        "fall_intervention" in figures)
+                        "fall_intervention" in figures, p.caught_drop_m)
     path = folder / "report.md"
     with replacing(path) as (temp,):
         temp.write_text("\n".join(lines))
@@ -682,7 +677,7 @@ def false_alarm_rows(alarms: pd.DataFrame) -> tuple[list[str], list[list[str]]]:
     return header, rows
 
 
-def fall_lines(fall: pd.DataFrame, alarms: pd.DataFrame, figure: bool) -> list[str]:
+def fall_lines(fall: pd.DataFrame, alarms: pd.DataFrame, figure: bool, caught_drop_m: float) -> list[str]:
     """The "Fall intervention" section: how each controller met the scripted balance losses of each
     variant (`fall_intervention`), and how often it locked the arm in normal walking (`false_alarms`)."""
     lines = ["## Fall intervention", ""]
@@ -703,7 +698,7 @@ def fall_lines(fall: pd.DataFrame, alarms: pd.DataFrame, figure: bool) -> list[s
               "the lock over the detected events. Drop at lock: how far the pelvis was below its walking "
               "height when the arm locked, mean (worst) over the detected events; negative is above. "
               "Caught: of the events that fell free, those where the arm locked with the pelvis at most "
-              f"{CAUGHT_DROP_M:.2f} m down (the fall rule's drop threshold + "
+              f"{caught_drop_m:.2f} m down (the fall rule's drop threshold + "
               "`fall_intervention.caught_margin_m`). Peak harness force: the largest harness force from the "
               "onset on, max over the rollouts (mean of their peaks).", "",
               md_table(*fall_rows(fall)),

@@ -12,7 +12,6 @@ from matplotlib.figure import Figure
 
 from metrics.plots import COHORT_PANELS, FALL_PANELS, VARIANT_ORDER, cohort_heatmap, fall_intervention_figure
 from pipeline.stages.report import (
-    CAUGHT_DROP_M,
     CLINICAL_MEASURES,
     FIGURES,
     NO_COHORT,
@@ -25,6 +24,7 @@ from pipeline.stages.report import (
 )
 
 NAN = math.nan
+CAUGHT_DROP_M = 0.22
 GAIT = ["subject", "variant", "scenario", "walks", "falls", "gait_speed_mps", "gait_speed_sd",
         "stride_length_m", "stance_ratio_lr", "swing_ratio_lr", "stride_time_cv_pct", "strides"]
 CONTROLLERS = ["subject", "variant", "condition", "scenario", "walks", "falls", "mean_abs_ex_cm",
@@ -166,7 +166,7 @@ def test_cohort_section_without_rows_says_how_to_get_them():
 
 
 def test_fall_section_prints_each_variant_event_and_controller():
-    text = "\n".join(fall_lines(fall_frame(), alarms_frame(), figure=True))
+    text = "\n".join(fall_lines(fall_frame(), alarms_frame(), True, CAUGHT_DROP_M))
     assert text.startswith("## Fall intervention")
     rows = [line for line in text.splitlines() if line.startswith(("| healthy |", "| weak |"))]
     assert rows[:4] == [  # robot rows only, events in their usual order, pid before adaptive
@@ -185,9 +185,9 @@ def test_fall_section_prints_each_variant_event_and_controller():
 
 
 def test_fall_section_without_rows():
-    assert fall_lines(fall_frame().iloc[0:0], alarms_frame().iloc[0:0], False) == [
+    assert fall_lines(fall_frame().iloc[0:0], alarms_frame().iloc[0:0], False, CAUGHT_DROP_M) == [
         "## Fall intervention", "", NO_FALLS, ""]
-    alarms_only = "\n".join(fall_lines(fall_frame().iloc[0:0], alarms_frame(), False))
+    alarms_only = "\n".join(fall_lines(fall_frame().iloc[0:0], alarms_frame(), False, CAUGHT_DROP_M))
     assert "_No rows._" in alarms_only and "| healthy | pid | 8 | 0.020 | 1 | 1 | 50.00 |" in alarms_only
 
 
@@ -239,9 +239,12 @@ def test_clinical_ranges_name_the_file_and_the_problem(tmp_path, entry, problem)
 
 
 def test_caught_threshold_and_variants_follow_params(params):
-    """The report has no params: its caught threshold and variant order must agree with params.yaml."""
+    """The report's caught threshold comes from params (robot.fall.drop_m + the margin); its variant
+    order names every variant params declares."""
     rule = params.fall_intervention.rule(params.robot.fall.drop_m)
-    assert CAUGHT_DROP_M == pytest.approx(rule.caught_drop_m)
+    assert params.report_params().caught_drop_m == pytest.approx(rule.caught_drop_m)
+    assert params.report_params().caught_drop_m == pytest.approx(params.robot.fall.drop_m
+                                                                 + params.fall_intervention.caught_margin_m)
     assert set(VARIANT_ORDER) == {"healthy", *params.cohort.variants}
     assert list(params.fall_intervention.variants) == [v for v in VARIANT_ORDER if v in
                                                        params.fall_intervention.variants]
