@@ -467,6 +467,7 @@ class RolloutSchema(Schema):
     lead_in_s: float
     lead_in_ramp_s: float
     policy_sample_rate_hz: Annotated[float, Field(gt=0.0)]
+    stop_after_fall_s: Annotated[float, Field(ge=0.0)] | None
     replay: ReplaySchema
     fall_test: FallTestSchema
 
@@ -925,7 +926,7 @@ class Params(Schema):
         r = self.rollout
         return BatchSetup(str(human_xml), subject, dict(markerset), self.robot.build(),
                           self.robot.controller_specs(), self.ingest.build(), r.max_physics_dt_s,
-                          r.start_offset_m, drivers, process)
+                          r.start_offset_m, drivers, process, r.stop_after_fall_s)
 
     def document(self) -> dict[str, Any]:
         """The params as the YAML document they came from: plain JSON types, keys as in params.yaml,

@@ -120,7 +120,7 @@ class PolicyHuman(HumanDriver):
         self.qslice = slice(q, q + self.idx.nq)
         qpos, qvel = np.empty(self.idx.nq), np.empty(6 + len(self.idx.jdof))
         ctrl = np.empty(len(self.idx.act))
-        start_pose(self.ref, self.k0, self.gait.a, qpos, qvel, ctrl)
+        start_pose(self.ref, self.k0, self.gait.a, qpos, qvel, ctrl, self.gait.rate)
         data.qpos[self.qslice] = qpos
         data.qvel[d:d + 6] = qvel[:6]
         data.qvel[self.idx.jdof] = qvel[6:]

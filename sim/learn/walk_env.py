@@ -340,7 +340,7 @@ class WalkEnv(gym.Env):
         phase = float(options["phase"]) if "phase" in options else float(rng.random())
         k = int(phase * self.ref.n) % self.ref.n
         self.gait.start(k / self.ref.n, *self._command(0))
-        start_pose(self.ref, k, self.gait.a, d.qpos, d.qvel, d.ctrl)
+        start_pose(self.ref, k, self.gait.a, d.qpos, d.qvel, d.ctrl, self.gait.rate)
         self.steps = 0
         self.pushes = bool(options.get("pushes", True)) and rng.random() < self.p.push_probability
         self.next_push = self._draw_interval() if self.pushes else np.inf
@@ -463,13 +463,15 @@ class GaitState:
 
 
 def start_pose(ref: ReferenceTable, k: int, a: float, qpos: np.ndarray, qvel: np.ndarray,
-               ctrl: np.ndarray) -> None:
+               ctrl: np.ndarray, rate: float = 1.0) -> None:
     """Initial human state (in place, the human's own slices): quiet standing when the gait
-    amplitude is 0, else the cycle at sample `k` (reference-state initialisation), at x = y = 0."""
+    amplitude is 0, else the cycle at sample `k` (reference-state initialisation), at x = y = 0,
+    its velocities x `rate` (commanded / cycle speed: the cycle time-warped as the steered
+    reference is, so a walk commanded slower than the cycle does not start at the cycle's speed)."""
     if a == 0.0:
         qpos[:], qvel[:], ctrl[:] = ref.stand_qpos, 0.0, ref.stand_ctrl
     else:
-        qpos[:], qvel[:], ctrl[:] = ref.qpos[k], ref.qvel[k], ref.ctrl[k]
+        qpos[:], qvel[:], ctrl[:] = ref.qpos[k], ref.qvel[k] * rate, ref.ctrl[k]
     qpos[:2] = 0.0
 
 

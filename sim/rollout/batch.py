@@ -81,6 +81,7 @@ class BatchSetup:
     start_offset_m: float
     drivers: DriverSource
     process: bool = True  # False: no virtual-marker processing (benchmarks, worlds without markers)
+    stop_after_fall_s: float | None = None  # `RolloutParams.stop_after_fall_s`
 
 
 @dataclass
@@ -137,7 +138,8 @@ class Worker:
         p = RolloutParams(robot=s.robot, sample_rate_hz=run.sample_rate_hz,
                           max_physics_dt_s=s.max_physics_dt_s, start_offset_m=s.start_offset_m,
                           with_robot=with_robot, subject=s.subject,
-                          condition=job.condition, trial=job.trial, discard_s=run.discard_s)
+                          condition=job.condition, trial=job.trial, discard_s=run.discard_s,
+                          stop_after_fall_s=s.stop_after_fall_s)
         return run, ctrl, p
 
     def run(self, job: RolloutJob, keep_result: bool = False,

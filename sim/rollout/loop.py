@@ -57,6 +57,8 @@ class RolloutParams:
     condition: str = ""
     trial: str = ""
     discard_s: float = 0.0  # lead-in simulated but not returned; returned time 0 is this instant
+    stop_after_fall_s: float | None = None  # a human that fell (its driver's `fall_time_s`) is simulated
+                                            # this much longer, then the rollout ends (None: to the end)
 
     @property
     def control_rate_hz(self) -> float:
@@ -176,6 +178,8 @@ def rollout(world: mujoco.MjSpec, human: HumanDriver, controller: Controller | N
     bad_qacc = data.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)]
     qpos = data.qpos
     last = n - 1
+    stop_after = None if record_hook else p.stop_after_fall_s  # drivers that take the world qpos only
+    n_done = n
     cos, sin = math.cos, math.sin
     start = time.perf_counter()
     try:
@@ -192,6 +196,11 @@ def rollout(world: mujoco.MjSpec, human: HumanDriver, controller: Controller | N
                     sens_out[k] = sens_view
                 if bad_qacc.number:
                     break
+                if stop_after is not None:
+                    fell = getattr(human, "fall_time_s", None)
+                    if fell is not None and times[k] >= fell + stop_after:
+                        n_done = k + 1
+                        break
             if j >= 0 and robot:
                 q = q_view.tolist()
                 v = v_view.tolist()
@@ -224,6 +233,8 @@ def rollout(world: mujoco.MjSpec, human: HumanDriver, controller: Controller | N
     finally:
         model.eq_data[:] = eq_saved
     wall = time.perf_counter() - start
+    if n_done < n:  # ended after a fall: keep what was simulated
+        n, times, qpos_out, sens_out = n_done, times[:n_done], qpos_out[:n_done], sens_out[:n_done]
     if not record_hook:
         human.from_world_qpos(qpos_out)
     keep = times >= p.discard_s - 1e-9

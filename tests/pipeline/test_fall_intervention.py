@@ -119,6 +119,10 @@ def test_collapse_caps_every_motor_at_its_fraction(worker):
     assert f["force"][on].max() <= 0.1 + 1e-6
     assert f["force"][f["t"] < event.onset_s].max() > 0.1         # walking needs more than that
     assert o.human_fall_s is not None and o.human_fall_s > event.onset_s
+    # the rollout ends `rollout.stop_after_fall_s` after the fall (nothing after a fall is measured)
+    end_s = (len(o.pelvis_z) - 1) / o.sample_rate_hz
+    assert end_s == pytest.approx(o.human_fall_s + worker.setup.stop_after_fall_s, abs=0.02)
+    assert end_s < WALK_S
 
 
 def test_push_is_lateral_and_only_for_its_duration(worker):
