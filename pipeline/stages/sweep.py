@@ -1,11 +1,11 @@
 """Stage `sweep`: a study of subjects x variants x conditions x scenarios x balance-loss events x
 seeds on Ray (params `sweep`, or `fall_intervention` with `--study fall_intervention`).
 
-Each job is one policy-human rollout, a pure function of (subject, variant, condition and its gains,
-scenario, event and its definition, seed, params hash); its key is the hash of exactly those, so a
-job that ran (or was retried after its worker died) gives the same row, and a rerun with nothing
-changed runs nothing. Jobs run as
-Ray tasks (`sim.rollout.cluster`: local, or the cluster of `RAY_ADDRESS`) on the batch runner's
+Each job is one policy-human rollout, a pure function of (subject, variant and its policy file,
+condition and its gains, scenario, event and its definition, seed, params hash); its key is the hash
+of exactly those, so a job that ran (or was retried after its worker died) gives the same row, a
+rerun with nothing changed runs nothing, and a retrained policy reruns its jobs. Jobs run as Ray
+tasks (`sim.rollout.cluster`: local, or the cluster of `RAY_ADDRESS`) on the batch runner's
 worker (`sim.rollout.batch.Worker`); a task is retried `ray.max_retries` times, whether its worker
 died or it raised, and a job that still fails is reported with its error while the rest completes.
 
@@ -61,6 +61,7 @@ class SweepJob:
     params_hash: str
     event: BalanceLoss | None = None  # None: normal walking
     onset_jitter_s: float = 0.0
+    policy_hash: str = ""             # sha256 (16 hex) of the policy file the job runs
 
     @property
     def event_name(self) -> str:
@@ -73,7 +74,7 @@ class SweepJob:
     @property
     def key(self) -> str:
         doc = [self.subject, self.variant, self.condition, self.gains, self.scenario, self.seed,
-               self.params_hash]
+               self.params_hash, self.policy_hash]
         if self.event is not None:  # normal-walking keys stay as they were before events existed
             doc += [dataclasses.asdict(self.event), self.onset_jitter_s]
         return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()[:20]
@@ -122,10 +123,11 @@ def sweep_jobs(params: Params, policy_root: Path = paths.POLICIES_ROOT,
                 notes.append(f"{subject}/{variant}: no fine-tuned policy in {folder} "
                              f"(`python -m pipeline train {subject} --variant {variant}`)")
                 continue
+            policy = hashlib.sha256((folder / "policy.zip").read_bytes()).hexdigest()[:16]
             for condition in sw.conditions:
                 gains = {} if condition == "free" else dict(controllers[condition].get("gains", {}))
                 jobs += [SweepJob(sw.study, subject, variant, condition, gains, scenario, seed, digest, event,
-                                  sw.onset_jitter_s if event is not None else 0.0)
+                                  sw.onset_jitter_s if event is not None else 0.0, policy)
                          for scenario in sw.scenarios for event in events for seed in range(sw.seeds)]
     return jobs, notes
 

@@ -18,6 +18,7 @@ are undone at the event's end anyway so the rest of the walk is the normal one.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import mujoco
@@ -55,27 +56,27 @@ def add_trip_constraints(spec: mujoco.MjSpec, feet: tuple[str, ...], timeconst_s
                           objtype=mujoco.mjtObj.mjOBJ_BODY, active=False, solref=[timeconst_s, 1.0])
 
 
+def body_geoms(model: mujoco.MjModel, body: int) -> np.ndarray:
+    """The geoms of `body` and of every body below it (a foot and its toes)."""
+    below = {body}
+    for b in range(body + 1, model.nbody):  # children come after their parents
+        if model.body_parentid[b] in below:
+            below.add(b)
+    return np.flatnonzero(np.isin(model.geom_bodyid, sorted(below)))
+
+
 class BalanceLossRun:
-    """Applies one `BalanceLoss` to a running world: `start(model, data, ...)` once the world is
-    reset, then `apply(model, data, t)` before every output sample."""
+    """Applies one `BalanceLoss` to a running world: made once the world is reset, then
+    `apply(model, data, t)` before every output sample."""
 
     def __init__(self, event: BalanceLoss, pelvis: int, feet: np.ndarray, feet_names: tuple[str, ...],
-                 motors: np.ndarray, heading_at) -> None:
+                 motors: np.ndarray, heading_at: Callable[[float], float]) -> None:
         self.e, self.pelvis, self.feet, self.names, self.motors = event, pelvis, feet, feet_names, motors
         self.heading_at = heading_at  # t -> commanded heading (rad)
         self.on = False
         self.done = False
         self.side: int | None = None   # the foot the event acted on (index into feet), for trip / slip
         self.saved: np.ndarray | None = None
-
-    def _geoms(self, model: mujoco.MjModel, foot: int) -> np.ndarray:
-        """The geoms of a foot body and of the bodies below it (toes)."""
-        body = np.arange(model.nbody)
-        below = {foot}
-        for b in body:
-            if model.body_parentid[b] in below and b != foot:
-                below.add(int(b))
-        return np.flatnonzero(np.isin(model.geom_bodyid, list(below)))
 
     def _trip_equality(self, model: mujoco.MjModel) -> int:
         name = TRIP_EQUALITY.format(self.names[self.side])
@@ -102,7 +103,7 @@ class BalanceLossRun:
             data.eq_active[eq] = 1
         elif e.kind == "slip":
             self.side = int(np.argmin(z))
-            g = self._geoms(model, int(self.feet[self.side]))
+            g = body_geoms(model, int(self.feet[self.side]))
             self.saved = np.column_stack([model.geom_friction[g, 0], model.geom_priority[g]])
             model.geom_friction[g, 0] = e.magnitude
             model.geom_priority[g] = 100
@@ -118,7 +119,7 @@ class BalanceLossRun:
         if e.kind == "trip":
             data.eq_active[self._trip_equality(model)] = 0
         elif e.kind == "slip":
-            g = self._geoms(model, int(self.feet[self.side]))
+            g = body_geoms(model, int(self.feet[self.side]))
             model.geom_friction[g, 0] = self.saved[:, 0]
             model.geom_priority[g] = self.saved[:, 1].astype(int)
         elif e.kind == "collapse":

@@ -30,11 +30,6 @@ class Variant:
     speed_mps: float | None = None
     action_noise: float = 0.0
 
-    @property
-    def healthy(self) -> bool:
-        return not self.torque_scale and self.speed_scale == 1.0 and self.speed_mps is None \
-            and self.action_noise == 0.0
-
     def torque_factor(self, motor: str) -> float:
         """The product of every factor whose key matches `motor` (1 when none does)."""
         f = 1.0

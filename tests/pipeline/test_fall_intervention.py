@@ -13,7 +13,7 @@ from pipeline.params import parse_params
 from pipeline.stages.simulate import policy_setup
 from pipeline.stages.sweep import run_sweep
 from pipeline.store import query, store_results
-from sim.body.balance_loss import BalanceLoss
+from sim.body.balance_loss import BalanceLoss, body_geoms
 from sim.learn.policy_human import PolicyWalk
 from sim.learn.walk_env import HUMAN_ACTUATORS
 from sim.rollout.batch import RolloutJob, Worker
@@ -33,17 +33,8 @@ class Probe:
         act = mujoco.mjtObj.mjOBJ_ACTUATOR
         self.motors = np.array([mujoco.mj_name2id(model, act, n) for n in HUMAN_ACTUATORS])
         self.limit = np.abs(model.actuator_forcerange[self.motors, 1]).copy()
-        self.foot_geoms = [np.flatnonzero(np.isin(model.geom_bodyid, self._below(model, f)))
-                           for f in self.feet]
+        self.foot_geoms = [body_geoms(model, f) for f in self.feet]
         self.rows: list[tuple] = []
-
-    @staticmethod
-    def _below(model: mujoco.MjModel, root: int) -> list[int]:
-        out = {root}
-        for b in range(model.nbody):
-            if model.body_parentid[b] in out and b != root:
-                out.add(b)
-        return sorted(out)
 
     def __call__(self, model: mujoco.MjModel, data: mujoco.MjData, k: int) -> None:
         force = np.abs(data.actuator_force[self.motors]) / self.limit
