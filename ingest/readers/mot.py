@@ -58,7 +58,8 @@ def read_mot(path: str | Path) -> MotTable:
         if "=" in ln:
             key, _, value = ln.partition("=")
             header[key.strip().lower()] = value.strip()
-    body = "\n".join(ln for ln in lines[end + 1 :] if ln.strip())
+    # Rows may end with a tab (OpenSim-JAM's GRF files): a trailing delimiter, not an empty column.
+    body = "\n".join(ln.rstrip() for ln in lines[end + 1 :] if ln.strip())
     if not body:
         raise IngestError(path, "no column names or data after 'endheader'")
     try:
@@ -73,7 +74,7 @@ def read_mot(path: str | Path) -> MotTable:
         raise IngestError(path, f"non-numeric values in columns {non_numeric[:5]}")
     if table.empty:
         raise IngestError(path, "no data rows")
-    if table.iloc[-1].isna().any() or len(lines[-1].split("\t")) < len(table.columns):
+    if table.iloc[-1].isna().any() or len(lines[-1].rstrip().split("\t")) < len(table.columns):
         raise IngestError(path, "truncated: the last row is incomplete")
     n_rows = header.get("nrows") or header.get("datarows")
     if n_rows is not None and int(n_rows) != len(table):

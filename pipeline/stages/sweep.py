@@ -153,7 +153,8 @@ def job_row(worker: Worker, job: SweepJob, exclude_locked: bool,
 
 
 @ray.remote(num_cpus=1)
-def _run_remote(setup: BatchSetup, job: SweepJob, exclude_locked: bool, fall_rule: FallRuleParams) -> dict:
+def _run_remote(setup: BatchSetup, job: SweepJob, exclude_locked: bool,
+                fall_rule: FallRuleParams | None = None) -> dict:
     return job_row(cached_worker(setup, Worker), job, exclude_locked, fall_rule)
 
 
