@@ -59,8 +59,8 @@ def test_controller_without_search_space(tiny: Params, tmp_path: Path) -> None:
         run_tune("camargo", "bang_bang", tiny, out_root=tmp_path, progress=False)
 
 
-def test_only_the_healthy_variant(tiny: Params, tmp_path: Path) -> None:
-    with pytest.raises(GaitloopError, match="only the subject's own policy \\('healthy'\\)"):
+def test_unknown_variant(tiny: Params, tmp_path: Path) -> None:
+    with pytest.raises(GaitloopError, match="cohort.variants: no variant 'stroke' \\(healthy, weak"):
         run_tune("camargo", "pid", tiny, variant="stroke", out_root=tmp_path, progress=False)
 
 
