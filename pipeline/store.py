@@ -259,10 +259,11 @@ def _views() -> list[str]:
         "count(*) AS n_runs, sum(fell::INT) AS falls, avg(mean_abs_ex_cm) AS mean_abs_ex_cm, "
         "avg(mean_abs_ey_cm) AS mean_abs_ey_cm, avg(force_rms_n) AS force_rms_n, "
         "avg(gait_speed_mps) AS gait_speed_mps, avg(stride_length_m) AS stride_length_m FROM sweep_results "
+        "JOIN sweep_current USING (study, job_key) "
         "GROUP BY ALL ORDER BY study, subject, variant, scenario, event, condition",
-        # every rollout once (a job in two studies is the same rollout: same key)
-        "CREATE OR REPLACE VIEW sweep_rollouts AS SELECT DISTINCT ON (job_key) * EXCLUDE (study, run_id) "
-        "FROM sweep_results ORDER BY job_key, study",
+        # every rollout of the studies' current jobs once (a job in two studies is the same rollout)
+        "CREATE OR REPLACE VIEW sweep_rollouts AS SELECT DISTINCT ON (job_key) r.* EXCLUDE (study, run_id) "
+        "FROM sweep_results r JOIN sweep_current c USING (study, job_key) ORDER BY job_key, study",
         # balance loss x controller x variant: was it caught? (metrics.fall_intervention); the same
         # variant, scenario, event and seed walking free says whether the unsupported person falls
         "CREATE OR REPLACE VIEW fall_intervention AS WITH ev AS (SELECT * FROM sweep_rollouts "
@@ -342,6 +343,10 @@ def ensure_schema(con: duckdb.DuckDBPyConnection) -> None:
     con.execute("CREATE TABLE IF NOT EXISTS store_runs (run_id BIGINT PRIMARY KEY, created_at TIMESTAMP, "
                 "code_rev VARCHAR, subjects VARCHAR, n_groups BIGINT, n_new_versions BIGINT)")
     con.execute(f"CREATE TABLE IF NOT EXISTS sweep_results ({SWEEP_DDL})")
+    # the job keys of each study's latest stored results: what the views summarise (sweep_results
+    # keeps every job ever stored, e.g. those of older params or policies)
+    con.execute("CREATE TABLE IF NOT EXISTS sweep_current (study VARCHAR NOT NULL, job_key VARCHAR NOT NULL, "
+                "PRIMARY KEY (study, job_key))")
     for col, kind in SWEEP_EVENT_DDL.items():
         con.execute(f"ALTER TABLE sweep_results ADD COLUMN IF NOT EXISTS {col} {kind}")
     con.execute(f"CREATE TABLE IF NOT EXISTS tuned_gains ({TUNING_DDL})")
@@ -444,6 +449,8 @@ def store_results(path: Path, results: list[SubjectResults], params: StoreParams
             for sweep in sweeps:  # a job's rows once, however often it ran (older rows lack newer columns)
                 con.register("incoming", sweep.reindex(columns=SWEEP_COLUMNS).assign(run_id=run_id))
                 con.execute("INSERT OR IGNORE INTO sweep_results BY NAME SELECT * FROM incoming")
+                con.execute("DELETE FROM sweep_current WHERE study IN (SELECT DISTINCT study FROM incoming)")
+                con.execute("INSERT INTO sweep_current SELECT DISTINCT study, job_key FROM incoming")
                 con.unregister("incoming")
             for tuning in tunings:
                 _store_tuning(con, tuning, run_id, now)

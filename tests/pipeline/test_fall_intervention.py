@@ -168,3 +168,8 @@ def test_fall_intervention_study_is_stored_and_summarised(tmp_path, params, poli
     assert fi["events_falling_free"].iloc[0] == 1 and fi["detection_rate_falling"].iloc[0] == 1.0
     fa = query(db, "SELECT * FROM false_alarms")
     assert fa["rollouts"].iloc[0] == 1
+    # a later run of the study (other params: other keys) is kept, but the views show only its jobs
+    store_results(db, [], sweeps=[rows.assign(job_key=rows["job_key"] + "-v2")])
+    assert query(db, "SELECT count(*) AS n FROM sweep_results")["n"].iloc[0] == 8
+    assert query(db, "SELECT count(*) AS n FROM sweep_rollouts")["n"].iloc[0] == 4
+    assert query(db, "SELECT events FROM fall_intervention WHERE condition = 'pid'")["events"].iloc[0] == 1
