@@ -801,14 +801,6 @@ class CohortSchema(Schema):
             raise ValueError(f"variants: {HEALTHY!r} is the subject's own policy, not a variant to declare")
         return self
 
-    def variant(self, name: str) -> Variant:
-        """The named variant (`healthy`: nothing changed)."""
-        if name == HEALTHY:
-            return Variant()
-        if name not in self.variants:
-            raise KeyError(f"cohort.variants: no variant {name!r} ({', '.join([HEALTHY, *self.variants])})")
-        return variant_from_dict(name, self.variants[name].model_dump())
-
 
 class TuneSchema(Schema):
     method: Literal["tpe", "cmaes"]
@@ -908,7 +900,7 @@ class Params(Schema):
 
         p = self.train.build()
         return replace(p, env=replace(p.env, profile=self.scenarios.profile.build(),
-                                      variant=self.cohort.variant(variant)))
+                                      variant=self.variant(variant)))
 
     def report_params(self) -> ReportParams:
         """`report`, with the fall-intervention caught threshold (`FallInterventionSchema.rule`)."""
@@ -916,6 +908,15 @@ class Params(Schema):
 
         rule = self.fall_intervention.rule(self.robot.fall.drop_m)
         return replace(self.report.build(), caught_drop_m=rule.caught_drop_m)
+
+    def variant(self, name: str) -> Variant:
+        """Cohort variant `name` (`healthy`: nothing changed); `ParamsError` lists the declared ones."""
+        if name == HEALTHY:
+            return Variant()
+        if name not in self.cohort.variants:
+            raise ParamsError(self.path, f"cohort.variants: no variant {name!r} "
+                                         f"({', '.join([HEALTHY, *self.cohort.variants])})")
+        return variant_from_dict(name, self.cohort.variants[name].model_dump())
 
     def batch_setup(self, subject: str, markerset: dict[str, str], human_xml: str | Path,
                     drivers: DriverSource, process: bool = True) -> BatchSetup:

@@ -228,9 +228,7 @@ def run_tune(subject: str, controller: str, params: Params, variant: str = HEALT
              n_trials: int | None = None, out_root: Path = paths.TUNING_ROOT, progress: bool = True) -> Path:
     """Tune `controller`'s gains for `subject`'s policy human (variant `healthy`: its own policy),
     compare with the generic gains on held-back walks; returns the written JSON's path."""
-    if variant != HEALTHY and variant not in params.cohort.variants:
-        raise ParamsError(params.path, f"cohort.variants: no variant {variant!r} "
-                                       f"({', '.join([HEALTHY, *params.cohort.variants])})")
+    params.variant(variant)  # a declared one (ParamsError lists them)
     space = search_space(params, controller)
     n_trials = params.tune.n_trials if n_trials is None else int(n_trials)
     if n_trials < 1:
