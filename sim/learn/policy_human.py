@@ -114,13 +114,13 @@ class PolicyHuman(HumanDriver):
         self.step_phase = self.control_dt / self.ref.period_s
         self.times = sample_times_s
         self.speed, self.heading = self._commands_at(sample_times_s)
-        self.gait = GaitState(self.ref, self.p.commands.full_gait_fraction)
+        self.gait = GaitState(self.ref, self.p.commands)
         self.gait.start(self.k0 / self.ref.n, *self._command(0))
         q, d = self.idx.root_q, self.idx.root_d
         self.qslice = slice(q, q + self.idx.nq)
         qpos, qvel = np.empty(self.idx.nq), np.empty(6 + len(self.idx.jdof))
         ctrl = np.empty(len(self.idx.act))
-        start_pose(self.ref, self.k0, self.gait.a, qpos, qvel, ctrl, self.gait.rate)
+        start_pose(self.ref, self.k0, self.gait.a, qpos, qvel, ctrl, self.gait.speed_ratio)
         data.qpos[self.qslice] = qpos
         data.qvel[d:d + 6] = qvel[:6]
         data.qvel[self.idx.jdof] = qvel[6:]
@@ -249,7 +249,7 @@ class PolicySource:
     def open(self, world: mujoco.MjSpec):
         import torch
 
-        from sim.learn.train import load_body, load_policy
+        from sim.learn.train import load_body, load_policy, policy_env
         from sim.learn.walk_env import make_walk_env
         from sim.rollout.batch import HumanRun
 
@@ -257,7 +257,8 @@ class PolicySource:
         model, norm = load_policy(self.policy_dir)
         check_policy_io(self.policy_dir, model.observation_space.shape[0], model.action_space.shape[0])
         body_xml, cycle = load_body(self.policy_dir)
-        ref = make_walk_env(str(body_xml), cycle, self.env).ref
+        env = policy_env(self.policy_dir, self.env)  # the speed law it was trained under
+        ref = make_walk_env(str(body_xml), cycle, env).ref
         policy = ActorMlp.from_sb3(model, norm)
 
         def make(walk: PolicyWalk, seed: int) -> HumanRun:
@@ -277,7 +278,7 @@ class PolicySource:
             elif event is not None and event.onset_s is None:
                 spans = commands.spans() if commands is not None else [("steady", 0.0, walk.duration_s)]
                 event = event.at(steady_onset(spans, rng, walk.event_jitter_s))
-            human = PolicyHuman(policy, ref, cycle, self.env, walk.duration_s,
+            human = PolicyHuman(policy, ref, cycle, env, walk.duration_s,
                                 start_phase=start_phase, event=event,
                                 fall_height_fraction=self.fall_height_fraction, commands=commands, seed=seed)
             v0 = self.env.variant.preferred_speed(cycle.speed_mps) if commands is None \

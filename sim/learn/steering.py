@@ -6,10 +6,16 @@ random scenario segments together (stand, start, walk at a speed, turn, stop) so
 every transition the scenarios ask for.
 
 The imitation reference under a command (`SteeredReference`) is the subject's periodic cycle,
-time-warped to the commanded speed (the phase advances at speed / stride length: the stride length
-is kept, the cadence follows) and blended from and to a quiet standing pose by the gait amplitude
-`a` (0 standing, 1 walking; a smoothstep of the commanded speed over `full_gait_fraction` of the
-cycle's speed). The standing pose is the body's anatomical neutral (every joint coordinate zero:
+blended from and to a quiet standing pose by the gait amplitude `a` (0 standing, 1 walking: the
+stride length is about `a` x the cycle's) and time-warped by the phase rate `r` (the cadence, x the
+cycle's), with `a r` = commanded / cycle speed (`speed_law`). Above `full_gait_fraction` of the
+cycle's speed the stride is kept and the cadence follows the speed; below it the stride shortens as
+speed^`stride_speed_exponent` (0.42: the preferred step length of Kuo 2001, J Biomech Eng 123:264)
+and the cadence takes the rest, so a walk slows and stops in short, quick steps. Policies trained
+before this law (`stride_speed_exponent` None: `a` a smoothstep of the speed, the cadence alone
+following it, so slow walking asked for long, slow strides) keep their own.
+
+The standing pose is the body's anatomical neutral (every joint coordinate zero:
 upright, arms down) with the feet on the floor. While standing, the cycle waits where the legs pass
 each other (feet closest fore-aft, mid-swing), so every start leaves from there: the blend lifts
 one foot forward, a first step. Every subject uses this blend; a recording's own start, turn and
@@ -39,6 +45,7 @@ class CommandSampling:
     turn_deg_range: tuple[float, float] = (30.0, 180.0)
     event_probabilities: tuple[float, float, float] = (0.35, 0.35, 0.3)  # turn, speed change, stop
     full_gait_fraction: float = 0.5            # gait amplitude reaches 1 at this x the cycle's speed
+    stride_speed_exponent: float | None = 0.42  # stride ~ speed^this below it (None: the legacy law)
     start_s_range: tuple[float, float] = (1.7, 4.0)  # gentler starts, stops and turns than the
     stop_s_range: tuple[float, float] = (1.4, 3.0)   # scenarios' too, so the policy meets easier
     turn_rate_deg_s_range: tuple[float, float] = (40.0, 90.0)  # versions of each transition
@@ -85,10 +92,24 @@ def command_at(speed_mps: np.ndarray, heading_rad: np.ndarray, k: int, ahead: in
     return float(speed_mps[k]), float(heading_rad[k]), float(rate)
 
 
-def gait_amplitude(speed_mps: float, cycle_speed_mps: float, full_gait_fraction: float) -> float:
-    """0 standing .. 1 walking: a smoothstep of the commanded speed (module docstring)."""
-    x = min(max(speed_mps / (full_gait_fraction * cycle_speed_mps), 0.0), 1.0)
-    return x * x * (3 - 2 * x)
+def speed_law(speed_ratio: float, full_gait_fraction: float,
+              stride_speed_exponent: float | None) -> tuple[float, float]:
+    """(gait amplitude `a`, phase rate `r`) at `speed_ratio` = commanded / cycle speed (module
+    docstring): `a r` = `speed_ratio`; the legacy law (exponent None) has `a` a smoothstep and
+    `r` = `speed_ratio`."""
+    x = min(max(speed_ratio / full_gait_fraction, 0.0), 1.0)
+    if stride_speed_exponent is None:
+        return x * x * (3 - 2 * x), max(speed_ratio, 0.0)
+    a = x ** stride_speed_exponent
+    return a, (speed_ratio / a if a > 0.0 else 0.0)
+
+
+def level_speed_ratio(a: float, full_gait_fraction: float, stride_speed_exponent: float | None) -> float:
+    """The speed ratio at which `speed_law` gives gait amplitude `a` (its inverse; 1 at `a` = 1, the
+    cycle itself); the legacy law's reference transitions took the ratio equal to `a`."""
+    if stride_speed_exponent is None or a >= 1.0:
+        return a
+    return full_gait_fraction * a ** (1.0 / stride_speed_exponent)
 
 
 def standing_pose(model: mujoco.MjModel, foot_bodies: np.ndarray) -> np.ndarray:
@@ -155,10 +176,11 @@ class SteeredReference:
         self.table = table
         self.stand_ctrl, self.stand_feet, self.stand_height = stand_ctrl, stand_feet, float(stand_height)
 
-    def at(self, phase: float, a: float, rate: float) -> tuple[np.ndarray, np.ndarray, np.ndarray,
-                                                                np.ndarray, float, np.ndarray]:
+    def at(self, phase: float, a: float, rate: float, speed_ratio: float
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float, np.ndarray]:
         """(servo coordinates, their velocity, joint velocities, feet, pelvis height, root xy
-        velocity in the heading frame) at `phase`, gait amplitude `a`, speed ratio `rate`."""
+        velocity in the heading frame) at `phase`, gait amplitude `a`, phase rate `rate` and
+        `speed_ratio` (commanded / cycle speed: the root's)."""
         t = self.table
         k0, k1, f = t.index(phase)
         g = 1 - f
@@ -167,9 +189,9 @@ class SteeredReference:
         joint_vel = (a * rate) * (t.joint_vel[k0] * g + t.joint_vel[k1] * f)
         feet = (1 - a) * self.stand_feet + a * (t.feet[k0] * g + t.feet[k1] * f)
         height = (1 - a) * self.stand_height + a * (t.height[k0] * g + t.height[k1] * f)
-        root_vel = rate * (t.root_vel[k0, :2] * g + t.root_vel[k1, :2] * f)
+        root_vel = speed_ratio * (t.root_vel[k0, :2] * g + t.root_vel[k1, :2] * f)
         return ctrl, ctrl_vel, joint_vel, feet, height, root_vel
 
 
-__all__ = ["CommandSampling", "SteeredReference", "blend_qpos", "command_at", "gait_amplitude",
-           "sample_commands", "standing_pose"]
+__all__ = ["CommandSampling", "SteeredReference", "blend_qpos", "command_at", "level_speed_ratio",
+           "sample_commands", "speed_law", "standing_pose"]

@@ -24,7 +24,7 @@ import json
 import tempfile
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from functools import partial
 from pathlib import Path
 
@@ -42,6 +42,7 @@ from sim.rollout.cluster import connect
 
 POLICY_FILE, NORM_FILE, AMP_FILE, PROGRESS_FILE = "policy.zip", "vecnormalize.pkl", "amp.pt", "progress.json"
 BODY_FILE, CYCLE_FILE = "human.xml", "cycle.npz"  # the body and reference cycle the policy was trained on
+STEERING_FILE = "steering.json"  # the speed law it was trained under (sim/learn/steering.py)
 
 
 @dataclass(frozen=True)
@@ -245,6 +246,8 @@ def train(model_path: str | Path, cycle: ReferenceCycle, p: TrainParams, out_dir
 
     def save() -> dict:
         save_body(out, model_path, cycle)
+        law = {"stride_speed_exponent": p.env.commands.stride_speed_exponent}
+        (out / STEERING_FILE).write_text(json.dumps(law) + "\n")
         model.save(str(out / POLICY_FILE))
         venv.save(str(out / NORM_FILE))
         torch.save(amp.state_dict(), out / AMP_FILE)
@@ -396,6 +399,14 @@ def load_body(out_dir: str | Path) -> tuple[Path, ReferenceCycle]:
     return out / BODY_FILE, ReferenceCycle(**kw)
 
 
+def policy_env(out_dir: str | Path, env: WalkEnvParams) -> WalkEnvParams:
+    """`env` under the speed law the policy in `out_dir` was trained with (`STEERING_FILE`); a policy
+    from before the law was recorded has none and keeps the legacy law (exponent None)."""
+    f = Path(out_dir) / STEERING_FILE
+    law = json.loads(f.read_text())["stride_speed_exponent"] if f.exists() else None
+    return replace(env, commands=replace(env.commands, stride_speed_exponent=law))
+
+
 def load_policy(out_dir: str | Path) -> tuple[PPO, VecNormalize | None]:
     """The trained PPO policy and its observation normaliser (for `PolicyHuman`)."""
     out = Path(out_dir)
@@ -403,5 +414,6 @@ def load_policy(out_dir: str | Path) -> tuple[PPO, VecNormalize | None]:
     return model, (_load_norm(out) if (out / NORM_FILE).exists() else None)
 
 
-__all__ = ["AMP_FILE", "BODY_FILE", "CYCLE_FILE", "NORM_FILE", "POLICY_FILE", "PROGRESS_FILE", "TrainParams",
-           "load_body", "load_policy", "make_vec_env", "new_ppo", "save_body", "train", "widen_policy"]
+__all__ = ["AMP_FILE", "BODY_FILE", "CYCLE_FILE", "NORM_FILE", "POLICY_FILE", "PROGRESS_FILE",
+           "STEERING_FILE", "TrainParams", "load_body", "load_policy", "make_vec_env", "new_ppo",
+           "policy_env", "save_body", "train", "widen_policy"]

@@ -47,8 +47,9 @@ from sim.learn.steering import (
     SteeredReference,
     blend_qpos,
     command_at,
-    gait_amplitude,
+    level_speed_ratio,
     sample_commands,
+    speed_law,
     standing_pose,
 )
 from sim.motion.reference import ReferenceCycle
@@ -102,7 +103,7 @@ class WalkEnvParams:
         for k, v in d.items():
             if k == "commands":
                 out[k] = CommandSampling(**{a: (tuple(float(x) for x in b) if isinstance(b, list | tuple)
-                                                 else float(b)) for a, b in v.items()})
+                                                 else None if b is None else float(b)) for a, b in v.items()})
             elif k == "profile":
                 out[k] = v if isinstance(v, ProfileParams) else ProfileParams(**v)
             elif isinstance(v, dict):
@@ -144,9 +145,12 @@ class ReferenceTable:
     """The periodic reference cycle turned into lookup tables on the model: actuator coordinates
     (`ctrl`), joint velocities, feet relative to the pelvis, pelvis height and velocity, and AMP
     features, each (N, .) at phase k/N; plus quiet standing (`stand_*`) and the AMP features of the
-    standing-to-walking blend at the gait amplitudes `AMP_LEVELS` (sim/learn/steering.py)."""
+    standing-to-walking blend at the gait amplitudes `AMP_LEVELS`, each at the speed and cadence the
+    speed law of `commands` gives it (sim/learn/steering.py)."""
 
-    def __init__(self, model: mujoco.MjModel, cycle: ReferenceCycle) -> None:
+    def __init__(self, model: mujoco.MjModel, cycle: ReferenceCycle,
+                 commands: CommandSampling | None = None) -> None:
+        commands = commands or CommandSampling()
         data = mujoco.MjData(model)
         n = len(cycle.phase)
         self.n, self.period_s, self.speed_mps = n, float(cycle.period_s), float(cycle.speed_mps)
@@ -162,11 +166,14 @@ class ReferenceTable:
         self.stand_feet = feet_in_heading(data, idx)
         self.stand_height = float(self.stand_qpos[2])
         self.amp_levels = np.empty((len(AMP_LEVELS), n, AMP_SIZE))
+        law = (commands.full_gait_fraction, commands.stride_speed_exponent)
+        ratios = [level_speed_ratio(a, *law) for a in AMP_LEVELS]
+        self.level_rate = np.array([speed_law(r, *law)[1] for r in ratios])  # phase rate per level
         for i, a in enumerate(AMP_LEVELS):
             for k in range(n):
                 data.qpos[:] = blend_qpos(model, self.stand_qpos, cycle.qpos[k], a)
-                data.qvel[:] = cycle.qvel[k] * a  # speed ratio = amplitude: joints a^2, root a
-                data.qvel[6:] *= a
+                data.qvel[:6] = cycle.qvel[k, :6] * ratios[i]  # the root at the level's speed,
+                data.qvel[6:] = cycle.qvel[k, 6:] * (a * self.level_rate[i])  # joints: amplitude x cadence
                 mujoco.mj_forward(model, data)
                 amp_features(data, idx, self.amp_levels[i, k])
                 if a == 1.0:
@@ -193,11 +200,11 @@ class ReferenceTable:
 
     def amp_pairs(self, rng: np.random.Generator, size: int, step_phase: float) -> np.ndarray:
         """`size` reference transitions (features at phase and phase + the step's phase advance at
-        the amplitude's speed ratio), drawn over the gait amplitudes by `AMP_LEVEL_WEIGHTS`,
+        the amplitude's phase rate), drawn over the gait amplitudes by `AMP_LEVEL_WEIGHTS`,
         (size, 2 x AMP)."""
         level = rng.choice(len(AMP_LEVELS), size, p=AMP_LEVEL_WEIGHTS)
         ph = rng.random(size)
-        rate = np.asarray(AMP_LEVELS)[level]
+        rate = self.level_rate[level]
         return np.hstack([self._interp(level, ph), self._interp(level, ph + step_phase * rate)])
 
     def _interp(self, level: np.ndarray, phase: np.ndarray) -> np.ndarray:
@@ -295,7 +302,7 @@ class WalkEnv(gym.Env):
         self.data = mujoco.MjData(model)
         self.n_sub = max(1, int(round(p.control_dt_s / model.opt.timestep)))
         self.dt = self.n_sub * model.opt.timestep
-        self.ref = ReferenceTable(model, cycle)
+        self.ref = ReferenceTable(model, cycle, p.commands)
         self.idx = BodyIndex(model)
         self.step_phase = self.dt / self.ref.period_s
         self.max_steps = int(round(p.episode_s / self.dt))
@@ -312,7 +319,7 @@ class WalkEnv(gym.Env):
         self._obs = np.zeros(OBS_SIZE, np.float32)
         self._amp_prev = np.zeros(AMP_SIZE)
         self._amp_cur = np.zeros(AMP_SIZE)
-        self.gait = GaitState(self.ref, p.commands.full_gait_fraction)
+        self.gait = GaitState(self.ref, p.commands)
         self.commands: CommandProfile | None = None
         self.steps = 0
         self.push_force = np.zeros(3)
@@ -340,7 +347,7 @@ class WalkEnv(gym.Env):
         phase = float(options["phase"]) if "phase" in options else float(rng.random())
         k = int(phase * self.ref.n) % self.ref.n
         self.gait.start(k / self.ref.n, *self._command(0))
-        start_pose(self.ref, k, self.gait.a, d.qpos, d.qvel, d.ctrl, self.gait.rate)
+        start_pose(self.ref, k, self.gait.a, d.qpos, d.qvel, d.ctrl, self.gait.speed_ratio)
         self.steps = 0
         self.pushes = bool(options.get("pushes", True)) and rng.random() < self.p.push_probability
         self.next_push = self._draw_interval() if self.pushes else np.inf
@@ -426,24 +433,25 @@ class WalkEnv(gym.Env):
 
 class GaitState:
     """Where the steered reference is: phase, and the command it was advanced with (speed, heading,
-    yaw rate) with its gait amplitude and speed ratio (sim/learn/steering.py). One per walking human,
-    in training and in rollouts alike."""
+    yaw rate) with its speed ratio, gait amplitude and phase rate under the speed law of `commands`
+    (sim/learn/steering.py). One per walking human, in training and in rollouts alike."""
 
-    def __init__(self, ref: ReferenceTable, full_gait_fraction: float) -> None:
-        self.ref, self.full = ref, float(full_gait_fraction)
-        self.phase = self.speed = self.heading = self.yaw_rate = self.a = self.rate = 0.0
-        self.reference = ref.steered.at(0.0, 0.0, 0.0)
+    def __init__(self, ref: ReferenceTable, commands: CommandSampling) -> None:
+        self.ref = ref
+        self.law = (commands.full_gait_fraction, commands.stride_speed_exponent)
+        self.phase = self.speed = self.heading = self.yaw_rate = self.a = self.rate = self.speed_ratio = 0.0
+        self.reference = ref.steered.at(0.0, 0.0, 0.0, 0.0)
 
     def _set(self, speed: float, heading: float, yaw_rate: float) -> None:
         self.speed, self.heading, self.yaw_rate = speed, heading, yaw_rate
-        self.rate = speed / self.ref.speed_mps
-        self.a = gait_amplitude(speed, self.ref.speed_mps, self.full)
+        self.speed_ratio = speed / self.ref.speed_mps
+        self.a, self.rate = speed_law(self.speed_ratio, *self.law)
 
     def start(self, phase: float, speed: float, heading: float, yaw_rate: float) -> None:
         """Start at `phase`; standing (no commanded speed) waits at the cycle's start phase."""
         self._set(speed, heading, yaw_rate)
         self.phase = self.ref.start_phase if self.a == 0.0 else phase % 1.0
-        self.reference = self.ref.steered.at(self.phase, self.a, self.rate)
+        self.reference = self.ref.steered.at(self.phase, self.a, self.rate, self.speed_ratio)
 
     def advance(self, step_phase: float, speed: float, heading: float, yaw_rate: float) -> None:
         """One policy step: the phase moves by `step_phase` x the commanded speed ratio; while
@@ -451,7 +459,7 @@ class GaitState:
         self._set(speed, heading, yaw_rate)
         phase = (self.phase + step_phase * self.rate) % 1.0
         self.phase = self.ref.start_phase if self.a == 0.0 else phase
-        self.reference = self.ref.steered.at(self.phase, self.a, self.rate)
+        self.reference = self.ref.steered.at(self.phase, self.a, self.rate, self.speed_ratio)
 
     def targets(self, action: np.ndarray, p: WalkEnvParams, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
         """Servo inputs: the reference's actuator coordinates plus the scaled residual (clipped to
@@ -466,8 +474,8 @@ def start_pose(ref: ReferenceTable, k: int, a: float, qpos: np.ndarray, qvel: np
                ctrl: np.ndarray, rate: float = 1.0) -> None:
     """Initial human state (in place, the human's own slices): quiet standing when the gait
     amplitude is 0, else the cycle at sample `k` (reference-state initialisation), at x = y = 0,
-    its velocities x `rate` (commanded / cycle speed: the cycle time-warped as the steered
-    reference is, so a walk commanded slower than the cycle does not start at the cycle's speed)."""
+    its velocities x `rate` (the commanded / cycle speed ratio, so a walk commanded slower than the
+    cycle does not start at the cycle's speed)."""
     if a == 0.0:
         qpos[:], qvel[:], ctrl[:] = ref.stand_qpos, 0.0, ref.stand_ctrl
     else:

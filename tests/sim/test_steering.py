@@ -10,8 +10,16 @@ import numpy as np
 import pytest
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
-from sim.learn.steering import blend_qpos, gait_amplitude, sample_commands
-from sim.learn.train import STEERING_STATS, UNTRAINED_SLOTS, make_vec_env, new_ppo, widen_policy
+from sim.learn.steering import blend_qpos, level_speed_ratio, sample_commands, speed_law
+from sim.learn.train import (
+    STEERING_FILE,
+    STEERING_STATS,
+    UNTRAINED_SLOTS,
+    make_vec_env,
+    new_ppo,
+    policy_env,
+    widen_policy,
+)
 from sim.learn.walk_env import LEGACY_OBS_SIZE, OBS_SIZE, make_walk_env
 from sim.motion.reference import load_reference
 from sim.rollout.scenarios import PHASES, command_profile
@@ -57,9 +65,27 @@ def test_quiet_standing_start_stands_on_the_floor(env):
     assert env.gait.phase == phase  # no commanded speed: the cycle does not advance
 
 
+def test_speed_law_shares_a_slowdown_between_stride_and_cadence():
+    assert speed_law(0.0, 0.5, 0.42) == (0.0, 0.0)
+    assert speed_law(0.8, 0.5, 0.42) == (1.0, 0.8)  # fast: the stride is kept, the cadence follows
+    for ratio in (0.05, 0.2, 0.45):
+        a, rate = speed_law(ratio, 0.5, 0.42)
+        assert a * rate == pytest.approx(ratio)  # stride x cadence = speed
+        assert a == pytest.approx((ratio / 0.5) ** 0.42) and rate > ratio  # shorter, quicker steps
+        assert level_speed_ratio(a, 0.5, 0.42) == pytest.approx(ratio)
+    a, rate = speed_law(0.25, 0.5, None)  # the legacy law of the policies trained before it
+    assert (a, rate) == (0.5, 0.25) and level_speed_ratio(0.5, 0.5, None) == 0.5
+
+
+def test_a_policy_keeps_the_speed_law_it_was_trained_under(tmp_path, params):
+    env = params.train_params().env
+    assert env.commands.stride_speed_exponent == 0.42
+    assert policy_env(tmp_path, env).commands.stride_speed_exponent is None  # trained before the law
+    (tmp_path / STEERING_FILE).write_text('{"stride_speed_exponent": 0.3}')
+    assert policy_env(tmp_path, env).commands.stride_speed_exponent == 0.3
+
+
 def test_gait_follows_the_commanded_speed(env):
-    assert gait_amplitude(0.0, 1.8, 0.5) == 0.0 and gait_amplitude(0.9, 1.8, 0.5) == 1.0
-    assert 0.0 < gait_amplitude(0.3, 1.8, 0.5) < 1.0
     env.gait.start(0.2, env.ref.speed_mps, 0.0, 0.0)
     env.gait.advance(0.01, 0.5 * env.ref.speed_mps, 0.3, 0.0)
     assert env.gait.phase == pytest.approx(0.205)  # half the speed: half the phase advance (stride kept)
