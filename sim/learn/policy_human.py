@@ -147,16 +147,18 @@ class PolicyHuman(HumanDriver):
 
     def before_sample(self, model: mujoco.MjModel, data: mujoco.MjData, k: int) -> None:
         if k % self.every == 0:  # a policy step; falls are checked at the policy's rate (33 Hz)
-            if self.fall_time_s is None and (data.qpos[self.idx.root_q + 2] < self.min_height
-                                             or data.xmat[self.idx.torso, 8] < self.min_up):
+            idx = self.idx
+            if self.fall_time_s is None and (data.qpos[idx.root_q + 2] < self.min_height
+                                             or data.xmat[idx.torso, 8] < self.min_up):
                 self.fall_time_s = float(self.times[k])
-            amp_features(data, self.idx, self.amp)
-            observe(data, self.idx, self.amp, self.gait, self.wrench, self.obs)
-            action = np.clip(np.asarray(self.policy(self.obs), float).reshape(-1), -1.0, 1.0)
+            amp_features(data, idx, self.amp)
+            observe(data, idx, self.amp, self.gait, self.wrench, self.obs)
+            action = np.asarray(self.policy(self.obs), float).reshape(-1)
+            action = np.minimum(np.maximum(action, -1.0), 1.0)  # np.clip's numbers, without its wrapper
             if self.p.variant.action_noise:
                 action = action + self.noise.normal(0.0, self.p.variant.action_noise, len(action))
             self.gait.advance(self.step_phase, *self._command(k + self.every))
-            data.ctrl[self.idx.act] = self.gait.targets(action, self.p, self.lo, self.hi)
+            data.ctrl[idx.act] = self.gait.targets(action, self.p, self.lo, self.hi)
         if self.event_run is not None:
             self.event_run.apply(model, data, float(self.times[k]))
 
@@ -208,13 +210,18 @@ class ActorMlp:
                    float(norm.clip_obs) if norm is not None else np.inf)
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
-        h = np.clip((obs - self.obs_mean) * self.obs_scale, -self.clip_obs, self.clip_obs)
-        last = len(self.weights) - 1
-        for i, (w, b) in enumerate(zip(self.weights, self.biases, strict=True)):
-            h = w @ h + b
-            if i < last:
-                np.maximum(h, 0.0, out=h)
-        return np.clip(h, -1.0, 1.0)
+        # in place on the one float64 array each product makes: the same operations as
+        # clip((obs - mean) x scale), relu(w h + b) and clip(w h + b, -1, 1), fewer temporaries
+        h = np.subtract(obs, self.obs_mean)
+        h *= self.obs_scale
+        np.minimum(np.maximum(h, -self.clip_obs, out=h), self.clip_obs, out=h)
+        for w, b in zip(self.weights[:-1], self.biases[:-1], strict=True):
+            h = w @ h
+            h += b
+            np.maximum(h, 0.0, out=h)
+        h = self.weights[-1] @ h
+        h += self.biases[-1]
+        return np.minimum(np.maximum(h, -1.0, out=h), 1.0, out=h)
 
 
 @dataclass(frozen=True)

@@ -245,45 +245,50 @@ class BodyIndex:
 
 def _heading(xmat_row: np.ndarray) -> tuple[float, float]:
     """(cos, sin) of the pelvis yaw from its rotation matrix (row-major 9)."""
-    c, s = xmat_row[0], xmat_row[3]
-    norm = np.hypot(c, s) + 1e-9
+    return _yaw_cs(float(xmat_row[0]), float(xmat_row[3]))
+
+
+def _yaw_cs(c: float, s: float) -> tuple[float, float]:
+    """(c, s) normalised to the unit circle (the yaw's cosine and sine from two matrix entries)."""
+    norm = float(np.hypot(c, s)) + 1e-9
     return c / norm, s / norm
 
 
 def feet_in_heading(data: mujoco.MjData, idx: BodyIndex) -> np.ndarray:
     """Both feet relative to the pelvis in the pelvis heading frame, (6,)."""
-    c, s = _heading(data.xmat[idx.pelvis])
-    d = data.xpos[idx.feet] - data.xpos[idx.pelvis]
-    out = np.empty(6)
-    out[0::3] = c * d[:, 0] + s * d[:, 1]
-    out[1::3] = -s * d[:, 0] + c * d[:, 1]
-    out[2::3] = d[:, 2]
+    out = np.empty(3 * len(idx.feet))
+    _feet_into(data, idx, *_heading(data.xmat[idx.pelvis]), out)
     return out
+
+
+def _feet_into(data: mujoco.MjData, idx: BodyIndex, c: float, s: float, out: np.ndarray) -> None:
+    """`feet_in_heading` into `out` for the pelvis heading (c, s), on Python floats (called every
+    policy step: a dozen float operations, cheaper than numpy's per-call overhead)."""
+    px, py, pz = data.xpos[idx.pelvis].tolist()
+    row: list[float] = []
+    for x, y, z in data.xpos[idx.feet].tolist():
+        dx, dy = x - px, y - py
+        row += (c * dx + s * dy, -s * dx + c * dy, z - pz)
+    out[:] = row
 
 
 def amp_features(data: mujoco.MjData, idx: BodyIndex, out: np.ndarray) -> None:
     """AMP state features (Peng et al. 2021 Sec. 6: root height, root rotation and velocities in the
-    heading frame, joint coordinates and velocities, end effectors relative to the root) into `out`."""
-    c, s = _heading(data.xmat[idx.pelvis])
-    r = data.xmat[idx.pelvis].reshape(3, 3)
+    heading frame, joint coordinates and velocities, end effectors relative to the root) into `out`.
+    The root terms are Python floats (the same operations numpy would do, without its per-call cost)."""
+    r = data.xmat[idx.pelvis].tolist()  # row-major 3 x 3
+    c, s = _yaw_cs(r[0], r[3])
     q, d = idx.root_q, idx.root_d
-    out[0] = data.qpos[q + 2]
-    # rotation without yaw: Rz(-yaw) R, first two columns
-    out[1] = c * r[0, 0] + s * r[1, 0]
-    out[2] = -s * r[0, 0] + c * r[1, 0]
-    out[3] = r[2, 0]
-    out[4] = c * r[0, 1] + s * r[1, 1]
-    out[5] = -s * r[0, 1] + c * r[1, 1]
-    out[6] = r[2, 1]
-    v = data.qvel
-    out[7] = c * v[d] + s * v[d + 1]
-    out[8] = -s * v[d] + c * v[d + 1]
-    out[9] = v[d + 2]
-    out[10:13] = v[d + 3:d + 6]  # free-joint angular velocity is in the pelvis frame
+    v = data.qvel[d:d + 6].tolist()
+    # rotation without yaw: Rz(-yaw) R, first two columns; root velocity in the heading frame, then
+    # the free joint's angular velocity (already in the pelvis frame)
+    out[:13] = (data.qpos[q + 2], c * r[0] + s * r[3], -s * r[0] + c * r[3], r[6],
+                c * r[1] + s * r[4], -s * r[1] + c * r[4], r[7],
+                c * v[0] + s * v[1], -s * v[0] + c * v[1], v[2], v[3], v[4], v[5])
     nu = len(idx.act)
     out[13:13 + nu] = data.actuator_length[idx.act]
-    out[13 + nu:13 + 2 * nu] = v[idx.jdof]
-    out[13 + 2 * nu:] = feet_in_heading(data, idx)
+    out[13 + nu:13 + 2 * nu] = data.qvel[idx.jdof]
+    _feet_into(data, idx, c, s, out[13 + 2 * nu:])
 
 
 class WalkEnv(gym.Env):
