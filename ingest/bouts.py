@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ingest.filtering import finite_runs, lowpass
+from ingest.filtering import finite_frames, finite_runs, lowpass
 
 
 @dataclass(frozen=True)
@@ -37,7 +37,7 @@ class Bout:
 
 
 def _bridged(xy: np.ndarray) -> np.ndarray:
-    ok = np.isfinite(xy).all(axis=1)
+    ok = finite_frames(xy)
     if ok.all() or not ok.any():
         return xy
     idx = np.arange(len(xy))

@@ -208,15 +208,17 @@ def canonical_angles(mot: MotTable, fmt: FileFormat, time_s: np.ndarray | None) 
                               "no format.angle_unit: cannot tell radians from degrees")
         in_degrees = fmt.angle_unit == "deg"
     t = mot.time_s
+    resample = time_s is not None and (len(t) != len(time_s) or not np.allclose(t, time_s, atol=1e-6))
+    present = [c for c in OPENSIM_COORDINATES if c in mot.table.columns]
+    table = mot.values(present)
     angles = {}
-    for column, (name, sign) in OPENSIM_COORDINATES.items():
-        if column not in mot.table.columns:
-            continue
-        values = mot.table[column].to_numpy(float)
+    for k, column in enumerate(present):
+        name, sign = OPENSIM_COORDINATES[column]
+        values = table[:, k]
         if not in_degrees:
             values = np.degrees(values)
         values = values * (fmt.knee_flexion_sign if sign is None else sign)
-        if time_s is not None and (len(t) != len(time_s) or not np.allclose(t, time_s, atol=1e-6)):
+        if resample:
             values = np.interp(time_s, t, values, left=np.nan, right=np.nan)
         angles[name] = values
     sagittal = [v for k, v in angles.items() if k.startswith(("hip_flexion", "knee_flexion"))]
@@ -244,8 +246,9 @@ def plates_from_grf(mot: MotTable, fmt: FileFormat, heading_rad: float) -> Force
     prefixes = [p for p in prefixes if {f"{p}_vy", f"{p}_vz", f"{p}_px", f"{p}_pz"} <= cols]
     if not prefixes:
         raise IngestError(mot.path, "no force plate columns (<name>_vx/_vy/_vz/_px/_py/_pz)")
-    force = np.stack([mot.table[[f"{p}_v{a}" for a in "xyz"]].to_numpy(float) for p in prefixes], 1)
-    cop = np.stack([mot.table[[f"{p}_p{a}" for a in "xyz"]].to_numpy(float) for p in prefixes], 1)
+    columns = [f"{p}_{q}{a}" for p in prefixes for q in "vp" for a in "xyz"]
+    values = mot.values(columns).reshape(len(mot.table), len(prefixes), 2, 3)
+    force, cop = (np.ascontiguousarray(values[:, :, q]) for q in (0, 1))
     force, cop = up_to_z(force, fmt.up_axis), rotate_z(up_to_z(cop, fmt.up_axis), heading_rad)
     if np.nanmax(force[..., 2]) < 100 and np.nanmax(-force[..., 2]) > 100:
         force = -force  # plates that report the action on the plate instead of the reaction
@@ -274,7 +277,9 @@ def load_trial(subject: Subject, spec: TrialSpec, manifest: Manifest, source: st
         markers = with_derived({n: xyz[:, j] for j, n in enumerate(table.names)}, subject.markerset)
         _check_body_scale(markers, subject.markerset, str(path), up, table.declared_unit)
         heading = heading_rotation(markers, subject.markerset, table.rate_hz)
-        markers = {n: rotate_z(v, heading) for n, v in markers.items()}
+        turned = rotate_z(xyz, heading)  # the file's markers in one pass, derived ones after them
+        markers = {n: turned[:, j] for j, n in enumerate(table.names)} | {
+            n: rotate_z(v, heading) for n, v in markers.items() if n not in table.names}
         time, rate = table.time_s, table.rate_hz
         reader = f"markers:{path.suffix.lower().lstrip('.')} up={up}{'(auto)' if detected else ''}"
         provenance.append(_provenance(manifest, spec.markers, path, reader))

@@ -22,20 +22,20 @@ def normalise_cycles(strides: pd.DataFrame, time_s: np.ndarray, angles: dict[str
     """Long table (side, stride, pct, joint, angle_deg) of the kept strides."""
     pct = np.linspace(0.0, 100.0, n_points)
     kept = strides.loc[strides["kept"].to_numpy(bool)]
-    cols: dict[str, list] = {c: [] for c in CYCLE_COLUMNS}
+    cycles = []  # (side, stride, joint, angle_deg over the cycle)
     for side, stride, t0, t1 in kept[["side", "stride", "t_start_s", "t_end_s"]].itertuples(
             index=False, name=None):
         t = np.linspace(t0, t1, n_points)
         for joint in CYCLE_JOINTS:
             values = angles.get(angle_name(joint, side))
-            if values is None:
-                continue
-            cols["side"].append(np.full(n_points, side, dtype=object))
-            cols["stride"].append(np.full(n_points, stride))
-            cols["pct"].append(pct)
-            cols["joint"].append(np.full(n_points, joint, dtype=object))
-            cols["angle_deg"].append(np.interp(t, time_s, values))
-    if not cols["pct"]:
+            if values is not None:
+                cycles.append((side, stride, joint, np.interp(t, time_s, values)))
+    if not cycles:
         return pd.DataFrame({c: pd.Series(dtype=float if c in ("pct", "angle_deg") else object)
                              for c in CYCLE_COLUMNS})
-    return pd.DataFrame({c: np.concatenate(v) for c, v in cols.items()})
+    side, stride, joint, angle = zip(*cycles, strict=True)
+    return pd.DataFrame({"side": np.repeat(np.array(side, dtype=object), n_points),
+                         "stride": np.repeat(np.array(stride), n_points),
+                         "pct": np.tile(pct, len(cycles)),
+                         "joint": np.repeat(np.array(joint, dtype=object), n_points),
+                         "angle_deg": np.concatenate(angle)})

@@ -12,17 +12,27 @@ the "4th-order zero-lag Butterworth at 12 Hz" of the paper.
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 from scipy import signal
 
 
 def butter_coefficients(order: int, cutoff_hz: float, rate_hz: float) -> tuple[np.ndarray, np.ndarray]:
-    """(b, a) of one pass: Butterworth of order ``order // 2`` at ``cutoff_hz``."""
+    """(b, a) of one pass: Butterworth of order ``order // 2`` at ``cutoff_hz`` (read-only arrays:
+    designed once per order, cutoff and rate, since a trial filters many signals alike)."""
     if order % 2 or order < 2:
         raise ValueError(f"zero-phase filter order must be even and >= 2, got {order}")
     if not 0 < cutoff_hz < rate_hz / 2:
         raise ValueError(f"cutoff {cutoff_hz} Hz must lie between 0 and Nyquist ({rate_hz / 2} Hz)")
-    return signal.butter(order // 2, cutoff_hz / (rate_hz / 2), btype="low")
+    return _butter(order // 2, cutoff_hz / (rate_hz / 2))
+
+
+@lru_cache(maxsize=64)
+def _butter(order: int, wn: float) -> tuple[np.ndarray, np.ndarray]:
+    b, a = signal.butter(order, wn, btype="low")
+    b.flags.writeable = a.flags.writeable = False
+    return b, a
 
 
 def magnitude_response(freq_hz: np.ndarray, order: int, cutoff_hz: float, rate_hz: float) -> np.ndarray:
@@ -36,7 +46,7 @@ def lowpass(x: np.ndarray, rate_hz: float, cutoff_hz: float, order: int = 4) -> 
     filtered on its own (a run too short to pad is returned unfiltered)."""
     b, a = butter_coefficients(order, cutoff_hz, rate_hz)
     x = np.asarray(x, dtype=float)
-    finite = np.isfinite(x).all(axis=tuple(range(1, x.ndim))) if x.ndim > 1 else np.isfinite(x)
+    finite = finite_frames(x)
     if finite.all():
         return signal.filtfilt(b, a, x, axis=0)
     out = np.full_like(x, np.nan)
@@ -54,6 +64,22 @@ def lowpass(x: np.ndarray, rate_hz: float, cutoff_hz: float, order: int = 4) -> 
             for j in range(flat.shape[1]):
                 res[:, j] = lowpass(flat[:, j], rate_hz, cutoff_hz, order)
             out = res.reshape(x.shape)
+    return out
+
+
+def finite_frames(x: np.ndarray) -> np.ndarray:
+    """Per frame (axis 0), whether every channel of `x` is finite: `np.isfinite(x).all(axis=1)`
+    for (n,) and (n, ...) arrays, channel by channel when there are few (a marker's three), where
+    numpy's reduction over a short last axis costs several times more."""
+    finite = np.isfinite(x)
+    if finite.ndim == 1:
+        return finite
+    finite = finite.reshape(len(finite), -1)
+    if not 0 < finite.shape[1] <= 8:
+        return finite.all(axis=1)
+    out = finite[:, 0].copy()
+    for j in range(1, finite.shape[1]):
+        out &= finite[:, j]
     return out
 
 

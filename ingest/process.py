@@ -203,10 +203,8 @@ def process_trial(trial: Trial, markerset: dict[str, str], p: IngestParams, trea
 
 
 def _with_id(df: pd.DataFrame, ident: dict[str, str]) -> pd.DataFrame:
-    out = df.copy()
-    for k, (name, value) in enumerate(ident.items()):
-        out.insert(k, name, value)
-    return out
+    """`df` behind the identity columns (one concat: cheaper than inserting them one by one)."""
+    return pd.concat([pd.DataFrame(ident, index=df.index), df], axis=1)
 
 
 @dataclass(frozen=True)

@@ -19,6 +19,7 @@ import pandas as pd
 
 from ingest.bouts import Bout, PelvisPath
 from ingest.events import side_times
+from ingest.filtering import finite_frames
 from ingest.spatiotemporal import stride_measures
 from ingest.trial import SIDES
 
@@ -37,38 +38,50 @@ STRIDE_COLUMNS = ["side", "stride", "t_start_s", "t_end_s", "kept", "reason", "s
                   "stride_time_s", "cadence_spm", "gait_speed_mps", "step_width_m"]
 
 
-def _index(time_s: np.ndarray, t: float) -> int:
-    return int(np.clip(np.round(np.interp(t, time_s, np.arange(len(time_s)))), 0, len(time_s) - 1))
+def _indices(time_s: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Nearest frame of each time in `t`."""
+    frames = np.interp(t, time_s, np.arange(len(time_s)))
+    return np.clip(np.round(frames), 0, len(time_s) - 1).astype(int)
 
 
-def _interp(time_s: np.ndarray, x: np.ndarray, t: float) -> np.ndarray:
-    return np.array([np.interp(t, time_s, x[:, k]) for k in range(x.shape[1])])
+def _interp(time_s: np.ndarray, x: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Rows of the (n, k) signal `x` at the times `t`, linearly interpolated: (len(t), k)."""
+    return np.column_stack([np.interp(t, time_s, x[:, k]) for k in range(x.shape[1])])
 
 
 def segment_strides(events: pd.DataFrame, time_s: np.ndarray, heel: dict[str, np.ndarray],
                     toe: dict[str, np.ndarray], pelvis: np.ndarray, path: PelvisPath,
                     bouts: list[Bout], p: StrideParams) -> pd.DataFrame:
     """One row per stride of each side with its measures, `kept` flag and rejection reason."""
-    rows = []
+    seen = finite_frames(pelvis)
+    for m in (*heel.values(), *toe.values()):
+        seen &= finite_frames(m)
+    rows, bout = [], []
     for side in SIDES:
         other = SIDES[1 - SIDES.index(side)]
         hs, to, contra = (side_times(events, s, e) for s, e in
                           ((side, "heel_strike"), (side, "toe_off"), (other, "heel_strike")))
+        frames, at_strike = _indices(time_s, hs), _interp(time_s, heel[side], hs)
+        contra_at = _interp(time_s, heel[other], contra)
+        first_contra = np.searchsorted(contra, hs, side="right")  # the first contralateral strike after each
         for k, (t0, t1) in enumerate(zip(hs[:-1], hs[1:], strict=True)):
-            i0, i1 = _index(time_s, t0), _index(time_s, t1)
-            c = contra[(contra > t0) & (contra < t1)]
-            contra_heel = _interp(time_s, heel[other], c[0]) if len(c) else None
-            m = stride_measures(_interp(time_s, heel[side], t0), _interp(time_s, heel[side], t1),
-                                t0, t1, contra_heel)
-            reason = _reject_reason(t0, t1, i0, i1, to, heel, toe, pelvis, path, m.stride_length_m,
-                                    p)
-            rows.append([side, k, t0, t1, reason is None, reason or "", m.stride_length_m,
-                         m.stride_time_s, m.cadence_spm, m.gait_speed_mps, m.step_width_m,
-                         _bout_of(bouts, i0, i1)])
-    df = pd.DataFrame(rows, columns=[*STRIDE_COLUMNS, "bout"]).astype(
-        {"side": object, "stride": int, "kept": bool, "reason": object, "bout": int}
-    )
-    return _reject_off_pace(df, path, time_s, p).drop(columns="bout")
+            i0, i1, c = frames[k], frames[k + 1], first_contra[k]
+            contra_heel = contra_at[c] if c < len(contra) and contra[c] < t1 else None
+            m = stride_measures(at_strike[k], at_strike[k + 1], t0, t1, contra_heel)
+            reason = _reject_reason(t0, t1, i0, i1, to, seen, pelvis, path, m.stride_length_m, p)
+            rows.append((side, k, t0, t1, reason is None, reason or "", m.stride_length_m,
+                         m.stride_time_s, m.cadence_spm, m.gait_speed_mps, m.step_width_m))
+            bout.append(_bout_of(bouts, i0, i1))
+    if not rows:  # no stride: the measures' columns stay untyped, as an empty table always had them
+        return pd.DataFrame([], columns=STRIDE_COLUMNS).astype(
+            {"side": object, "stride": int, "kept": bool, "reason": object})
+    side, stride, t_start, t_end, kept, reason, *measures = zip(*rows, strict=True)
+    t_start, t_end = np.array(t_start, float), np.array(t_end, float)
+    kept, reason = _reject_off_pace(np.array(kept, bool), np.array(reason, object), np.array(bout, int),
+                                    np.array(measures[3], float), t_start, t_end, p)
+    columns = [pd.Series(side, dtype=object), np.array(stride, np.int64), t_start, t_end, kept,
+               pd.Series(reason, dtype=object), *(np.array(m, float) for m in measures)]
+    return pd.DataFrame(dict(zip(STRIDE_COLUMNS, columns, strict=True)))
 
 
 def _bout_of(bouts: list[Bout], i0: int, i1: int) -> int:
@@ -78,12 +91,13 @@ def _bout_of(bouts: list[Bout], i0: int, i1: int) -> int:
     return -1
 
 
-def _reject_reason(t0, t1, i0, i1, to, heel, toe, pelvis, path, length, p) -> str | None:
+def _reject_reason(t0, t1, i0, i1, to, seen, pelvis, path, length, p) -> str | None:
+    """Why a stride is rejected (module docstring, in that order), None when kept; `seen` marks the
+    frames where the pelvis, heels and toes were all seen."""
     if t1 - t0 > p.max_stride_time_s or not ((to > t0) & (to < t1)).any():
         return "events missing"
     window = slice(i0, i1 + 1)
-    markers = [pelvis, *heel.values(), *toe.values()]
-    if any(not np.isfinite(m[window]).all() for m in markers):
+    if not seen[window].all():
         return "marker gap"
     speed = path.speed_mps[window]
     if speed.mean() < p.min_speed_mps:
@@ -108,21 +122,24 @@ def _half_stride_speeds(pelvis: np.ndarray, i0: int, i1: int) -> tuple[float, fl
     return float(first), float(second)
 
 
-def _reject_off_pace(df: pd.DataFrame, path: PelvisPath, time_s: np.ndarray,
-                     p: StrideParams) -> pd.DataFrame:
-    """Within each straight bout, strides whose speed departs from the median of its steady
-    strides are accelerating or decelerating: reject them as start or stop."""
-    df = df.copy()
-    for _, group in df[df["kept"] & (df["bout"] >= 0)].groupby("bout"):
-        median = group["gait_speed_mps"].median()
-        middle = group[["t_start_s", "t_end_s"]].to_numpy().mean()
-        off = (group["gait_speed_mps"] - median).abs() > p.speed_tolerance * median
-        for j in group.index[off]:
-            df.loc[j, ["kept", "reason"]] = [False, "start" if df.loc[j, "t_end_s"] < middle else "stop"]
-    not_in_bout = df["kept"] & (df["bout"] < 0)
-    df.loc[not_in_bout, "reason"] = "outside straight bout"
-    df.loc[not_in_bout, "kept"] = False
-    return df
+def _reject_off_pace(kept: np.ndarray, reason: np.ndarray, bout: np.ndarray, speed: np.ndarray,
+                     t_start: np.ndarray, t_end: np.ndarray,
+                     p: StrideParams) -> tuple[np.ndarray, np.ndarray]:
+    """(kept, reason) per stride after the bouts' pace check: within each straight bout, strides
+    whose speed departs from the median of its steady strides are accelerating or decelerating,
+    rejected as start (ending before the middle of the bout's kept strides) or stop; kept strides
+    outside any bout are rejected as such."""
+    kept, reason = kept.copy(), reason.copy()
+    steady = kept & (bout >= 0)
+    for b in np.unique(bout[steady]):
+        group = steady & (bout == b)
+        median = np.nanmedian(speed[group])
+        middle = np.concatenate([t_start[group], t_end[group]]).mean()
+        for j in np.flatnonzero(group & (np.abs(speed - median) > p.speed_tolerance * median)):
+            kept[j], reason[j] = False, "start" if t_end[j] < middle else "stop"
+    outside = kept & (bout < 0)
+    reason[outside], kept[outside] = "outside straight bout", False
+    return kept, reason
 
 
 def kept_stride_runs(strides: pd.DataFrame, trial: str, margin_s: float, join_gap_s: float

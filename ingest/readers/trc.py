@@ -11,6 +11,8 @@ not pair up, the runs of whitespace separate them. Data rows stay strictly tab-s
 
 from __future__ import annotations
 
+import io
+import re
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +20,8 @@ import pandas as pd
 
 from ingest.errors import IngestError
 from ingest.readers.table import UNIT_TO_M, MarkerTable
+
+NON_SPACE = re.compile(r"\S")
 
 
 def _header_fields(path: Path, keys: str, values: str) -> dict[str, str]:
@@ -43,15 +47,39 @@ def _marker_names(line: str, n_markers: int) -> tuple[str, ...]:
     return tuple(cells[2:])
 
 
+def _layout(text: str, n_head: int = 5) -> tuple[list[str], bool, bool, list[str]]:
+    """The first `n_head` lines of `text`, whether a line follows them, whether any following line
+    holds more than whitespace, and the last two lines, all as `str.splitlines` gives them, found
+    without splitting the thousands of rows in between (that cost more than the header checks);
+    lines ending in anything but \\n or \\r\\n fall back to `str.splitlines`."""
+    start = 0
+    for _ in range(n_head):
+        start = text.find("\n", start) + 1
+        if start == 0:
+            break
+    head = text[:start].splitlines() if start else []
+    if len(head) != n_head:
+        lines = text.splitlines()
+        return lines[:n_head], len(lines) > n_head, any(ln.strip() for ln in lines[n_head:]), lines[-2:]
+    cut = len(text)
+    for _ in range(3):  # the last two lines start after the third newline from the end
+        cut = text.rfind("\n", start, cut) if cut > start else -1
+    tail = text[cut + 1 if cut >= 0 else start:].splitlines()[-2:]
+    return head, start < len(text), NON_SPACE.search(text, start) is not None, tail
+
+
 def read_trc(path: str | Path) -> MarkerTable:
-    """Read a `.trc` file; raises `IngestError` naming the file on any structural problem."""
+    """Read a `.trc` file; raises `IngestError` naming the file on any structural problem. The file
+    is read once: its header from the text, its rows by pandas from the same bytes."""
     path = Path(path)
     try:
-        lines = path.read_text(errors="replace").splitlines()
+        raw = path.read_bytes()
     except OSError as exc:
         raise IngestError(path, f"cannot read file ({exc.strerror})") from None
-    if len(lines) < 6:
-        raise IngestError(path, f"truncated: only {len(lines)} lines, a TRC header needs 5")
+    text = raw.decode(errors="replace")
+    lines, more, has_rows, tail = _layout(text)
+    if not more:
+        raise IngestError(path, f"truncated: only {len(text.splitlines())} lines, a TRC header needs 5")
     header = _header_fields(path, lines[1], lines[2])
     unit = header["Units"].strip()
     if unit not in UNIT_TO_M:
@@ -66,19 +94,19 @@ def read_trc(path: str | Path) -> MarkerTable:
     if len(names) != n_markers:
         raise IngestError(path, f"header declares {n_markers} markers, line 4 names {len(names)}")
     n_cols = 2 + 3 * n_markers
-    if not any(ln.strip() for ln in lines[5:]):
+    if not has_rows:
         raise IngestError(path, "no data rows")
     try:
-        table = pd.read_csv(
-            path, sep="\t", header=None, names=range(n_cols + 1), skiprows=5,
-            skip_blank_lines=True, dtype=float, engine="c",
+        table = pd.read_csv(  # in one piece (low_memory=False): a marker file is a few MB at most
+            io.BytesIO(raw), sep="\t", header=None, names=range(n_cols + 1), skiprows=5,
+            skip_blank_lines=True, dtype=float, engine="c", low_memory=False,
         )
     except ValueError as exc:
         raise IngestError(path, f"malformed data rows: {exc}") from None
-    if table.shape[1] > n_cols and table.iloc[:, n_cols:].notna().any().any():
+    if table.shape[1] > n_cols and table[n_cols].notna().any():
         raise IngestError(path, f"rows hold more than the {n_cols} cells the header declares")
     data = table.to_numpy()[:, :n_cols]
-    last = lines[-1] if lines[-1].strip() else lines[-2]
+    last = tail[-1] if tail[-1].strip() else tail[-2]
     if len(last.rstrip("\r\n").split("\t")) < n_cols:
         raise IngestError(path, f"truncated: the last row has fewer than {n_cols} cells")
     rows = data
@@ -89,7 +117,6 @@ def read_trc(path: str | Path) -> MarkerTable:
         raise IngestError(path, "Time column has empty cells")
     xyz = data[:, 2:].reshape(len(rows), n_markers, 3) * UNIT_TO_M[unit]
     return MarkerTable(path, rate, time, names, xyz, unit)
-
 
 
 def write_trc(path: str | Path, time_s: np.ndarray, names: tuple[str, ...] | list[str], xyz_m: np.ndarray,
