@@ -26,7 +26,8 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import mujoco
@@ -84,6 +85,31 @@ class RolloutResult:
     @property
     def stable(self) -> bool:
         return not self.warnings and bool(np.isfinite(self.world_qpos).all())
+
+
+StepRecorder = Callable[[mujoco.MjModel, mujoco.MjData, int], None]
+_step_recorder: StepRecorder | None = None
+
+
+@contextmanager
+def recording_steps(recorder: StepRecorder) -> Iterator[None]:
+    """Within the block, rollouts call `recorder(model, data, nstep)` just before each of their
+    `mj_step(model, data, nstep=nstep)` calls: the inputs the loop set for the coming steps can be
+    read there (pipeline.bench.policy_rollout replays them through raw `mj_step`). Off by default;
+    the rollout's numbers are the same either way."""
+    global _step_recorder
+    previous, _step_recorder = _step_recorder, recorder
+    try:
+        yield
+    finally:
+        _step_recorder = previous
+
+
+def _recording_step(recorder: StepRecorder) -> Callable[..., None]:
+    def step(model: mujoco.MjModel, data: mujoco.MjData, nstep: int) -> None:
+        recorder(model, data, nstep)
+        mujoco.mj_step(model, data, nstep=nstep)
+    return step
 
 
 def _schedule(n_samples: int, n_sample: int, n_control: int) -> list[tuple[int, int, int]]:
@@ -181,11 +207,12 @@ def rollout(world: mujoco.MjSpec, human: HumanDriver, controller: Controller | N
     stop_after = None if record_hook else p.stop_after_fall_s  # drivers that take the world qpos only
     n_done = n
     cos, sin = math.cos, math.sin
+    step = mujoco.mj_step if _step_recorder is None else _recording_step(_step_recorder)
     start = time.perf_counter()
     try:
         for nstep, k, j in plan:
             if nstep:
-                mujoco.mj_step(model, data, nstep=nstep)
+                step(model, data, nstep=nstep)
             if k >= 0:
                 qpos_out[k] = qpos
                 if probe is not None:
@@ -274,4 +301,4 @@ def rollout(world: mujoco.MjSpec, human: HumanDriver, controller: Controller | N
         wall_s=wall, warnings=warnings, initial_state=initial_state)
 
 
-__all__ = ["RolloutParams", "RolloutResult", "rollout"]
+__all__ = ["RolloutParams", "RolloutResult", "recording_steps", "rollout"]
