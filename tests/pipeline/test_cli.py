@@ -120,3 +120,14 @@ def test_dvc_expands_one_ingest_stage_per_subject():
     assert run.returncode == 0, run.stderr
     stages = {line.split()[0] for line in run.stdout.splitlines() if line.strip()}
     assert {"ingest@camargo", "ingest@opencap4", "bench"} <= stages
+
+
+def test_policy_rollout_bench_replays_the_rollouts_own_steps(params):
+    """The policy_rollout baseline is raw mj_step on the rollout's recorded inputs: it must retrace
+    the rollout exactly, else the ratio would time other physics (pipeline/bench/policy_rollout.py)."""
+    from pipeline.bench.policy_rollout import time_policy_rollout
+
+    out = time_policy_rollout(params, repeat=1, duration_s=2.0)
+    assert out["baseline_reproduces_rollout"] is True and out["baseline_max_qpos_diff"] == 0.0
+    assert out["baseline_mj_step_calls"] > 0
+    assert 0 < out["raw_mj_step_s"] and 0 < out["rollout_loop_s"]

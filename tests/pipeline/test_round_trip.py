@@ -125,9 +125,10 @@ def test_exported_grf_gives_heel_strikes_at_contact_onsets(round_trip):
     n = len(o.robot)
     ground = o.probe.arrays(len(o.probe.force) - n)
     t = table.time_s
-    for side in ("left", "right"):
-        fz = ground[side][0][:, 2]
-        onsets = t[np.flatnonzero((fz[1:] > 0) & (fz[:-1] <= 0)) + 1]
+    threshold = params.ingest.build().events.force_threshold_n  # the plates' own contact threshold:
+    for side in ("left", "right"):  # a foot that shuffles without unloading fully still crosses it
+        loaded = ground[side][0][:, 2] > threshold
+        onsets = t[np.flatnonzero(loaded[1:] & ~loaded[:-1]) + 1]
         strikes = events[(events["side"] == side) & (events["event"] == "heel_strike")]["time_s"].to_numpy()
         assert len(strikes) >= 6
         assert max(np.abs(onsets - s).min() for s in strikes) <= 0.010
