@@ -273,7 +273,8 @@ def load_trial(subject: Subject, spec: TrialSpec, manifest: Manifest, source: st
         if path.suffix.lower() == ".csv":
             angles.update(read_csv(path).angles_deg)
         up, detected = resolve_up_axis(table.xyz_m, table.names, subject.markerset, subject.format, str(path))
-        xyz = up_to_z(table.xyz_m, up)
+        gap = (table.xyz_m == 0.0).all(axis=2, keepdims=True)  # (0, 0, 0): a gap (Vicon's, kgc6's files)
+        xyz = up_to_z(np.where(gap, np.nan, table.xyz_m) if gap.any() else table.xyz_m, up)
         markers = with_derived({n: xyz[:, j] for j, n in enumerate(table.names)}, subject.markerset)
         _check_body_scale(markers, subject.markerset, str(path), up, table.declared_unit)
         heading = heading_rotation(markers, subject.markerset, table.rate_hz)

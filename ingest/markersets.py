@@ -15,6 +15,12 @@ role of `ROLES` x (left, right) is required. A role may instead be derived:
   40:595) would put these hip centres (`ingest.kinematics.hip_joint_centres` inverted), with the
   pelvis depth and PSIS width as ratios of the pelvis width (`PELVIS_DEPTH_RATIO`,
   `PSIS_WIDTH_RATIO`). The pelvis then has no tilt relative to the trunk.
+- `knee_left: {derive: cluster, markers: [A, B, C], offset_m: [x, y, z]}` (any role): a landmark
+  the lab did not record, rigid on a segment that carries a cluster of three markers. The point is
+  fixed in the cluster's frame: origin at A, x toward B, z = x cross (C - A), y = z cross x; the
+  offset (m) is measured once for the subject and written in the marker set (kgc6_clusters.yaml:
+  functional joint centres from the walks). A cluster marker written as exactly (0, 0, 0), the gap
+  convention of Vicon and of kgc6's files, is missing there.
 
 A loaded marker set is a plain `dict[str, str]`: a derived role maps to a virtual marker name
 (`Derivation.name`, starting with `@`) that spells out its recipe, and `with_derived` adds those
@@ -37,7 +43,7 @@ MARKERSETS_DIR = REPO_ROOT / "data" / "markersets"
 ROLES = ("heel", "toe", "ankle", "knee", "asis", "psis")
 ALL_ROLES = tuple(f"{r}_{s}" for r in ROLES for s in ("left", "right"))
 PELVIS = ("asis_left", "asis_right", "psis_left", "psis_right")
-DERIVE_KINDS = ("sacral", "hip_keypoints")
+DERIVE_KINDS = ("sacral", "hip_keypoints", "cluster")
 VIRTUAL_PREFIX = "@"
 
 # Measured here: medians over the six lab recordings of ../shared/data with ASIS and PSIS markers
@@ -50,17 +56,20 @@ PELVIS_DEPTH_RATIO = 0.72
 
 @dataclass(frozen=True)
 class Derivation:
-    """A role computed from markers: `kind` (DERIVE_KINDS), its input markers and width ratio."""
+    """A role computed from markers: `kind` (DERIVE_KINDS), its input markers and width ratio, or
+    (`cluster`) the offset in the cluster's frame (m)."""
 
     role: str
     kind: str
     inputs: tuple[str, ...]
     ratio: float = PSIS_WIDTH_RATIO
+    offset_m: tuple[float, ...] = ()
 
     @property
     def name(self) -> str:
         """The virtual marker's name, which spells out the recipe (`parse_virtual` reads it back)."""
-        return f"{VIRTUAL_PREFIX}{self.role}:{self.kind}:{','.join(self.inputs)}:{self.ratio:g}"
+        last = ",".join(f"{v:.6g}" for v in self.offset_m) if self.kind == "cluster" else f"{self.ratio:g}"
+        return f"{VIRTUAL_PREFIX}{self.role}:{self.kind}:{','.join(self.inputs)}:{last}"
 
 
 def parse_virtual(name: str) -> Derivation | None:
@@ -71,6 +80,9 @@ def parse_virtual(name: str) -> Derivation | None:
     if len(parts) != 4 or parts[1] not in DERIVE_KINDS:
         return None
     try:
+        if parts[1] == "cluster":
+            offset = tuple(float(v) for v in parts[3].split(","))
+            return Derivation(parts[0], parts[1], tuple(parts[2].split(",")), offset_m=offset)
         return Derivation(parts[0], parts[1], tuple(parts[2].split(",")), float(parts[3]))
     except ValueError:
         return None
@@ -143,6 +155,14 @@ def _derivation(role: str, spec: dict, plain: dict[str, str], path: Path | str) 
                                "{hips: [left, right], trunk: [marker, ...]}")
         trunk = [trunk] if isinstance(trunk, str) else list(trunk)
         return Derivation(role, kind, tuple(str(m) for m in [*hips, *trunk]), ratio)
+    if kind == "cluster":
+        markers, offset = spec.get("markers"), spec.get("offset_m")
+        if not (isinstance(markers, list) and len(markers) == 3 and isinstance(offset, list)
+                and len(offset) == 3 and all(isinstance(v, int | float) for v in offset)):
+            raise SubjectError(path, f"{role}: derive cluster gives a role from "
+                               "{markers: [origin, x toward, plane], offset_m: [x, y, z]}")
+        offset_m = tuple(float(v) for v in offset)
+        return Derivation(role, kind, tuple(str(m) for m in markers), offset_m=offset_m)
     raise SubjectError(path, f"{role}: unknown derivation {kind!r} (known: {', '.join(DERIVE_KINDS)})")
 
 
@@ -169,6 +189,15 @@ def with_derived(markers: dict[str, np.ndarray], markerset: dict[str, str]) -> d
 def derive(d: Derivation, markers: dict[str, np.ndarray]) -> np.ndarray:
     """The virtual marker of `d` from `markers` (module docstring)."""
     side = 1.0 if d.role.endswith("_left") else -1.0
+    if d.kind == "cluster":
+        origin, toward, plane = (np.where((np.asarray(markers[m], float) == 0.0).all(axis=-1, keepdims=True),
+                                          np.nan, np.asarray(markers[m], float)) for m in d.inputs)
+        x = toward - origin
+        x = x / np.linalg.norm(x, axis=-1, keepdims=True)
+        z = np.cross(x, plane - origin)
+        z = z / np.linalg.norm(z, axis=-1, keepdims=True)
+        offset = np.asarray(d.offset_m)
+        return origin + x * offset[0] + np.cross(z, x) * offset[1] + z * offset[2]
     if d.kind == "sacral":
         sacrum, asis_l, asis_r = (np.asarray(markers[m], float) for m in d.inputs)
         return sacrum + side * d.ratio * (asis_l - asis_r) / 2

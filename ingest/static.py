@@ -45,6 +45,7 @@ from ingest.errors import IngestError, SubjectError
 from ingest.filtering import finite_runs
 from ingest.kinematics import hip_joint_centres
 from ingest.manifest import Manifest
+from ingest.markersets import with_derived
 from ingest.readers import MarkerTable, read_markers, read_mot
 from ingest.subject import MARKERSETS_DIR, STATIC_AUTO, STATIC_NONE, StaticSpec, Subject
 from ingest.trial import SIDES
@@ -326,13 +327,16 @@ def _frames_zy(z: np.ndarray, y_ref: np.ndarray) -> np.ndarray:
 def _walking_frames(paths: list[Path], subject: Subject) -> tuple[np.ndarray, list[str]]:
     """All frames of the marker files `paths`, Z up, stacked: ((n, m, 3), names; NaN where a file
     lacks a marker, and for markers written as exactly (0, 0, 0): the gap convention of Vicon and
-    of kgc6's files, whose static-only landmarks are zeros in the walks)."""
+    of kgc6's files, whose static-only landmarks are zeros in the walks), plus the marker set's derived
+    markers (`ingest.markersets.with_derived`, as `load_trial` adds them)."""
     tables = []
     for path in paths:
         table = read_markers(path)
         xyz = np.where((table.xyz_m == 0.0).all(axis=2, keepdims=True), np.nan, table.xyz_m)
         up, _ = resolve_up_axis(xyz, table.names, subject.markerset, subject.format, str(path))
-        tables.append((up_to_z(xyz, up), list(table.names)))
+        xyz = up_to_z(xyz, up)
+        markers = with_derived({n: xyz[:, j] for j, n in enumerate(table.names)}, subject.markerset)
+        tables.append((np.stack(list(markers.values()), axis=1), list(markers)))
     names = list(dict.fromkeys(n for _, ns in tables for n in ns))
     out = []
     for xyz, ns in tables:

@@ -36,9 +36,10 @@ def compare(a: float, a_ci: float, b: float, b_ci: float) -> str:
 
 @dataclass(frozen=True)
 class Finding:
-    """One of the paper's findings beside what the simulation gives."""
+    """One of the paper's findings beside what the simulation gives (plain text: no `|`, it goes in a
+    markdown table cell)."""
 
-    claim: str       # the paper's finding, e.g. "adaptive below pid: mean |e_x|, steady walking"
+    claim: str       # the paper's finding, e.g. "adaptive below pid: mean abs e_x, walk_10m steady"
     expected: str    # the direction the paper found for `a` against `b` (`lower` / `higher`)
     paper: str       # the paper's numbers behind it
     measured: str    # ours: mean +- 95 % CI (or +- nothing) of `a` vs `b`
@@ -85,7 +86,7 @@ def compliance_findings(phases: pd.DataFrame, scenario: str, phases_shown: tuple
             a, b = _mean_ci(by.get("adaptive"), col), _mean_ci(by.get("pid"), col)
             paper = (f"{paper_sim['adaptive'][i]:.2f} vs {paper_sim['pid'][i]:.2f} cm (whole walks)"
                      if "adaptive" in paper_sim and "pid" in paper_sim else "–")
-            out.append(Finding(f"adaptive below pid: mean |{axis}|, {scenario} {phase}", "lower", paper,
+            out.append(Finding(f"adaptive below pid: mean abs {axis}, {scenario} {phase}", "lower", paper,
                                _pair(a, b, 2, "cm"), compare(*a, *b)))
     return out
 

@@ -5,7 +5,8 @@ name, its value, the warn and fail thresholds and the status. Most checks are wo
 value (`status = fail` above `fail_above`); cycle counts are worse the lower (below the thresholds;
 the note says so). A value that cannot be computed is graded `warn` with a note, never `ok`: a wrong
 number never flows silently. Thresholds: params.yaml `quality` (`QualityParams`; gaitloop's choices,
-documented there).
+documented there). A transferred walking policy's gate (`transfer_checks`) adds one `policy` row per
+scenario check, pass = 1.
 """
 
 from __future__ import annotations
@@ -269,4 +270,32 @@ def sim_checks(subject: str, real_strides: pd.DataFrame, sims: Mapping[str, pd.D
         share = non_steady_share(policy_table_strides)
         out.append(check(subject, "simulate", "non_steady_share:policy", share, p.non_steady_share,
                          "policy strides entering the paper's tables"))
+    return out
+
+
+# -- policy (transfer gate) ------------------------------------------------------------------------
+
+GATE_LIMITS_REQUIRED = Limits(1.0, 1.0)  # value 1 = passed, 0 = failed: a failed required check fails
+GATE_LIMITS_OPTIONAL = Limits(1.0, 0.0)  # ... a failed check the gate does not require warns
+
+
+def transfer_checks(subject: str, gate: Mapping | None) -> list[QualityCheck]:
+    """One `policy` row per scenario check of a transferred policy's gate (`pipeline.stages.transfer`:
+    `checks` name -> {pass, required}): value 1 passed, 0 failed; a failed required check is `fail`,
+    a failed one the gate does not require (its source policy fails it too) `warn`, an unjudged one
+    `warn`. No gate (a committed policy, or none at all): no rows."""
+    if not gate:
+        return []
+    source = (f"fine-tuned from {gate.get('source')} (distance {gate.get('distance')}, "
+              f"{gate.get('steps')} steps)")
+    out = []
+    for name, c in (gate.get("checks") or {}).items():
+        ok = c.get("pass")
+        value = None if ok is None else float(bool(ok))
+        limits = GATE_LIMITS_REQUIRED if c.get("required") else GATE_LIMITS_OPTIONAL
+        what = "required by the transfer gate" if c.get("required") else "not required (its source fails it)"
+        out.append(check(subject, "policy", name, value, limits, f"{source}; {what}", higher_is_worse=False))
+    if not out:
+        out.append(check(subject, "policy", "transfer_gate", float(bool(gate.get("pass"))),
+                         GATE_LIMITS_REQUIRED, f"{source}; no scenario check judged", higher_is_worse=False))
     return out

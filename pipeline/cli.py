@@ -139,6 +139,17 @@ def cmd_train(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_transfer(args: argparse.Namespace) -> int:
+    from pipeline.stages.transfer import run_transfer
+
+    rec = run_transfer(args.subject, load_params(args.params), args.root or PROCESSED_ROOT,
+                       steps=args.steps, max_wall_s=args.max_wall_s)
+    verdict = "passed" if rec["pass"] else f"FAILED ({', '.join(rec['failed']) or 'no check required'})"
+    print(f"{args.subject}: fine-tuned from {rec['source']} (distance {rec['distance']}) for {rec['steps']} "
+          f"steps, {rec['wall_s']:.0f} s; gate {verdict}", file=sys.stderr)
+    return 0
+
+
 def cmd_evaluate_policy(args: argparse.Namespace) -> int:
     from pipeline.commands.evaluate_policy import evaluate_policy
 
@@ -404,6 +415,16 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--variant", default="healthy", help="fine-tune a cohort variant (params cohort) from "
                        "the subject's own policy into data/policies/<subject>/cohort/<variant>/")
     train.set_defaults(func=cmd_train)
+
+    transfer = commands.add_parser("transfer", help="a policy for a subject without one: fine-tune the "
+                                   "nearest committed policy and gate it (params transfer)")
+    transfer.add_argument("subject")
+    transfer.add_argument("--steps", type=int, help="env steps (default: params transfer.steps)")
+    transfer.add_argument("--max-wall-s", type=float, help="fine-tuning time limit (default: params "
+                          "transfer.max_wall_s)")
+    transfer.add_argument("--root", type=Path, help="<root>/<subject>/{model,real} in "
+                          "(default: data/processed)")
+    transfer.set_defaults(func=cmd_transfer)
 
     evaluate = commands.add_parser("evaluate-policy", help="issue-6 checks of the trained walking policy")
     evaluate.add_argument("subject")

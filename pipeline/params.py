@@ -41,6 +41,7 @@ from sim.body.balance_loss import BalanceLoss
 from sim.body.human_params import HumanParams
 from sim.body.variant import HEALTHY, Variant, variant_from_dict
 from sim.errors import SimulationError
+from sim.learn.transfer import FeatureWeights
 from sim.motion.reference import ReferenceParams
 from sim.motion.replay import ReplayParams
 from sim.motion.retarget import RetargetParams
@@ -91,6 +92,7 @@ class ReportParams:
     event_scenarios: dict[str, str] = field(default_factory=lambda: {"start": "walk_10m", "turn": "turn_90",
                                                                      "stop": "walk_10m"})
     caught_drop_m: float = 0.22  # fall intervention: robot.fall.drop_m + fall_intervention.caught_margin_m
+    paper_scenario: str = "walk_10m"  # the scenario the paper tables and findings come from (scenarios.paper)
 
 
 @dataclass(frozen=True)
@@ -829,6 +831,42 @@ class TuneSchema(Schema):
         return ObjectiveWeights(self.force_weight_m_per_n, self.gait_weight_m, self.fall_penalty_m)
 
 
+# transfer: a policy for every subject without a committed one
+
+class FeatureWeightsSchema(Schema):
+    height: Annotated[float, Field(ge=0.0)]
+    mass: Annotated[float, Field(ge=0.0)]
+    leg_length: Annotated[float, Field(ge=0.0)]
+    speed: Annotated[float, Field(ge=0.0)]
+
+    @model_validator(mode="after")
+    def _some(self) -> FeatureWeightsSchema:
+        if not any(v > 0 for _, v in self):
+            raise ValueError("at least one weight must be positive")
+        return self
+
+    def build(self) -> FeatureWeights:
+        return FeatureWeights(**self.model_dump())
+
+
+class TransferBenchSchema(Schema):
+    subject: str
+    max_wall_s: Annotated[float, Field(gt=0.0)]
+
+
+class TransferSchema(Schema):
+    """`transfer@<subject>` (pipeline/stages/transfer.py): fine-tune the nearest committed policy."""
+
+    subjects: tuple[str, ...]   # every subject of `subjects` without a committed policy (train.subjects)
+    steps: Annotated[int, Field(ge=1)]
+    chunk_steps: Annotated[int, Field(ge=1)]
+    max_wall_s: Annotated[float, Field(gt=0.0)]
+    gate_seeds: Annotated[int, Field(ge=1)]
+    gate: Literal["source", "all"]
+    weights: FeatureWeightsSchema
+    bench: TransferBenchSchema
+
+
 class Params(Schema):
     """The whole params.yaml."""
 
@@ -850,6 +888,7 @@ class Params(Schema):
     tune: TuneSchema
     cohort: CohortSchema
     fall_intervention: FallInterventionSchema
+    transfer: TransferSchema
 
     _path: Path = PrivateAttr(default=PARAMS_FILE)
 
@@ -882,6 +921,9 @@ class Params(Schema):
         for name in self.tune.search:
             if name not in controllers:
                 raise ValueError(f"tune.search.{name}: no controller {name!r} in robot.controllers")
+        for name in self.transfer.subjects:
+            if name in self.train.subjects:
+                raise ValueError(f"transfer.subjects: {name!r} has a committed policy (train.subjects)")
         scenario_lists = (("sweep.scenarios", self.sweep.scenarios), ("tune.scenarios", self.tune.scenarios))
         for key, names in scenario_lists:
             for name in names:
@@ -904,11 +946,13 @@ class Params(Schema):
                                       variant=self.variant(variant)))
 
     def report_params(self) -> ReportParams:
-        """`report`, with the fall-intervention caught threshold (`FallInterventionSchema.rule`)."""
+        """`report`, with the fall-intervention caught threshold (`FallInterventionSchema.rule`) and
+        the paper's scenario (`scenarios.paper`)."""
         from dataclasses import replace
 
         rule = self.fall_intervention.rule(self.robot.fall.drop_m)
-        return replace(self.report.build(), caught_drop_m=rule.caught_drop_m)
+        return replace(self.report.build(), caught_drop_m=rule.caught_drop_m,
+                       paper_scenario=self.scenarios.paper.scenario)
 
     def variant(self, name: str) -> Variant:
         """Cohort variant `name` (`healthy`: nothing changed); `ParamsError` lists the declared ones."""

@@ -1,4 +1,4 @@
 """`python -m pipeline bench`: speed and memory targets as ratios measured in one run."""
 
 # bench.json sections, in run order
-SECTIONS = ("ingest", "retarget", "human", "store", "rollout", "policy_rollout", "sweep", "train")
+SECTIONS = ("ingest", "retarget", "human", "store", "rollout", "policy_rollout", "sweep", "train", "transfer")

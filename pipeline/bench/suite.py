@@ -158,7 +158,8 @@ def run_bench(params: Params, repeat: int = 5, sections: tuple[str, ...] = SECTI
     """The benchmark sections asked for, each with its own `targets` and `meets_targets`:
     ingest (`TARGETS`), retarget (`RETARGET_TARGETS`), human (no target: the physical limit that
     rollouts are compared to), store (`STORE_TARGETS`), rollout and policy_rollout (ratio to raw
-    `mj_step`), sweep (Ray: parallel efficiency, overhead per job), train (ratio to Humanoid-v5)."""
+    `mj_step`), sweep (Ray: parallel efficiency, overhead per job), train (ratio to Humanoid-v5),
+    transfer (steps and wall time to a gate-passing transferred policy, `transfer.bench`)."""
     unknown = sorted(set(sections) - set(SECTIONS))
     if unknown:
         raise ValueError(f"unknown bench sections {unknown} (known: {', '.join(SECTIONS)})")
@@ -186,6 +187,10 @@ def run_bench(params: Params, repeat: int = 5, sections: tuple[str, ...] = SECTI
             from pipeline.bench.train import TRAIN_TARGETS, time_training
 
             section, targets = time_training(params), TRAIN_TARGETS
+        elif name == "transfer":
+            from pipeline.bench.transfer import TRANSFER_TARGETS, time_transfer
+
+            section, targets = time_transfer(params), TRANSFER_TARGETS
         else:
             from pipeline.bench.rollout import run_rollout_bench
 

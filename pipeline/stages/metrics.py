@@ -38,7 +38,7 @@ from metrics import (
 )
 from metrics.errors import MetricsError
 from metrics.phases import event_traces, phase_table
-from metrics.quality import TrialSpan, ingest_checks, quality_table, scale_checks, sim_checks
+from metrics.quality import TrialSpan, ingest_checks, quality_table, scale_checks, sim_checks, transfer_checks
 from metrics.sampling import paper_inputs, paper_strides
 from metrics.tracking import TRACKING_COLUMNS, tracking_table
 from pipeline.params import MetricsParams, Params
@@ -186,7 +186,8 @@ def trial_spans(subject: str) -> list[TrialSpan] | None:
 def quality_checks(subject: str, params: Params, root: Path = PROCESSED_ROOT,
                    spans: list[TrialSpan] | None = None) -> pd.DataFrame:
     """The subject's quality gates (`QUALITY_COLUMNS`) from what the earlier stages wrote
-    (`spans`: the raw files' time columns, read with `trial_spans` when None)."""
+    (`spans`: the raw files' time columns, read with `trial_spans` when None); a transferred
+    policy's gate comes from the policy rollouts' summary (`sim_policy/summary.json`)."""
     q = params.quality.build()
     model = _read_json(model_dir(root, subject) / "model.json")
     reference = _read_json(model_dir(root, subject) / "reference.json")
@@ -198,11 +199,13 @@ def quality_checks(subject: str, params: Params, root: Path = PROCESSED_ROOT,
         paper = params.scenarios.paper
         table_strides = paper_strides(policy[policy["scenario"] == paper.scenario], paper.cycles_per_walk)
     sims["policy"] = table_strides if table_strides is not None else policy
+    policy_summary = _read_json(sim_policy_dir(root, subject) / "summary.json") or {}
     checks = [*scale_checks(subject, model, reference, q),
               *ingest_checks(subject, real["events"], real["cycles"],
                              spans if spans is not None else trial_spans(subject),
                              params.metrics.spm.min_cycles, q),
-              *sim_checks(subject, real["strides"], sims, table_strides, q)]
+              *sim_checks(subject, real["strides"], sims, table_strides, q),
+              *transfer_checks(subject, policy_summary.get("transfer"))]
     return quality_table(checks)
 
 

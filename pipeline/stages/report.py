@@ -5,11 +5,11 @@ published values (`data/paper/wang2025.yaml`, `load_paper`), the published clini
 (`data/paper/clinical_ranges.yaml`, `load_clinical_ranges`) and each subject's policy evaluation
 (`data/policies/<subject>/evaluation.json`, when present), and writes:
 - `reports/<subject>/report.md`, opening with its quality gates (`quality_latest`, failed and warned
-  first), then Tables I-III (Real, Sim and the paper's published columns),
-  the per-phase compliance table, the policy checks, SPM clusters, controller tuning, the virtual
-  cohort (each variant's gait beside the clinical ranges, and with each controller) and the fall
-  intervention (scripted balance losses and false alarms), with the figures of `subject_figures` in
-  `reports/<subject>/figures/`;
+  first; one line before them says whether a transferred policy passed its gate), then Tables I-III
+  (Real, Sim and the paper's published columns), the per-phase compliance table, the policy checks,
+  SPM clusters, controller tuning, the virtual cohort (each variant's gait beside the clinical
+  ranges, and with each controller) and the fall intervention (scripted balance losses and false
+  alarms), with the figures of `subject_figures` in `reports/<subject>/figures/`;
 - `reports/summary.md` and `reports/index.html`: every subject's figures first (`FIGURES`), then the
   tables side by side (the subjects' table with each one's worst quality status, coloured in the
   index), linking the per-subject reports.
@@ -33,6 +33,7 @@ from matplotlib.figure import Figure
 from pydantic import BaseModel, ConfigDict, Field, RootModel, ValidationError, model_validator
 
 from ingest.errors import GaitloopError
+from metrics.findings import compliance_findings, speed_findings, variability_findings
 from metrics.plots import (
     EVENT_ORDER,
     ROBOT_CONDITIONS,
@@ -383,6 +384,23 @@ def quality_rows(q: pd.DataFrame) -> tuple[list[str], list[list[str]]]:
     return header, rows
 
 
+def transfer_lines(q: pd.DataFrame) -> list[str]:
+    """What the report says first about a transferred policy (the `policy` quality rows of its gate,
+    `metrics.quality.transfer_checks`): whether its policy human passed, and if not which required
+    checks failed and that it has replay rows only. Nothing for a committed policy."""
+    gate = q[q["stage"] == "policy"] if not q.empty else q
+    if gate.empty:
+        return []
+    origin = str(gate["note"].iloc[0]).split("; ")[0]  # "fine-tuned from S (distance d, n steps)"
+    failed = gate[gate["status"] == "fail"]["check"].tolist()
+    if failed:
+        return [f"**Policy human: transfer gate FAILED.** The policy {origin} failed {len(failed)} required "
+                f"check(s): {', '.join(failed)}. This subject has replay rows only; the `policy` rows of the "
+                "quality gates below list every check.", ""]
+    return [f"**Policy human:** {origin}; its transfer gate passed (the `policy` rows of the quality gates "
+            "below).", ""]
+
+
 def _of(df: pd.DataFrame, subject: str) -> pd.DataFrame:
     return df[df["subject"] == subject] if "subject" in df.columns else df.iloc[0:0]
 
@@ -474,6 +492,7 @@ def subject_report(subject: str, data: dict[str, pd.DataFrame], reports: Path = 
         lines += [f"**Round trip:** this subject's \"recorded\" trials are {s['round_trip_of']}'s simulated "
                   "trials, exported as OpenSim files and robot logs (`python -m pipeline export`) and read "
                   "back; its Real columns test the pipeline, not a person.", ""]
+    lines += transfer_lines(_of(data["quality"], subject))
     header, rows = quality_rows(_of(data["quality"], subject))
     gates = [md_table(header, rows)] if rows else [NO_GATES, ""]
     lines += ["## Quality gates", "", *gates,
@@ -493,6 +512,8 @@ def subject_report(subject: str, data: dict[str, pd.DataFrame], reports: Path = 
             lines += ["No robot data for this subject yet (Table I needs simulated robot tables).", ""]
     lines += [paper.note(), ""]
 
+    lines += findings_lines(_of(data["phases"], subject), _of(data["table2"], subject),
+                            _of(data["table3"], subject), paper, p.paper_scenario)
     title, build = TABLES["phases"]
     lines += [f"## {title}", "", md_table(*build(_of(data["phases"], subject), paper))]
     lines += ["## Policy human checks (evaluate-policy)", "", *policy_check_lines(evaluation)]
@@ -515,6 +536,31 @@ def subject_report(subject: str, data: dict[str, pd.DataFrame], reports: Path = 
     with replacing(path) as (temp,):
         temp.write_text("\n".join(lines))
     return path
+
+
+FINDING_PHASES = ("start", "steady", "stop")  # the walk_10m phases the compliance findings are read in
+
+
+def findings_lines(phases: pd.DataFrame, table2: pd.DataFrame, table3: pd.DataFrame, paper: PaperValues,
+                   scenario: str) -> list[str]:
+    """The paper's findings beside this subject's simulation (metrics/findings.py): the policy human
+    where it has rows, else the replay human; each with the paper's simulated numbers."""
+    modes = set(phases["human_mode"]) | set(table2["sim_human_mode"].dropna())
+    mode = "policy" if "policy" in modes else "replay"
+    paper_ex = {c: (v["sim"].mean_abs_ex_cm, v["sim"].mean_abs_ey_cm) for c, v in paper.table1.items()
+                if "sim" in v}
+    paper_speed = {c: v["sim"].gait_speed_mps[0] for c, v in paper.table2.items() if "sim" in v}
+    paper_sd = {c: v["sim"] for c, v in paper.table3.items() if "sim" in v}
+    found = [*compliance_findings(phases[phases["human_mode"] == mode], scenario, FINDING_PHASES, paper_ex),
+             *speed_findings(table2[table2["sim_human_mode"] == mode], paper_speed),
+             *variability_findings(table3[table3["sim_human_mode"] == mode], paper_sd)]
+    rows = [[f.claim, f.paper, f.measured, f.verdict] for f in found]
+    return [f"## The paper's findings beside this simulation ({mode} human)", "",
+            "Each finding of the paper (its own participant, simulated) against this subject's simulation: "
+            f"compliance per phase of {scenario} (mean ± 95 % CI over walks), gait speed over kept strides "
+            "(± 1.96 SD / sqrt(n), strides taken as independent), inter-cycle SD on the means alone. "
+            "Reported as measured; nothing was tuned toward them.", "",
+            md_table(["Finding (paper)", "Paper sim", "This simulation (a vs b)", "Verdict"], rows)]
 
 
 def _gains(doc) -> str:

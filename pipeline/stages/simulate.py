@@ -29,6 +29,7 @@ from metrics.tracking import tracking_table
 from pipeline import paths
 from pipeline.params import Params
 from pipeline.stages.outputs import write_figure, write_outputs
+from pipeline.stages.transfer import gate_failed, gate_summary, read_gate
 from sim.body.variant import HEALTHY
 from sim.errors import SimulationError
 from sim.motion.reference import load_reference
@@ -197,13 +198,19 @@ def run_simulate_policy(subject: str, params: Params, root: Path = paths.PROCESS
                         policy_root: Path = paths.POLICIES_ROOT, progress: bool = True) -> dict:
     """Policy-human rollouts of every scenario x condition x walk -> `<root>/<subject>/sim_policy/`
     (events, strides, cycles, robot tagged with scenario and phase; summary.json). A subject without
-    a trained policy gets empty tables and a summary that says so."""
+    a trained policy, or whose transferred policy failed its gate (`pipeline.stages.transfer`), gets
+    empty tables and a summary that says so; a transferred policy's gate goes into the summary
+    (`transfer`), which the metrics stage turns into quality rows."""
     folder = paths.policy_dir(policy_root, subject)
     out = paths.sim_policy_dir(root, subject)
-    if not folder.exists():
+    gate = read_gate(folder)
+    transfer = {} if gate is None else {"transfer": gate_summary(gate)}
+    if not folder.exists() or gate_failed(gate):
         empty = {name: pd.DataFrame() for name in ("events", "strides", "cycles", "robot")}
-        summary = {"human_mode": "policy", "rollouts": 0,
-                   "note": f"no trained policy in {folder}: run `python -m pipeline train {subject}`"}
+        note = (f"no trained policy in {folder}: run `python -m pipeline train {subject}`" if gate is None
+                else f"the policy fine-tuned from {gate.get('source')} failed its transfer gate "
+                f"({', '.join(gate.get('failed', [])) or 'no check required'}): replay rows only")
+        summary = {"human_mode": "policy", "rollouts": 0, "note": note, **transfer}
         write_outputs(out, empty, {"summary": summary})
         return summary
     from sim.learn.train import load_body
@@ -223,7 +230,7 @@ def run_simulate_policy(subject: str, params: Params, root: Path = paths.PROCESS
                                                          and o.job.human.scenario == name)
                                      for name in params.scenarios.commands
                                      for c in params.rollout.conditions},
-               "phase_agreement": agreement}
+               "phase_agreement": agreement, **transfer}
     write_outputs(out, tables, {"summary": summary})
     return summary
 

@@ -17,7 +17,8 @@ from sim.learn.train import POLICY_FILE, train, train_on_ray
 from sim.motion.reference import load_reference
 
 
-def _inputs(subject: str, root: Path) -> tuple[Path, Path]:
+def train_inputs(subject: str, root: Path) -> tuple[Path, Path]:
+    """The scaled human and reference motion a policy of `subject` trains on (checked to exist)."""
     xml, npz = paths.human_xml(root, subject), paths.reference_npz(root, subject)
     for f in (xml, npz):
         if not f.exists():
@@ -49,7 +50,7 @@ def run_train(subject: str, params: Params, *, n_envs: int | None, threads: int 
         start = paths.policy_dir(out_root, init_from)
         if not (start / POLICY_FILE).exists():
             raise SimulationError(start, f"no trained policy of {init_from!r} to start {subject}'s from")
-    xml, npz = _inputs(subject, root)
+    xml, npz = train_inputs(subject, root)
     cycle = load_reference(npz).cycle
     command = "python -m pipeline train " + " ".join(sys.argv[2:]) if sys.argv[1:2] == ["train"] else ""
     kwargs = {"n_envs": n_envs, "threads": threads, "total_steps": steps, "resume": resume,

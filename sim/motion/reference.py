@@ -383,9 +383,13 @@ class Reference:
         return out
 
     def rate_hz(self, trial: str) -> float:
-        """Sampling rate of one retargeted trial (its median sample period)."""
+        """Sampling rate of one retargeted trial (its median sample period), snapped to 0.01 Hz when the
+        file's time column is rounded (kgc6 writes 120 Hz as 0.008333 s steps: 120.0048 Hz, whose
+        common period with the control rate, `sim.rollout.world.step_grid`, is a 1e-7 s physics step)."""
         time_s, _ = self.motion(trial)
-        return float(1.0 / np.median(np.diff(time_s)))
+        rate = float(1.0 / np.median(np.diff(time_s)))
+        snapped = round(rate, 2)
+        return rate if abs(rate - snapped) < 1e-6 else snapped
 
     def motion(self, trial: str) -> tuple[np.ndarray, np.ndarray]:
         """(time_s, qpos) of one retargeted trial."""

@@ -13,7 +13,7 @@ import yaml
 from ingest.canonical import load_trial
 from ingest.errors import SubjectError
 from ingest.manifest import Manifest, Source, sha256_of
-from ingest.markersets import load_markerset, pick_markerset, shipped_markersets
+from ingest.markersets import load_markerset, pick_markerset, shipped_markersets, with_derived
 from ingest.process import landmarks, process_trial
 from ingest.readers import read_markers
 from ingest.readers.trc import write_trc
@@ -33,6 +33,7 @@ EXPECTED = {
     "lenhart2015_opensim-jam/models/lenhart2015/motion_data/overground_17.trc": "lenhart2015",
     "kgc6_DM_jam-resources/models/knee_tka/grand_challenge/DM/experimental_data/motion_analysis/"
     "DM_ngait_og1_new.trc": "kgc6",
+    "falisse2019_3dpredictsim/OpenSimModel/subject2/TRC/gait_14.trc": "falisse2019",
 }
 
 
@@ -91,13 +92,18 @@ def test_auto_pick_on_the_real_files(key):
     assert pick_markerset(read_markers(path).names, path) == EXPECTED[key]
 
 
-def test_no_fitting_set_lists_the_missing_roles():
+def test_no_fitting_set_lists_the_missing_roles(tmp_path):
+    """falisse2019's walks (unnamed foot markers foot_l1..10) against the shipped sets without its own."""
     path = DATA / "falisse2019_3dpredictsim/OpenSimModel/subject2/TRC/gait_14.trc"
     if not path.is_file():
         pytest.skip(f"{path} not in the data mirror")
+    sets = ROOT / "data/markersets"
+    for name in shipped_markersets():
+        if name != "falisse2019":
+            (tmp_path / f"{name}.yaml").write_text((sets / f"{name}.yaml").read_text())
     with pytest.raises(SubjectError, match=r"gait_14\.trc.*no shipped marker set fits.*plugin_gait lacks "
                        r"heel_left \(LHEE\), heel_right \(RHEE\), toe_left \(LTOE\)"):
-        pick_markerset(read_markers(path).names, path)
+        pick_markerset(read_markers(path).names, path, tmp_path)
 
 
 def test_sacral_psis_derived_back_on_camargo(tmp_path, camargo, ingest_params):
@@ -143,3 +149,25 @@ def test_keypoint_pelvis_gives_back_the_hip_centres(tmp_path):
     assert np.allclose(hjc["left"], markers["LHip"], atol=1e-6)
     assert np.allclose(hjc["right"], markers["RHip"], atol=1e-6)
     assert np.all(lm["asis_left"][:, 2] > lm["psis_left"][:, 2] - 0.1)
+
+
+def test_cluster_derivation_places_a_point_fixed_in_the_cluster(tmp_path):
+    """`derive: cluster` (kgc6_clusters.yaml): the offset in the frame origin A, x toward B, z normal to
+    ABC, carried through a rotation of the cluster; an input written as (0, 0, 0) is a gap."""
+    doc = yaml.safe_load((ROOT / "data/markersets/kgc6.yaml").read_text())
+    doc["knee_left"] = {"derive": "cluster", "markers": ["A", "B", "C"], "offset_m": [0.1, 0.02, -0.03]}
+    ms = load_markerset(str(_write_set(tmp_path / "cl.yaml", doc)))
+    turn = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])  # 90 deg about z
+    pts = {"A": np.array([[1.0, 2.0, 0.5]] * 2), "B": np.array([[1.0, 2.0, 0.2]] * 2),
+           "C": np.array([[1.1, 2.0, 0.4]] * 2)}
+    pts = {k: np.vstack([v[:1], (turn @ v[1])[None]]) for k, v in pts.items()}
+    pts["A"] = np.vstack([pts["A"], [[0.0, 0.0, 0.0]]])
+    pts["B"], pts["C"] = (np.vstack([v, v[-1:]]) for v in (pts["B"], pts["C"]))
+    knee = with_derived(pts, ms)[ms["knee_left"]]
+    # frame of the first sample: x down (-z), z = x cross (C - A) = -y, y = z cross x = +x (lab)
+    assert np.allclose(knee[0], [1.0 + 0.02, 2.0 + 0.03, 0.5 - 0.1])
+    assert np.allclose(knee[1], turn @ knee[0])
+    assert np.isnan(knee[2]).all()
+    with pytest.raises(SubjectError, match=r"knee_left: derive cluster gives a role from"):
+        doc["knee_left"] = {"derive": "cluster", "markers": ["A", "B"], "offset_m": [0.1, 0.0, 0.0]}
+        load_markerset(str(_write_set(tmp_path / "bad.yaml", doc)))

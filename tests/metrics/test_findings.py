@@ -29,6 +29,7 @@ def test_compliance_findings_follow_the_measured_direction():
     assert ex.result == "higher" and ex.verdict == "disagrees"  # adaptive above pid: not the paper's finding
     assert ey.result == "no difference" and "no difference" in ey.verdict
     assert "0.70 vs 7.65" in ex.paper and "1.53 ± 0.09 vs 0.78 ± 0.06" in ex.measured
+    assert not any("|" in text for f in (ex, ey) for text in (f.claim, f.paper, f.measured, f.verdict))
     missing = compliance_findings(phases, "walk_10m", ("stop",), {})
     assert all(f.verdict == "not measured" for f in missing)
 

@@ -1,0 +1,243 @@
+"""Stage `transfer <subject>`: a walking policy for a subject without a committed one.
+
+Picks the committed policy (params `train.subjects`) whose body and gait are nearest the subject's
+(`sim.learn.transfer`: height, mass, leg length, preferred speed; weighted RMS of log ratios),
+fine-tunes it on the subject's scaled human and reference cycle (`sim.learn.train.train` with
+`init_from`, as `train --init-from` does) in chunks of `transfer.chunk_steps`, and gates it after
+each chunk, until it passes or `transfer.steps` / `transfer.max_wall_s` are spent. The gate is
+`evaluate-policy` (pipeline/commands/evaluate_policy.py) with `transfer.gate_seeds` walks per check,
+judged on its scenario checks (metrics/scenario_checks.py). `transfer.gate:
+source` requires every scenario check the source policy passes in its own `evaluation.json` (a
+transfer must not be worse than where it started; the committed policies fail the walk_10m, turn
+and speed-change checks today), `all` every scenario check. It passes when at least one check is
+required and all required ones pass.
+
+Outputs, all-or-nothing (built in a temporary folder beside it, then moved into place):
+`data/policies/<subject>/` as `train` writes it, plus `evaluation.json` (the gate's evaluate-policy
+result) and `transfer.json` (the gate record, `GATE_FILE`). A failed gate keeps the fine-tuned
+policy for inspection, but `simulate --human policy` does not use it (`usable_policy`): the subject
+keeps replay rows only, and the metrics stage turns the gate into `policy` quality rows.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from pipeline import paths
+from pipeline.params import Params
+
+if TYPE_CHECKING:
+    from sim.learn.transfer import BodyFeatures, NearestPolicy
+
+GATE_FILE = "transfer.json"          # in the policy folder: the gate record
+EVALUATION_FILE = "evaluation.json"  # in the policy folder: its evaluate-policy result
+SCENARIO_PREFIX = "scenario_"        # evaluate-policy's names of the scenario checks
+
+
+def read_gate(folder: Path) -> dict | None:
+    """The transfer gate record of a policy folder (None: no transfer, e.g. a committed policy)."""
+    f = Path(folder) / GATE_FILE
+    return json.loads(f.read_text()) if f.is_file() else None
+
+
+def gate_failed(gate: dict | None) -> bool:
+    """A transfer gate record that did not pass (None, no transfer: False)."""
+    return gate is not None and not gate.get("pass")
+
+
+def usable_policy(folder: Path) -> bool:
+    """A policy the policy human may use: trained, and not one whose transfer gate failed."""
+    from sim.learn.train import POLICY_FILE
+
+    return (Path(folder) / POLICY_FILE).is_file() and not gate_failed(read_gate(folder))
+
+
+def gate_summary(gate: dict) -> dict:
+    """What the rollouts' summary (and so the quality rows) carries of a gate record."""
+    keys = ("source", "distance", "pass", "failed", "checks", "steps", "wall_s", "gate")
+    return {k: gate[k] for k in keys if k in gate}
+
+
+# -- choosing the source ----------------------------------------------------------------------------
+
+def subject_features(subject: str, root: Path) -> BodyFeatures:
+    """The subject's scaled human (`scale`) at its reference cycle's speed (`reference`)."""
+    from pipeline.stages.train import train_inputs
+    from sim.learn.transfer import body_features
+    from sim.motion.reference import load_reference
+
+    xml, npz = train_inputs(subject, root)
+    return body_features(xml, load_reference(npz).cycle.speed_mps)
+
+
+def policy_features(folder: Path) -> BodyFeatures:
+    """A trained policy's body and reference cycle (the ones it was trained on)."""
+    from sim.learn.train import load_body
+    from sim.learn.transfer import body_features
+
+    xml, cycle = load_body(folder)
+    return body_features(xml, cycle.speed_mps)
+
+
+def choose_source(subject: str, params: Params, root: Path = paths.PROCESSED_ROOT,
+                  policy_root: Path = paths.POLICIES_ROOT) -> tuple[NearestPolicy, dict[str, BodyFeatures]]:
+    """The nearest committed policy (`train.subjects` with a policy in `policy_root`) and the features
+    of the subject (key `subject`) and of every candidate."""
+    from sim.errors import SimulationError
+    from sim.learn.train import POLICY_FILE
+    from sim.learn.transfer import nearest_policy
+
+    committed = [s for s in params.train.subjects
+                 if s != subject and (paths.policy_dir(policy_root, s) / POLICY_FILE).is_file()]
+    if not committed:
+        raise SimulationError(policy_root, f"no committed policy of {', '.join(params.train.subjects)} to "
+                              f"start {subject}'s from")
+    features = {s: policy_features(paths.policy_dir(policy_root, s)) for s in committed}
+    target = subject_features(subject, root)
+    return nearest_policy(target, features, params.transfer.weights.build()), {subject: target, **features}
+
+
+# -- fine-tuning and the gate -----------------------------------------------------------------------
+
+def fine_tune(subject: str, params: Params, out_dir: Path, *, steps: int, max_wall_s: float | None,
+              init_from: Path | None, root: Path = paths.PROCESSED_ROOT, progress: bool = True) -> dict:
+    """Fine-tune into `out_dir`: from the policy in `init_from`, or (None) on from `out_dir`'s own
+    (resume; `steps` then counts the total). Returns `sim.learn.train.train`'s progress record."""
+    from pipeline.stages.train import train_inputs
+    from sim.learn.train import train
+    from sim.motion.reference import load_reference
+
+    xml, npz = train_inputs(subject, root)
+    command = f"python -m pipeline transfer {subject}"
+    return train(xml, load_reference(npz).cycle, params.train_params(), out_dir, total_steps=steps,
+                 max_wall_s=max_wall_s, resume=init_from is None, init_from=init_from, progress=progress,
+                 command=command)
+
+
+def gate_params(params: Params, seeds: int) -> Params:
+    """`params` with `seeds` walks per evaluate-policy check (free, controllers, push and scenarios)."""
+    ev = params.evaluate_policy
+    ev = ev.model_copy(update={"n_seeds": seeds,
+                               "scenario_checks": ev.scenario_checks.model_copy(update={"seeds": seeds})})
+    return params.model_copy(update={"evaluate_policy": ev})
+
+
+def required_checks(params: Params, source_evaluation: dict | None) -> set[str] | None:
+    """The scenario checks the gate requires: those the source passes (`transfer.gate: source`, when
+    its evaluation is known), else None (every scenario check)."""
+    if params.transfer.gate == "all" or source_evaluation is None:
+        return None
+    checks = source_evaluation.get("checks", {})
+    return {k for k, ok in checks.items() if k.startswith(SCENARIO_PREFIX) and ok}
+
+
+def judge(checks: dict[str, bool | None], required: set[str] | None) -> dict:
+    """The gate over evaluate-policy's `checks`: each scenario check with its result and whether it
+    is required; `failed` the required ones that did not pass; `pass` when at least one check is
+    required and none failed."""
+    judged = {name: {"pass": ok, "required": required is None or name in required}
+              for name, ok in checks.items() if name.startswith(SCENARIO_PREFIX)}
+    needed = [n for n, c in judged.items() if c["required"]]
+    failed = [n for n in needed if judged[n]["pass"] is not True]
+    return {"pass": bool(needed) and not failed, "failed": failed, "checks": judged,
+            "not_evaluated": sorted((required or set()) - set(judged))}
+
+
+def run_gate(subject: str, params: Params, policy_root: Path, required: set[str] | None, *,
+             root: Path = paths.PROCESSED_ROOT, reports: Path = paths.REPORTS_ROOT,
+             progress: bool = True) -> tuple[dict, dict]:
+    """(evaluate-policy's result with `transfer.gate_seeds` walks per check, the gate's verdict)."""
+    from pipeline.commands.evaluate_policy import evaluate_policy
+
+    doc = evaluate_policy(subject, gate_params(params, params.transfer.gate_seeds), root, policy_root,
+                          reports, progress)
+    return doc, judge(doc["checks"], required)
+
+
+def source_evaluation(folder: Path) -> dict | None:
+    """A policy folder's evaluate-policy result (`EVALUATION_FILE`), None when it has none."""
+    f = folder / EVALUATION_FILE
+    return json.loads(f.read_text()) if f.is_file() else None
+
+
+@dataclass(frozen=True)
+class Tuned:
+    """What `fine_tune_until_gate` did: env steps in all, chunks (each gated), seconds spent training
+    and gating, the last gate's evaluate-policy result and verdict (`judge`)."""
+
+    steps: int
+    rounds: int
+    train_wall_s: float
+    gate_wall_s: float
+    evaluation: dict
+    verdict: dict
+
+
+def fine_tune_until_gate(subject: str, params: Params, work_root: Path, source_dir: Path,
+                         required: set[str] | None, *, max_wall_s: float, root: Path = paths.PROCESSED_ROOT,
+                         reports: Path = paths.REPORTS_ROOT, progress: bool = True) -> Tuned:
+    """Fine-tune `subject`'s policy in `<work_root>/<subject>` from the one in `source_dir`, in chunks
+    of `transfer.chunk_steps`, gating after each, until the gate passes, `transfer.steps` are done
+    or `max_wall_s` is spent (the chunk running then stops; its gate still runs)."""
+    t = params.transfer
+    start = time.perf_counter()
+    steps, rounds, train_s, gate_s = 0, 0, 0.0, 0.0
+    while True:
+        left = max_wall_s - (time.perf_counter() - start)
+        t0 = time.perf_counter()
+        rec = fine_tune(subject, params, paths.policy_dir(work_root, subject),
+                        steps=min(steps + t.chunk_steps, t.steps), max_wall_s=max(left, 1.0),
+                        init_from=source_dir if rounds == 0 else None, root=root, progress=progress)
+        t1 = time.perf_counter()
+        steps, rounds, train_s = int(rec["steps"]), rounds + 1, train_s + t1 - t0
+        doc, verdict = run_gate(subject, params, work_root, required, root=root, reports=reports,
+                                progress=progress)
+        gate_s += time.perf_counter() - t1
+        if verdict["pass"] or steps >= t.steps or time.perf_counter() - start >= max_wall_s:
+            return Tuned(steps, rounds, round(train_s, 1), round(gate_s, 1), doc, verdict)
+
+
+def run_transfer(subject: str, params: Params, root: Path = paths.PROCESSED_ROOT,
+                 policy_root: Path = paths.POLICIES_ROOT, reports: Path = paths.REPORTS_ROOT, *,
+                 steps: int | None = None, max_wall_s: float | None = None, progress: bool = True) -> dict:
+    """Choose, fine-tune and gate, write `<policy_root>/<subject>/` (module docstring); returns the
+    gate record. `steps`, `max_wall_s`: override `transfer.steps` / `transfer.max_wall_s`."""
+    if steps:
+        params = params.model_copy(update={"transfer": params.transfer.model_copy(update={"steps": steps})})
+    t = params.transfer
+    start = time.perf_counter()
+    choice, features = choose_source(subject, params, root, policy_root)
+    source_dir = paths.policy_dir(policy_root, choice.source)
+    required = required_checks(params, source_evaluation(source_dir))
+    dest = paths.policy_dir(policy_root, subject)
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=dest.parent, prefix=f".{subject}.transfer-") as tmp:
+        tuned = fine_tune_until_gate(subject, params, Path(tmp), source_dir, required,
+                                     max_wall_s=max_wall_s or t.max_wall_s, root=root, reports=reports,
+                                     progress=progress)
+        record = {"subject": subject, "source": choice.source, "distance": round(choice.distance, 4),
+                  "distances": {k: round(v, 4) for k, v in choice.distances.items()},
+                  "features": {"subject": asdict(features[subject]),
+                               "source": asdict(features[choice.source])},
+                  "gate": t.gate, "gate_seeds": t.gate_seeds, "steps": tuned.steps, "rounds": tuned.rounds,
+                  "train_wall_s": tuned.train_wall_s, "gate_wall_s": tuned.gate_wall_s,
+                  "wall_s": round(time.perf_counter() - start, 1), **tuned.verdict}
+        work = paths.policy_dir(Path(tmp), subject)
+        (work / EVALUATION_FILE).write_text(json.dumps(tuned.evaluation, indent=2) + "\n")
+        (work / GATE_FILE).write_text(json.dumps(record, indent=2) + "\n")
+        if dest.exists():
+            shutil.rmtree(dest)
+        os.replace(work, dest)
+    return record
+
+
+__all__ = ["EVALUATION_FILE", "GATE_FILE", "Tuned", "choose_source", "fine_tune", "fine_tune_until_gate",
+           "gate_failed", "gate_params", "gate_summary", "judge", "read_gate", "required_checks", "run_gate",
+           "run_transfer", "source_evaluation", "usable_policy"]

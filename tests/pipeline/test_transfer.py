@@ -1,0 +1,245 @@
+"""transfer@<subject> (pipeline/stages/transfer.py): every subject without a committed policy gets one
+fine-tuned from the nearest committed policy, gated by evaluate-policy's scenario checks; a failed
+gate leaves replay rows only and `policy` fail rows in the quality table. Real files and MuJoCo,
+tiny budgets."""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+from dataclasses import replace
+from pathlib import Path
+
+import pandas as pd
+import pytest
+import yaml
+
+from metrics.quality import transfer_checks
+from pipeline.params import PARAMS_FILE, ParamsError, load_params
+from pipeline.stages.metrics import quality_checks, run_metrics
+from pipeline.stages.report import ReportParams, run_report, transfer_lines
+from pipeline.stages.simulate import run_simulate_policy
+from pipeline.stages.store import load_results
+from pipeline.stages.transfer import (
+    EVALUATION_FILE,
+    GATE_FILE,
+    choose_source,
+    judge,
+    policy_features,
+    read_gate,
+    required_checks,
+    run_transfer,
+    subject_features,
+    usable_policy,
+)
+from pipeline.store import StoreParams, query, store_results
+from sim.learn.train import BODY_FILE, CYCLE_FILE, NORM_FILE, POLICY_FILE, PROGRESS_FILE
+from sim.learn.transfer import BodyFeatures, FeatureWeights, feature_distance, nearest_policy
+
+REPO = Path(__file__).resolve().parents[2]
+TARGETS = ("lenhart2015", "moissenet_np1023", "moissenet_np1014")
+POLICY_FILES = (POLICY_FILE, NORM_FILE, "amp.pt", BODY_FILE, CYCLE_FILE, PROGRESS_FILE, EVALUATION_FILE)
+
+
+@pytest.fixture(scope="module")
+def processed(tmp_path_factory, params) -> Path:
+    """ingest, scale and reference of the bundled subjects without a committed policy (and camargo),
+    as `dvc repro` makes them, in a temporary root."""
+    from pipeline.stages.ingest import run_ingest
+    from pipeline.stages.reference import run_reference
+    from pipeline.stages.scale import run_scale
+
+    root, reports = tmp_path_factory.mktemp("processed"), tmp_path_factory.mktemp("reports")
+    for s in (*TARGETS, "camargo"):
+        run_ingest(s, params, root, progress=False)
+        run_scale(s, params, root, reports)
+        run_reference(s, params, root, reports, progress=False)
+    return root
+
+
+@pytest.fixture()
+def policies(tmp_path, policies_root) -> Path:
+    """A copy of the committed policies (the files a transfer reads) in a temporary root."""
+    root = tmp_path / "policies"
+    for s in ("camargo", "opencap4"):
+        (root / s).mkdir(parents=True)
+        for f in POLICY_FILES:
+            if (policies_root / s / f).is_file():
+                shutil.copy(policies_root / s / f, root / s / f)
+    return root
+
+
+# -- params ------------------------------------------------------------------------------------------
+
+def test_transfer_subjects_are_subjects_without_a_committed_policy(params):
+    assert set(params.transfer.subjects) <= set(params.subjects) - set(params.train.subjects)
+    assert len(set(params.transfer.subjects)) == len(params.transfer.subjects)
+
+
+def test_transfer_stage_depends_on_every_committed_policy(params):
+    stage = yaml.safe_load((REPO / "dvc.yaml").read_text())["stages"]["transfer"]
+    assert stage["foreach"] == "${transfer.subjects}"
+    assert {f"data/policies/{s}" for s in params.train.subjects} <= set(stage["do"]["deps"])
+
+
+def test_params_schema_accepts_the_transfer_section(params):
+    assert params.transfer.weights.build() == FeatureWeights()
+    assert params.transfer.gate in ("source", "all") and params.transfer.gate_seeds >= 1
+
+
+@pytest.mark.parametrize(("edit", "message"), [
+    (lambda t: t.update(gate_seeds=0),
+     r"params\.yaml: transfer\.gate_seeds: Input should be greater than or equal to 1 \(got 0\)$"),
+    (lambda t: t.update(max_wall_s="long"),
+     r"params\.yaml: transfer\.max_wall_s: Input should be a valid number"),
+    (lambda t: t.update(gate="some"), r"params\.yaml: transfer\.gate: Input should be 'source' or 'all'"),
+    (lambda t: t["weights"].pop("speed"), r"params\.yaml: transfer\.weights: missing key 'speed'$"),
+    (lambda t: t.update(subjects=["camargo"]),
+     r"params\.yaml: transfer\.subjects: 'camargo' has a committed policy \(train\.subjects\)$"),
+])
+def test_bad_transfer_params_name_params_yaml(tmp_path, edit, message):
+    document = yaml.safe_load(PARAMS_FILE.read_text())
+    edit(document["transfer"])
+    path = tmp_path / "params.yaml"
+    path.write_text(yaml.safe_dump(document, sort_keys=False))
+    with pytest.raises(ParamsError, match=message):
+        load_params(path)
+
+
+# -- the nearest policy -------------------------------------------------------------------------------
+
+def test_distance_is_the_rms_of_log_ratios():
+    a = BodyFeatures(1.7, 70.0, 0.85, 1.3)
+    assert feature_distance(a, a) == 0.0
+    scaled = BodyFeatures(1.7 * 1.1, 70.0 * 1.1, 0.85 * 1.1, 1.3 * 1.1)
+    assert feature_distance(scaled, a) == pytest.approx(math.log(1.1))
+    faster = replace(a, speed_mps=1.3 * 1.2)
+    assert feature_distance(faster, a) == pytest.approx(math.log(1.2) / 2)  # one of four features
+    assert feature_distance(faster, a, FeatureWeights(0.0, 0.0, 0.0, 1.0)) == pytest.approx(math.log(1.2))
+    near = nearest_policy(a, {"far": scaled, "near": faster})
+    assert near.source == "near" and list(near.distances) == ["near", "far"]
+
+
+def test_nearest_policy_of_the_bundled_subjects(processed, policies_root, params):
+    chosen = {s: choose_source(s, params, processed, policies_root) for s in TARGETS}
+    for s, (choice, features) in chosen.items():
+        assert set(choice.distances) == {"camargo", "opencap4"}
+        assert features[s].height_m == pytest.approx(yaml.safe_load(
+            (REPO / "data" / "subjects" / f"{s}.yaml").read_text())["height_m"], rel=0.03)
+        # opencap4 (1.68 m, 63 kg, 1.28 m/s) is nearer each of them than camargo (1.80 m, 75 kg, 1.84 m/s)
+        assert choice.source == "opencap4", (s, choice.distances)
+        assert choice.distances["camargo"] > 2 * choice.distance
+    # a subject's own scaled model and the body its committed policy was trained on agree
+    own = subject_features("camargo", processed)
+    assert feature_distance(own, policy_features(policies_root / "camargo")) < 0.02
+
+
+# -- the gate -----------------------------------------------------------------------------------------
+
+def test_gate_requires_what_the_source_passes(params):
+    source = {"checks": {"free_speed": True, "scenario_steady_free_no_fall": True,
+                         "scenario_walk_10m_free_no_fall": False}}
+    required = required_checks(params, source)
+    assert required == {"scenario_steady_free_no_fall"}
+    verdict = judge({"free_speed": False, "scenario_steady_free_no_fall": True,
+                     "scenario_walk_10m_free_no_fall": False}, required)
+    assert verdict["pass"] and verdict["failed"] == []
+    assert verdict["checks"]["scenario_walk_10m_free_no_fall"] == {"pass": False, "required": False}
+    assert "free_speed" not in verdict["checks"]  # the gate is the scenario checks
+    every = judge({"scenario_steady_free_no_fall": True, "scenario_walk_10m_free_no_fall": None}, None)
+    assert not every["pass"] and every["failed"] == ["scenario_walk_10m_free_no_fall"]
+    assert not judge({"scenario_steady_free_no_fall": False}, set())["pass"]  # nothing required: no pass
+
+
+def test_transfer_stage_writes_the_policy_and_the_gate_record(processed, policies, tmp_path, params):
+    subject = "lenhart2015"
+    fast = params.model_copy(update={"rollout": params.rollout.model_copy(update={"conditions": ("free",)})})
+    rec = run_transfer(subject, fast, processed, policies, tmp_path / "reports", steps=2048, progress=False)
+    folder = policies / subject
+    for f in (*POLICY_FILES, GATE_FILE):
+        assert (folder / f).is_file(), f
+    assert [p.name for p in policies.iterdir() if p.name.startswith(".")] == []  # the work folder is gone
+    gate = json.loads((folder / GATE_FILE).read_text())
+    assert gate == rec == read_gate(folder)
+    assert gate["source"] == "opencap4" and gate["distance"] == pytest.approx(gate["distances"]["opencap4"])
+    assert gate["steps"] >= 2048 and gate["rounds"] == 1 and gate["wall_s"] >= gate["train_wall_s"] > 0
+    assert gate["gate_seeds"] == params.transfer.gate_seeds
+    assert isinstance(gate["pass"], bool) and set(gate["failed"]) <= set(gate["checks"])
+    assert gate["checks"] and all(k.startswith("scenario_") for k in gate["checks"])
+    progress = json.loads((folder / PROGRESS_FILE).read_text())
+    assert progress["initialised_from"].endswith("opencap4")
+    evaluation = json.loads((folder / EVALUATION_FILE).read_text())
+    assert {f"scenario_{k}" for k in evaluation["scenarios"]["checks"]} == set(gate["checks"])
+    assert usable_policy(folder) == gate["pass"]
+
+    # a passed gate: simulate_policy uses the policy and its rows go on to the metrics
+    (folder / GATE_FILE).write_text(json.dumps({**gate, "pass": True, "failed": []}))
+    pid_only = params.rollout.model_copy(update={"conditions": ("pid",)})
+    with_pid = params.model_copy(update={"rollout": pid_only})
+    summary = run_simulate_policy(subject, with_pid, processed, policies, progress=False)
+    assert summary["rollouts"] > 0 and summary["transfer"]["pass"] is True
+    robot = pd.read_parquet(processed / subject / "sim_policy" / "robot.parquet")
+    assert not robot.empty and set(robot["human_mode"]) == {"policy"}
+
+
+def test_failed_gate_gives_fail_quality_rows_and_no_policy_rows(processed, policies, params, tmp_path):
+    subject = "lenhart2015"
+    folder = policies / subject
+    shutil.copytree(policies / "opencap4", folder)  # a trained policy ...
+    checks = {"scenario_steady_free_no_fall": {"pass": False, "required": True},
+              "scenario_walk_10m_free_no_fall": {"pass": False, "required": False},
+              "scenario_steady_pid_no_fall": {"pass": True, "required": True}}
+    gate = {"subject": subject, "source": "opencap4", "distance": 0.025, "steps": 4096, "wall_s": 30.0,
+            "gate": "source", "pass": False, "failed": ["scenario_steady_free_no_fall"], "checks": checks}
+    (folder / GATE_FILE).write_text(json.dumps(gate))  # ... whose transfer gate failed
+    assert not usable_policy(folder) and usable_policy(policies / "opencap4")
+
+    root = processed
+    summary = run_simulate_policy(subject, params, root, policies, progress=False)
+    assert summary["rollouts"] == 0 and summary["transfer"]["failed"] == gate["failed"]
+    assert "failed its transfer gate" in summary["note"]
+    for name in ("events", "strides", "cycles", "robot"):
+        assert pd.read_parquet(root / subject / "sim_policy" / f"{name}.parquet").empty  # no policy rows
+
+    q = quality_checks(subject, params, root)
+    rows = q[q["stage"] == "policy"].set_index("check")
+    assert rows.loc["scenario_steady_free_no_fall", "status"] == "fail"
+    assert rows.loc["scenario_walk_10m_free_no_fall", "status"] == "warn"  # its source fails it too
+    assert rows.loc["scenario_steady_pid_no_fall", "status"] == "ok"
+    assert set(rows[rows["status"] == "fail"].index) == set(gate["failed"])
+    assert "fine-tuned from opencap4" in rows.loc["scenario_steady_free_no_fall", "note"]
+    (line, _) = transfer_lines(q)
+    assert "transfer gate FAILED" in line and "scenario_steady_free_no_fall" in line
+    assert "replay rows only" in line
+
+    # through the metrics, store and report stages: fail rows stored, no policy rows, the report says so
+    run_metrics(subject, params, root, tmp_path / "metrics")
+    db = tmp_path / "results.duckdb"
+    store_results(db, [load_results(subject, tmp_path / "metrics")], StoreParams())
+    stored = query(db, "SELECT \"check\" FROM quality_latest WHERE stage = 'policy' AND status = 'fail'")
+    assert stored["check"].tolist() == gate["failed"]
+    modes = query(db, "SELECT DISTINCT human_mode FROM latest_versions")["human_mode"].tolist()
+    assert "policy" not in modes
+    (report,) = run_report([subject], [subject], db, tmp_path / "reports", False, ReportParams(dpi=40))
+    head = report.read_text().split("## Quality gates")[0]
+    assert "transfer gate FAILED" in head and "replay rows only" in head
+
+
+def test_no_gate_no_policy_rows():
+    assert transfer_checks("camargo", None) == []
+    assert transfer_lines(pd.DataFrame(columns=["stage", "check", "status", "note"])) == []
+
+
+def test_bench_section_reports_steps_wall_time_and_the_gate(processed, policies, params):
+    from pipeline.bench.transfer import TRANSFER_TARGETS, time_transfer
+
+    t = params.transfer.model_copy(update={"steps": 2048, "chunk_steps": 2048})
+    tiny = params.model_copy(update={"transfer": t, "rollout": params.rollout.model_copy(
+        update={"conditions": ("free",)})})
+    section = time_transfer(tiny, processed, policies, max_wall_s=60.0)
+    assert section["subject"] == params.transfer.bench.subject and section["source"] == "opencap4"
+    assert section["rounds"] == 1 and section["steps"] >= 2048  # transfer.steps ends it
+    assert section["wall_s"] >= section["train_wall_s"] + section["gate_wall_s"] > 0
+    assert section["gate_passed"] == (section["failed_checks"] == [])
+    assert set(TRANSFER_TARGETS) <= set(section)
