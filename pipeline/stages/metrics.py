@@ -52,7 +52,7 @@ from pipeline.paths import (
     sim_policy_dir,
     subject_dir,
 )
-from pipeline.stages.outputs import write_outputs
+from pipeline.stages.outputs import read_json, write_outputs
 
 TABLES = ("gait", "stability", "rom", "kinematics", "compliance", "harness", "tracking", "spm_tests",
           "spm_curves", "spm_clusters", "phases", "event_traces")
@@ -159,10 +159,6 @@ def input_hashes(subject: str, root: Path) -> dict[str, str]:
     return {str(p.relative_to(root)): sha256_of(p) for p in files}
 
 
-def _read_json(path: Path) -> dict | None:
-    return json.loads(path.read_text()) if path.is_file() else None
-
-
 def _read_table(path: Path) -> pd.DataFrame:
     return pd.read_parquet(path) if path.is_file() else pd.DataFrame()
 
@@ -189,8 +185,8 @@ def quality_checks(subject: str, params: Params, root: Path = PROCESSED_ROOT,
     (`spans`: the raw files' time columns, read with `trial_spans` when None); a transferred
     policy's gate comes from the policy rollouts' summary (`sim_policy/summary.json`)."""
     q = params.quality.build()
-    model = _read_json(model_dir(root, subject) / "model.json")
-    reference = _read_json(model_dir(root, subject) / "reference.json")
+    model = read_json(model_dir(root, subject) / "model.json")
+    reference = read_json(model_dir(root, subject) / "reference.json")
     real = {n: _read_table(real_dir(root, subject) / f"{n}.parquet") for n in ("strides", "events", "cycles")}
     sims = {"replay": _read_table(sim_dir(root, subject) / "strides.parquet")}
     policy = _read_table(sim_policy_dir(root, subject) / "strides.parquet")
@@ -199,7 +195,7 @@ def quality_checks(subject: str, params: Params, root: Path = PROCESSED_ROOT,
         paper = params.scenarios.paper
         table_strides = paper_strides(policy[policy["scenario"] == paper.scenario], paper.cycles_per_walk)
     sims["policy"] = table_strides if table_strides is not None else policy
-    policy_summary = _read_json(sim_policy_dir(root, subject) / "summary.json") or {}
+    policy_summary = read_json(sim_policy_dir(root, subject) / "summary.json") or {}
     checks = [*scale_checks(subject, model, reference, q),
               *ingest_checks(subject, real["events"], real["cycles"],
                              spans if spans is not None else trial_spans(subject),

@@ -46,6 +46,11 @@ def write_outputs(folder: Path, tables: Mapping[str, pd.DataFrame], metrics: Map
                 temp.write_text(json_text(content))
 
 
+def read_json(path: Path) -> dict | None:
+    """A stage's JSON input, None when the file is absent (an optional input: no policy, no gate)."""
+    return json.loads(path.read_text()) if path.is_file() else None
+
+
 def write_json(path: Path, doc: dict) -> None:
     """One JSON document, written all-or-nothing."""
     with replacing(path) as (temp,):

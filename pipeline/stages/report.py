@@ -52,7 +52,7 @@ from metrics.plots import (
 from metrics.quality import worst
 from pipeline.params import ReportParams
 from pipeline.paths import PAPER_FILE, POLICIES_ROOT, REPORTS_ROOT, policy_dir, report_dir
-from pipeline.stages.outputs import replacing, write_figure
+from pipeline.stages.outputs import read_json, replacing, write_figure
 from pipeline.store import StoreError, open_store
 from sim.rollout.scenarios import PHASES
 
@@ -849,8 +849,7 @@ def summary_report(subjects: list[str], data: dict[str, pd.DataFrame], reports: 
 
 
 def _evaluation(subject: str) -> dict | None:
-    path = policy_dir(POLICIES_ROOT, subject) / "evaluation.json"
-    return json.loads(path.read_text()) if path.is_file() else None
+    return read_json(policy_dir(POLICIES_ROOT, subject) / "evaluation.json")
 
 
 def run_report(subjects: list[str], all_subjects: list[str], db: Path, reports: Path = REPORTS_ROOT,

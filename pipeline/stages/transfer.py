@@ -32,6 +32,7 @@ from typing import TYPE_CHECKING
 
 from pipeline import paths
 from pipeline.params import Params
+from pipeline.stages.outputs import read_json
 
 if TYPE_CHECKING:
     from sim.learn.transfer import BodyFeatures, NearestPolicy
@@ -43,8 +44,7 @@ SCENARIO_PREFIX = "scenario_"        # evaluate-policy's names of the scenario c
 
 def read_gate(folder: Path) -> dict | None:
     """The transfer gate record of a policy folder (None: no transfer, e.g. a committed policy)."""
-    f = Path(folder) / GATE_FILE
-    return json.loads(f.read_text()) if f.is_file() else None
+    return read_json(Path(folder) / GATE_FILE)
 
 
 def gate_failed(gate: dict | None) -> bool:
@@ -163,8 +163,7 @@ def run_gate(subject: str, params: Params, policy_root: Path, required: set[str]
 
 def source_evaluation(folder: Path) -> dict | None:
     """A policy folder's evaluate-policy result (`EVALUATION_FILE`), None when it has none."""
-    f = folder / EVALUATION_FILE
-    return json.loads(f.read_text()) if f.is_file() else None
+    return read_json(folder / EVALUATION_FILE)
 
 
 @dataclass(frozen=True)
