@@ -27,15 +27,17 @@ browser-deps:
 	@command -v chromium >/dev/null || \
 		(apt-get update -qq && apt-get install -y -qq --no-install-recommends chromium >/dev/null)
 
+# The pipeline up to the reports and the summary (every stage but `bench`, whose timings take
+# minutes of their own: `make bench`), its stages sharing one local Ray head (python -m pipeline run).
 run: $(STAMP) render-deps
-	PATH="$(CURDIR)/$(BIN):$$PATH" $(BIN)/dvc repro
+	PATH="$(CURDIR)/$(BIN):$$PATH" $(BIN)/python -m pipeline run summary report
 
 test: $(STAMP) render-deps browser-deps
 	$(BIN)/ruff check .
 	$(BIN)/python -m pytest
 
 bench: $(STAMP)
-	$(BIN)/python -m pipeline bench
+	PATH="$(CURDIR)/$(BIN):$$PATH" $(BIN)/dvc repro bench
 
 # One walk_10m video of the policy human per subject and condition (reports/<subject>/
 # rollout_walk_10m_<condition>.mp4); about half a minute each, so not part of `make run`.

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
-from scipy.signal import find_peaks
+import scipy  # scipy.signal loads on first use (see ingest/filtering.py)
 
 from ingest.errors import IngestError
 from ingest.filtering import finite_runs
@@ -168,7 +168,7 @@ def kinematic_events(heel: dict[str, np.ndarray], toe: dict[str, np.ndarray], pe
         for marker, sign, event in ((heel[side], 1.0, "heel_strike"), (toe[side], -1.0, "toe_off")):
             rel = np.einsum("ij,ij->i", marker[:, :2] - pelvis[:, :2], direction) * sign
             filled = np.where(np.isfinite(rel), rel, np.nanmin(rel) if np.isfinite(rel).any() else 0)
-            peaks, _ = find_peaks(filled, distance=distance, prominence=p.min_prominence_m / 2)
+            peaks, _ = scipy.signal.find_peaks(filled, distance=distance, prominence=p.min_prominence_m / 2)
             if event == "heel_strike" and _peak_at_start(filled, distance, p.min_prominence_m / 2):
                 peaks = np.concatenate(([0], peaks))
             for i in peaks:

@@ -15,7 +15,7 @@ from __future__ import annotations
 from functools import lru_cache
 
 import numpy as np
-from scipy import signal
+import scipy  # scipy.signal loads on first use (~0.7 s): stages that never filter skip it
 
 
 def butter_coefficients(order: int, cutoff_hz: float, rate_hz: float) -> tuple[np.ndarray, np.ndarray]:
@@ -30,7 +30,7 @@ def butter_coefficients(order: int, cutoff_hz: float, rate_hz: float) -> tuple[n
 
 @lru_cache(maxsize=64)
 def _butter(order: int, wn: float) -> tuple[np.ndarray, np.ndarray]:
-    b, a = signal.butter(order, wn, btype="low")
+    b, a = scipy.signal.butter(order, wn, btype="low")
     b.flags.writeable = a.flags.writeable = False
     return b, a
 
@@ -48,12 +48,12 @@ def lowpass(x: np.ndarray, rate_hz: float, cutoff_hz: float, order: int = 4) -> 
     x = np.asarray(x, dtype=float)
     finite = finite_frames(x)
     if finite.all():
-        return signal.filtfilt(b, a, x, axis=0)
+        return scipy.signal.filtfilt(b, a, x, axis=0)
     out = np.full_like(x, np.nan)
     padlen = 3 * max(len(a), len(b))
     for start, stop in finite_runs(finite):
         if stop - start > padlen:
-            out[start:stop] = signal.filtfilt(b, a, x[start:stop], axis=0)
+            out[start:stop] = scipy.signal.filtfilt(b, a, x[start:stop], axis=0)
         else:
             out[start:stop] = x[start:stop]
     if x.ndim > 1:  # columns finite where others are not: filter them column by column

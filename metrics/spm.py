@@ -22,7 +22,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
-import spm1d
 
 from metrics.curves import curve_groups
 from metrics.errors import MetricsError
@@ -111,6 +110,8 @@ def spm_test(a: np.ndarray, b: np.ndarray, test: str = "anova1", alpha: float = 
         return _skip(base, f"curves differ in length: {q} vs {b.shape[1]} points")
     if not (np.isfinite(a).all() and np.isfinite(b).all()):
         return _skip(base, "curves contain missing values")
+    import spm1d  # here, not at the top: it imports matplotlib (~1 s), which most stages never need
+
     try:
         with warnings.catch_warnings(), np.errstate(all="ignore"):
             warnings.simplefilter("ignore")

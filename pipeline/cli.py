@@ -73,6 +73,21 @@ def cmd_bench(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_run(args: argparse.Namespace) -> int:
+    """`dvc repro` of `args.targets`, its stages joining one local Ray head (unless RAY_ADDRESS names
+    a cluster already): what `make run` calls."""
+    import os
+    import subprocess
+
+    from sim.rollout.cluster import RAY_ADDRESS, local_head
+
+    cmd = ["dvc", "repro", *args.targets]
+    if os.environ.get(RAY_ADDRESS):
+        return subprocess.run(cmd).returncode
+    with local_head(load_params(args.params).ray.num_cpus, Path.cwd()) as env:
+        return subprocess.run(cmd, env={**os.environ, **env}).returncode
+
+
 def cmd_reference(args: argparse.Namespace) -> int:
     from pipeline.stages.reference import run_reference
 
@@ -364,6 +379,11 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--only", type=_sections, help=f"comma-separated sections to run (default: all of "
                        f"{', '.join(SECTIONS)})")
     bench.set_defaults(func=cmd_bench)
+
+    run = commands.add_parser("run", help="dvc repro TARGETS, every stage on one local Ray head (make run)")
+    run.add_argument("targets", nargs="*", default=["summary", "report"],
+                     help="stages (default: summary report, i.e. all but bench)")
+    run.set_defaults(func=cmd_run)
 
     scale = commands.add_parser("scale", help="build a subject's scaled 27-DoF human from its static trial")
     scale.add_argument("subject", help="subject id (data/subjects/<id>.yaml)")

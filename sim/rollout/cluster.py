@@ -9,6 +9,10 @@ A rollout job is a pure function of its inputs (`sim.rollout.batch.RolloutJob` a
 job Ray retries after a worker died gives the same rows. `cached_worker` keeps one open world per
 setup in each Ray worker process, so a process that runs many jobs of one subject compiles its
 world once.
+
+`local_head` keeps one local Ray instance up for a whole `dvc repro` (`python -m pipeline run`, what
+`make run` calls): each stage then joins it in about a second instead of starting and stopping a
+Ray of its own (about 7 s, 16 stages).
 """
 
 from __future__ import annotations
@@ -17,7 +21,15 @@ import hashlib
 import logging
 import os
 import pickle
+import secrets
+import signal
+import socket
+import subprocess
+import sys
+import time
 from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
 from typing import Any
 
 import ray
@@ -39,6 +51,45 @@ def connect(num_cpus: int) -> dict[str, float]:
             kwargs.update(num_cpus=int(num_cpus), object_store_memory=OBJECT_STORE_MB * 2**20)
         ray.init(address=address, **kwargs)
     return ray.cluster_resources()
+
+
+@contextmanager
+def local_head(num_cpus: int, cwd: Path, start_timeout_s: float = 90.0) -> Iterator[dict[str, str]]:
+    """A Ray head node on this machine with `num_cpus` CPUs, up for the block: yields the environment
+    variables that reach it (`RAY_ADDRESS` and the token Ray >= 2.59 asks of local clusters). Its
+    workers start in `cwd`; the node and its workers are killed on leaving."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    env = {"RAY_AUTH_MODE": "token", "RAY_AUTH_TOKEN": secrets.token_hex(16), "RAY_USAGE_STATS_ENABLED": "0"}
+    ray_cli = Path(sys.executable).with_name("ray")
+    cmd = [str(ray_cli), "start", "--head", f"--port={port}", f"--num-cpus={int(num_cpus)}", "--block",
+           "--node-ip-address=127.0.0.1", "--include-dashboard=false",
+           f"--object-store-memory={OBJECT_STORE_MB * 2**20}"]
+    full_env = {k: v for k, v in os.environ.items() if k != RAY_ADDRESS} | env
+    head = subprocess.Popen(cmd, env=full_env, cwd=cwd, start_new_session=True, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
+    env[RAY_ADDRESS] = f"127.0.0.1:{port}"
+    try:
+        deadline = time.monotonic() + start_timeout_s
+        while not _head_up(ray_cli, env[RAY_ADDRESS], full_env):
+            if head.poll() is not None or time.monotonic() > deadline:
+                raise RuntimeError(f"the local Ray head did not start ({' '.join(cmd)})")
+            time.sleep(0.5)
+        yield env
+    finally:
+        try:
+            os.killpg(head.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        head.wait(timeout=30)
+
+
+def _head_up(ray_cli: Path, address: str, env: dict[str, str]) -> bool:
+    """Whether the head at `address` reports its CPUs (`ray status`)."""
+    out = subprocess.run([str(ray_cli), "status", f"--address={address}"], env=env, capture_output=True,
+                         text=True, timeout=60)
+    return out.returncode == 0 and any(ln.strip().endswith(" CPU") for ln in out.stdout.splitlines())
 
 
 def completed(refs: list, desc: str = "", progress: bool = False) -> Iterator:
@@ -67,4 +118,4 @@ def cached_worker(setup: Any, make: Any) -> Any:
     return _CACHE[key]
 
 
-__all__ = ["RAY_ADDRESS", "cached_worker", "completed", "connect", "setup_key"]
+__all__ = ["RAY_ADDRESS", "cached_worker", "completed", "connect", "local_head", "setup_key"]

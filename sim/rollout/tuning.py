@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
-from scipy.optimize import minimize
+import scipy  # scipy.optimize loads on first use
 
 from sim.motion.replay import ReplayHuman, ReplayParams
 from sim.motion.synthetic import WalkParams, capsule_world, synthetic_walk
@@ -164,7 +164,7 @@ def tune(name: str, spec: dict, robot: RobotParams, replay: ReplayParams, p: Tun
     options = {"maxfev": p.max_evaluations - 1, "xatol": 1e-3, "fatol": 1e-5}
     if p.method == "Nelder-Mead":
         options["initial_simplex"] = simplex
-    res = minimize(cost, x0, method=p.method, options=options)
+    res = scipy.optimize.minimize(cost, x0, method=p.method, options=options)
     gains = _to_gains(res.x, base, names, is_log)
     j, metrics = evaluate({"class": spec["class"], "gains": gains}, robot, replay, p)
     return TuningResult(name=name, gains=gains, objective=j, initial_objective=j0,
