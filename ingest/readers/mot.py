@@ -7,6 +7,7 @@ names the columns. `inDegrees=yes|no` says whether rotational columns are degree
 from __future__ import annotations
 
 import io
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -50,33 +51,37 @@ class MotTable:
         return self.table.to_numpy(float)[:, index]
 
 
+ENDHEADER = re.compile(rb"^[ \t]*endheader[ \t]*\r?$", re.IGNORECASE | re.MULTILINE)
+
+
 def read_mot(path: str | Path) -> MotTable:
-    """Read a `.mot`/`.sto` file; raises `IngestError` naming the file on structural problems."""
+    """Read a `.mot`/`.sto` file; raises `IngestError` naming the file on structural problems. The
+    file is read once, as bytes: the header from the text before `endheader`, the table by pandas
+    from the bytes after it (rows ending in a tab, as OpenSim-JAM's GRF files have, are read with
+    that trailing delimiter ignored)."""
     path = Path(path)
     try:
-        text = path.read_text(errors="replace")
+        raw = path.read_bytes()
     except OSError as exc:
         raise IngestError(path, f"cannot read file ({exc.strerror})") from None
-    lines = text.splitlines()
-    try:
-        end = next(i for i, ln in enumerate(lines) if ln.strip().lower() == "endheader")
-    except StopIteration:
-        raise IngestError(path, "not an OpenSim storage file: no 'endheader' line") from None
+    end = ENDHEADER.search(raw)
+    if end is None:
+        raise IngestError(path, "not an OpenSim storage file: no 'endheader' line")
     header = {}
-    for ln in lines[:end]:
+    for ln in raw[:end.start()].decode(errors="replace").splitlines():
         if "=" in ln:
             key, _, value = ln.partition("=")
             header[key.strip().lower()] = value.strip()
-    # Rows may end with a tab (OpenSim-JAM's GRF files): a trailing delimiter, not an empty column.
-    body = "\n".join(ln.rstrip() for ln in lines[end + 1 :] if ln.strip())
-    if not body:
+    body = raw[end.end():]
+    if not body.strip():
         raise IngestError(path, "no column names or data after 'endheader'")
     try:
-        # as bytes, in one piece: pandas parses bytes as they are (text it would encode again)
-        table = pd.read_csv(io.BytesIO(body.encode()), sep="\t", engine="c", low_memory=False)
+        table = pd.read_csv(io.BytesIO(body), sep="\t", engine="c", low_memory=False, index_col=False)
     except (ValueError, pd.errors.ParserError) as exc:
         raise IngestError(path, f"malformed table: {exc}") from None
     table.columns = [str(c).strip() for c in table.columns]
+    trailing = [c for c in table.columns if c.startswith("Unnamed:") and table[c].isna().all()]
+    table = table.drop(columns=trailing) if trailing else table  # a header line ending in a tab
     if "time" not in table.columns:
         raise IngestError(path, f"no 'time' column (columns: {', '.join(table.columns[:6])}, ...)")
     non_numeric = [c for c, dtype in table.dtypes.items() if not pd.api.types.is_numeric_dtype(dtype)]
@@ -84,7 +89,8 @@ def read_mot(path: str | Path) -> MotTable:
         raise IngestError(path, f"non-numeric values in columns {non_numeric[:5]}")
     if table.empty:
         raise IngestError(path, "no data rows")
-    if table.iloc[-1].isna().any() or len(lines[-1].rstrip().split("\t")) < len(table.columns):
+    last = body.rstrip().rsplit(b"\n", 1)[-1]
+    if table.iloc[-1].isna().any() or len(last.rstrip().split(b"\t")) < len(table.columns):
         raise IngestError(path, "truncated: the last row is incomplete")
     n_rows = header.get("nrows") or header.get("datarows")
     if n_rows is not None and int(n_rows) != len(table):
