@@ -89,7 +89,8 @@ def read_mot(path: str | Path) -> MotTable:
         raise IngestError(path, f"non-numeric values in columns {non_numeric[:5]}")
     if table.empty:
         raise IngestError(path, "no data rows")
-    last = body.rstrip().rsplit(b"\n", 1)[-1]
+    end_of_rows = len(body.rstrip())  # the last row: after the last newline before trailing blanks
+    last = body[body.rfind(b"\n", 0, end_of_rows) + 1:end_of_rows]
     if table.iloc[-1].isna().any() or len(last.rstrip().split(b"\t")) < len(table.columns):
         raise IngestError(path, "truncated: the last row is incomplete")
     n_rows = header.get("nrows") or header.get("datarows")

@@ -21,7 +21,7 @@ import pandas as pd
 from ingest.errors import IngestError
 from ingest.readers.table import UNIT_TO_M, MarkerTable
 
-NON_SPACE = re.compile(r"\S")
+NON_SPACE = re.compile(rb"\S")
 
 
 def _header_fields(path: Path, keys: str, values: str) -> dict[str, str]:
@@ -47,25 +47,26 @@ def _marker_names(line: str, n_markers: int) -> tuple[str, ...]:
     return tuple(cells[2:])
 
 
-def _layout(text: str, n_head: int = 5) -> tuple[list[str], bool, bool, list[str]]:
-    """The first `n_head` lines of `text`, whether a line follows them, whether any following line
-    holds more than whitespace, and the last two lines, all as `str.splitlines` gives them, found
-    without splitting the thousands of rows in between (that cost more than the header checks);
-    lines ending in anything but \\n or \\r\\n fall back to `str.splitlines`."""
+def _layout(raw: bytes, n_head: int = 5) -> tuple[list[str], bool, bool, list[str]]:
+    """The first `n_head` lines of the file's bytes `raw` (decoded), whether a line follows them,
+    whether any following line holds more than whitespace, and the last two lines, all as
+    `str.splitlines` gives them, found without decoding or splitting the thousands of rows in
+    between (that cost more than the header checks); lines ending in anything but \\n or \\r\\n fall
+    back to decoding the whole file."""
     start = 0
     for _ in range(n_head):
-        start = text.find("\n", start) + 1
+        start = raw.find(b"\n", start) + 1
         if start == 0:
             break
-    head = text[:start].splitlines() if start else []
+    head = raw[:start].decode(errors="replace").splitlines() if start else []
     if len(head) != n_head:
-        lines = text.splitlines()
+        lines = raw.decode(errors="replace").splitlines()
         return lines[:n_head], len(lines) > n_head, any(ln.strip() for ln in lines[n_head:]), lines[-2:]
-    cut = len(text)
+    cut = len(raw)
     for _ in range(3):  # the last two lines start after the third newline from the end
-        cut = text.rfind("\n", start, cut) if cut > start else -1
-    tail = text[cut + 1 if cut >= 0 else start:].splitlines()[-2:]
-    return head, start < len(text), NON_SPACE.search(text, start) is not None, tail
+        cut = raw.rfind(b"\n", start, cut) if cut > start else -1
+    tail = raw[cut + 1 if cut >= 0 else start:].decode(errors="replace").splitlines()[-2:]
+    return head, start < len(raw), NON_SPACE.search(raw, start) is not None, tail
 
 
 def read_trc(path: str | Path) -> MarkerTable:
@@ -76,10 +77,10 @@ def read_trc(path: str | Path) -> MarkerTable:
         raw = path.read_bytes()
     except OSError as exc:
         raise IngestError(path, f"cannot read file ({exc.strerror})") from None
-    text = raw.decode(errors="replace")
-    lines, more, has_rows, tail = _layout(text)
+    lines, more, has_rows, tail = _layout(raw)
     if not more:
-        raise IngestError(path, f"truncated: only {len(text.splitlines())} lines, a TRC header needs 5")
+        raise IngestError(path, f"truncated: only {len(raw.decode(errors='replace').splitlines())} lines, "
+                                "a TRC header needs 5")
     header = _header_fields(path, lines[1], lines[2])
     unit = header["Units"].strip()
     if unit not in UNIT_TO_M:
