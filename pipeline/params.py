@@ -831,7 +831,7 @@ class TuneSchema(Schema):
         return ObjectiveWeights(self.force_weight_m_per_n, self.gait_weight_m, self.fall_penalty_m)
 
 
-# transfer: a policy for every subject without a committed one
+# transfer: a policy for a subject without a committed one (the subjects `transfer.subjects` lists)
 
 class FeatureWeightsSchema(Schema):
     height: Annotated[float, Field(ge=0.0)]

@@ -180,7 +180,10 @@ def scenario_report(outcomes: list[RolloutOutcome], profiles: dict[str, CommandP
         prof = profiles[name]
         falls = sum(o.human_fall_s is not None or not o.stable for o in runs)
         row: dict = {"walks": len(runs), "human_falls": falls, "robot_fall_detections":
-                     sum(o.robot_fall_s is not None for o in runs)}
+                     sum(o.robot_fall_s is not None for o in runs),
+                     # walks whose pelvis paths differ: a free walk from quiet standing is the same
+                     # rollout in every seed (the seed sets only the start phase, which standing resets)
+                     "distinct_walks": len({o.pelvis_xy.round(6).tobytes() for o in runs})}
         checks[f"{name}_{cond}_no_fall"] = enough(len(runs) - falls, len(runs), sc.no_fall_fraction)
         starts, stops, steady, ends, changes = [], [], [], [], []
         for o in runs:
