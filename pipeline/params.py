@@ -469,6 +469,7 @@ class RolloutSchema(Schema):
     lead_in_s: float
     lead_in_ramp_s: float
     policy_sample_rate_hz: Annotated[float, Field(gt=0.0)]
+    policy_motor_noise: Annotated[float, Field(ge=0.0)] = 0.0
     stop_after_fall_s: Annotated[float, Field(ge=0.0)] | None
     replay: ReplaySchema
     fall_test: FallTestSchema

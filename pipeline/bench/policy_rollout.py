@@ -135,7 +135,8 @@ def time_policy_rollout(params: Params, repeat: int = 3, duration_s: float = 10.
 
     folder = paths.policy_dir(paths.POLICIES_ROOT, SUBJECT)
     source = PolicySource(str(folder), params.train_params().env, rate_hz,
-                          params.evaluate_policy.fall_height_fraction)
+                          params.evaluate_policy.fall_height_fraction,
+                          motor_noise=params.rollout.policy_motor_noise)
     setup = params.batch_setup(SUBJECT, load_subject(SUBJECT).markerset, folder / BODY_FILE, source,
                                process=False)
     worker = Worker(setup)

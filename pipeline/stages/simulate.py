@@ -95,7 +95,7 @@ def policy_setup(subject: str, params: Params, root: Path = paths.PROCESSED_ROOT
     scenarios = {name: tuple(segs) for name, segs in params.scenarios.build().items()}
     source = PolicySource(str(folder), params.train_params(variant).env, params.rollout.policy_sample_rate_hz,
                           params.evaluate_policy.fall_height_fraction, scenarios,
-                          params.scenarios.profile.build())
+                          params.scenarios.profile.build(), params.rollout.policy_motor_noise)
     return params.batch_setup(subject, load_subject(subject).markerset, folder / BODY_FILE, source)
 
 

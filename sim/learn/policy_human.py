@@ -67,9 +67,12 @@ class PolicyHuman(HumanDriver):
     def __init__(self, policy, ref: ReferenceTable, cycle: ReferenceCycle, p: WalkEnvParams,
                  duration_s: float, start_phase: float = 0.0, event: BalanceLoss | None = None,
                  fall_height_fraction: float = 0.7, root: str = "root",
-                 commands: CommandProfile | None = None, seed: int = 0) -> None:
+                 commands: CommandProfile | None = None, seed: int = 0, motor_noise: float = 0.0) -> None:
         self.policy, self.cycle, self.p = policy, cycle, p
-        self.noise = np.random.default_rng(seed)  # the variant's motor noise (`Variant.action_noise`)
+        # motor noise on the actions, seeded by the walk: `motor_noise` (every policy human's, so
+        # seeds are distinct walks) and the variant's own (`Variant.action_noise`), independent
+        self.noise = np.random.default_rng(seed)
+        self.action_noise = float(np.hypot(motor_noise, p.variant.action_noise))
         self.commands = commands
         self.duration_s = float(duration_s if commands is None else commands.time_s[-1])
         self.start_phase, self.event, self.root = float(start_phase) % 1.0, event, root
@@ -155,8 +158,8 @@ class PolicyHuman(HumanDriver):
             observe(data, idx, self.amp, self.gait, self.wrench, self.obs)
             action = np.asarray(self.policy(self.obs), float).reshape(-1)
             action = np.minimum(np.maximum(action, -1.0), 1.0)  # np.clip's numbers, without its wrapper
-            if self.p.variant.action_noise:
-                action = action + self.noise.normal(0.0, self.p.variant.action_noise, len(action))
+            if self.action_noise:
+                action = action + self.noise.normal(0.0, self.action_noise, len(action))
             self.gait.advance(self.step_phase, *self._command(k + self.every))
             data.ctrl[idx.act] = self.gait.targets(action, self.p, self.lo, self.hi)
         if self.event_run is not None:
@@ -252,6 +255,7 @@ class PolicySource:
     fall_height_fraction: float
     scenarios: dict[str, tuple[Segment, ...]] = field(default_factory=dict)
     profile: ProfileParams = field(default_factory=ProfileParams)
+    motor_noise: float = 0.0  # std of the seeded noise on every walk's actions (`PolicyHuman`)
 
     def open(self, world: mujoco.MjSpec):
         import torch
@@ -287,7 +291,8 @@ class PolicySource:
                 event = event.at(steady_onset(spans, rng, walk.event_jitter_s))
             human = PolicyHuman(policy, ref, cycle, env, walk.duration_s,
                                 start_phase=start_phase, event=event,
-                                fall_height_fraction=self.fall_height_fraction, commands=commands, seed=seed)
+                                fall_height_fraction=self.fall_height_fraction, commands=commands, seed=seed,
+                                motor_noise=self.motor_noise)
             v0 = self.env.variant.preferred_speed(cycle.speed_mps) if commands is None \
                 else float(commands.speed_mps[0])
             return HumanRun(human, self.sample_rate_hz, warm_speed_mps=v0 if v0 > 0 else None)
