@@ -78,13 +78,19 @@ def cmd_run(args: argparse.Namespace) -> int:
     a cluster already): what `make run` calls."""
     import os
     import subprocess
+    from contextlib import ExitStack
 
     from sim.rollout.cluster import RAY_ADDRESS, local_head
 
     cmd = ["dvc", "repro", *args.targets]
     if os.environ.get(RAY_ADDRESS):
         return subprocess.run(cmd).returncode
-    with local_head(load_params(args.params).ray.num_cpus, Path.cwd()) as env:
+    with ExitStack() as stack:
+        try:
+            env = stack.enter_context(local_head(load_params(args.params).ray.num_cpus, Path.cwd()))
+        except (OSError, RuntimeError) as exc:  # no shared head: every stage starts its own Ray
+            print(f"warning: {exc}; each stage starts its own Ray", file=sys.stderr)
+            env = {}
         return subprocess.run(cmd, env={**os.environ, **env}).returncode
 
 
