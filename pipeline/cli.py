@@ -18,6 +18,7 @@ from pipeline.paths import (
     BENCH_REPORT,
     METRICS_ROOT,
     PARAMS_FILE,
+    POLICIES_ROOT,
     PROCESSED_ROOT,
     REPORTS_ROOT,
     SWEEPS_ROOT,
@@ -174,7 +175,9 @@ def cmd_transfer(args: argparse.Namespace) -> int:
 def cmd_evaluate_policy(args: argparse.Namespace) -> int:
     from pipeline.commands.evaluate_policy import evaluate_policy
 
-    doc = evaluate_policy(args.subject, load_params(args.params), progress=not args.json)
+    root = args.policy_root or POLICIES_ROOT  # another policy's SPM figure goes beside it, not into reports/
+    doc = evaluate_policy(args.subject, load_params(args.params), policy_root=root,
+                          reports=args.policy_root or REPORTS_ROOT, progress=not args.json)
     if args.out:
         write_json(args.out, doc)
     print(json_text(doc), end="")
@@ -456,6 +459,8 @@ def build_parser() -> argparse.ArgumentParser:
     evaluate.add_argument("subject")
     evaluate.add_argument("--json", action="store_true", help="JSON only on stdout (no progress bar)")
     evaluate.add_argument("--out", type=Path, help="also write the JSON here")
+    evaluate.add_argument("--policy-root", type=Path, help="policies folder holding <subject>/ "
+                          "(default: data/policies; e.g. data/policies/candidates/stop_gamma098)")
     evaluate.set_defaults(func=cmd_evaluate_policy)
 
     render = commands.add_parser("render", help="mp4 of one replay or scenario rollout (offscreen MuJoCo)")
