@@ -87,8 +87,11 @@ def local_head(num_cpus: int, cwd: Path, start_timeout_s: float = 90.0) -> Itera
 
 def _head_up(ray_cli: Path, address: str, env: dict[str, str]) -> bool:
     """Whether the head at `address` reports its CPUs (`ray status`)."""
-    out = subprocess.run([str(ray_cli), "status", f"--address={address}"], env=env, capture_output=True,
-                         text=True, timeout=60)
+    try:
+        out = subprocess.run([str(ray_cli), "status", f"--address={address}"], env=env, capture_output=True,
+                             text=True, timeout=60)
+    except subprocess.TimeoutExpired:
+        return False
     return out.returncode == 0 and any(ln.strip().endswith(" CPU") for ln in out.stdout.splitlines())
 
 
