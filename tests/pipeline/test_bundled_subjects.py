@@ -206,16 +206,21 @@ def test_falisse2019_kinematic_events_match_its_force_plates(manifest, ingest_pa
     assert np.abs(delta).max() < 0.030
 
 
-@pytest.fixture(scope="module")
-def falisse_model(tmp_path_factory, params) -> tuple[dict, dict]:
-    """falisse2019's model.json and reference.json, made by scale and reference in a temporary root."""
+def _model_docs(subject: str, tmp_path_factory, params) -> tuple[dict, dict]:
+    """`subject`'s model.json and reference.json, made by ingest, scale and reference in a temporary
+    root."""
     root, reports = tmp_path_factory.mktemp("processed"), tmp_path_factory.mktemp("reports")
-    run_ingest("falisse2019", params, root, progress=False)
-    run_scale("falisse2019", params, root, reports)
-    run_reference("falisse2019", params, root, reports, progress=False)
-    folder = root / "falisse2019" / "model"
+    run_ingest(subject, params, root, progress=False)
+    run_scale(subject, params, root, reports)
+    run_reference(subject, params, root, reports, progress=False)
+    folder = root / subject / "model"
     return (json.loads((folder / "model.json").read_text()),
             json.loads((folder / "reference.json").read_text()))
+
+
+@pytest.fixture(scope="module")
+def falisse_model(tmp_path_factory, params) -> tuple[dict, dict]:
+    return _model_docs("falisse2019", tmp_path_factory, params)
 
 
 def test_falisse2019_scales_from_its_static_trial(falisse_model):
@@ -343,14 +348,7 @@ def test_kgc6_knee_and_ankle_points_refit_from_the_walks(manifest):
 
 @pytest.fixture(scope="module")
 def kgc6_model(tmp_path_factory, params) -> tuple[dict, dict]:
-    """kgc6's model.json and reference.json, made by scale and reference in a temporary root."""
-    root, reports = tmp_path_factory.mktemp("processed"), tmp_path_factory.mktemp("reports")
-    run_ingest("kgc6", params, root, progress=False)
-    run_scale("kgc6", params, root, reports)
-    run_reference("kgc6", params, root, reports, progress=False)
-    folder = root / "kgc6" / "model"
-    return (json.loads((folder / "model.json").read_text()),
-            json.loads((folder / "reference.json").read_text()))
+    return _model_docs("kgc6", tmp_path_factory, params)
 
 
 def test_kgc6_scales_from_its_walks_and_its_markers_fit(kgc6_model, params):

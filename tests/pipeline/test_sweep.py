@@ -6,9 +6,7 @@ from __future__ import annotations
 
 import json
 import os
-import secrets
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -22,6 +20,7 @@ from pipeline.params import load_params, parse_params
 from pipeline.paths import POLICIES_ROOT
 from pipeline.stages.sweep import rollout_params_hash, run_sweep, sweep_jobs
 from pipeline.store import StoreParams, query, store_results
+from sim.rollout.cluster import RAY_ADDRESS, local_head
 
 REPO = Path(__file__).resolve().parents[2]
 RAY = Path(sys.executable).with_name("ray")
@@ -38,45 +37,29 @@ def small_study(study: str = "killed_worker", seeds: int = 3):
     return parse_params(doc)
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 @pytest.fixture
 def cluster(tmp_path):
-    """A head node and a worker node (1 CPU each) on this machine, with a token (Ray >= 2.59
-    authenticates local clusters); yields (the environment that reaches it, the worker's process)."""
-    port = _free_port()
-    env = {**os.environ, "RAY_AUTH_MODE": "token", "RAY_AUTH_TOKEN": secrets.token_hex(16),
-           "RAY_USAGE_STATS_ENABLED": "0", "OMP_NUM_THREADS": "1"}
-    env.pop("RAY_ADDRESS", None)
-    common = ["--num-cpus=1", "--block", "--node-ip-address=127.0.0.1"]
-
-    def start(*args: str) -> subprocess.Popen:
-        return subprocess.Popen([str(RAY), "start", *args, *common], env=env, cwd=REPO,
-                                start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-
-    address = f"127.0.0.1:{port}"
-    procs = [start("--head", f"--port={port}", "--include-dashboard=false")]
-    try:
-        deadline = time.monotonic() + 90
-        while not _cpus(address, env) >= 1:  # the head must be up before a worker node joins
-            assert time.monotonic() < deadline, "the head node did not start"
-            time.sleep(1)
-        procs.append(start(f"--address={address}"))
-        while not _cpus(address, env) >= 2:
-            assert time.monotonic() < deadline, "the worker node did not join"
-            time.sleep(1)
-        yield {**env, "RAY_ADDRESS": address}, procs[1]
-    finally:
-        for p in reversed(procs):
+    """A head node (`sim.rollout.cluster.local_head`, token-authenticated) and a worker node, 1 CPU
+    each, on this machine; yields (the environment that reaches them, the worker's process)."""
+    base = {k: v for k, v in os.environ.items() if k != RAY_ADDRESS} | {"OMP_NUM_THREADS": "1"}
+    with local_head(1, REPO) as head:
+        env = {**base, **head}
+        cmd = [str(RAY), "start", f"--address={head[RAY_ADDRESS]}", "--num-cpus=1", "--block",
+               "--node-ip-address=127.0.0.1"]
+        worker = subprocess.Popen(cmd, env=env, cwd=REPO, start_new_session=True, stdout=subprocess.DEVNULL,
+                                  stderr=subprocess.DEVNULL)
+        try:
+            deadline = time.monotonic() + 90
+            while not _cpus(head[RAY_ADDRESS], env) >= 2:
+                assert time.monotonic() < deadline, "the worker node did not join"
+                time.sleep(1)
+            yield env, worker
+        finally:
             try:
-                os.killpg(p.pid, signal.SIGKILL)
+                os.killpg(worker.pid, signal.SIGKILL)
             except ProcessLookupError:
                 pass
-            p.wait(timeout=30)
+            worker.wait(timeout=30)
 
 
 def _cpus(address: str, env: dict) -> float:
