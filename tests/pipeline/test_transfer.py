@@ -163,7 +163,7 @@ def test_transfer_stage_writes_the_policy_and_the_gate_record(processed, policie
     gate = json.loads((folder / GATE_FILE).read_text())
     assert gate == rec == read_gate(folder)
     assert gate["source"] == "opencap4" and gate["distance"] == pytest.approx(gate["distances"]["opencap4"])
-    assert gate["steps"] >= 2048 and gate["rounds"] == 1 and gate["wall_s"] >= gate["train_wall_s"] > 0
+    assert gate["steps"] >= 2048 and gate["rounds"] == 1 and gate["wall_s"] + 0.1 >= gate["train_wall_s"] > 0
     assert gate["gate_seeds"] == params.transfer.gate_seeds
     assert isinstance(gate["pass"], bool) and set(gate["failed"]) <= set(gate["checks"])
     assert gate["checks"] and all(k.startswith("scenario_") for k in gate["checks"])
@@ -240,6 +240,7 @@ def test_bench_section_reports_steps_wall_time_and_the_gate(processed, policies,
     section = time_transfer(tiny, processed, policies, max_wall_s=60.0)
     assert section["subject"] == params.transfer.bench.subject and section["source"] == "opencap4"
     assert section["rounds"] == 1 and section["steps"] >= 2048  # transfer.steps ends it
-    assert section["wall_s"] >= section["train_wall_s"] + section["gate_wall_s"] > 0
+    # three times each rounded to 0.1 s: their sum may exceed the total by up to 0.15 s
+    assert section["wall_s"] + 0.15 >= section["train_wall_s"] + section["gate_wall_s"] > 0
     assert section["gate_passed"] == (section["failed_checks"] == [])
     assert set(TRANSFER_TARGETS) <= set(section)
