@@ -76,14 +76,15 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
 def cmd_run(args: argparse.Namespace) -> int:
     """`dvc repro` of `args.targets`, its stages joining one local Ray head (unless RAY_ADDRESS names
-    a cluster already): what `make run` calls."""
+    a cluster already), `dvc.lock` rewritten through libyaml (`pipeline.commands.repro`): what
+    `make run` calls."""
     import os
     import subprocess
     from contextlib import ExitStack
 
     from sim.rollout.cluster import RAY_ADDRESS, local_head
 
-    cmd = ["dvc", "repro", *args.targets]
+    cmd = [sys.executable, "-m", "pipeline.commands.repro", *args.targets]
     if os.environ.get(RAY_ADDRESS):
         return subprocess.run(cmd).returncode
     with ExitStack() as stack:
@@ -389,7 +390,8 @@ def build_parser() -> argparse.ArgumentParser:
                        f"{', '.join(SECTIONS)})")
     bench.set_defaults(func=cmd_bench)
 
-    run = commands.add_parser("run", help="dvc repro TARGETS, every stage on one local Ray head (make run)")
+    run = commands.add_parser("run", help="dvc repro TARGETS, every stage on one local Ray head, the lock "
+                              "written by libyaml (make run)")
     run.add_argument("targets", nargs="*", default=["summary", "report"],
                      help="stages (default: summary report, i.e. all but bench)")
     run.set_defaults(func=cmd_run)

@@ -19,7 +19,7 @@ from sim.robot.controllers import (
     register,
     resolve,
 )
-from sim.robot.controllers.adaptive import SPEED_GRID_MPS, forward_gain, lateral_gain
+from sim.robot.controllers.adaptive import SPEED_GRID_MPS, forward_gain, lateral_gain, scheduled_gains
 from sim.rollout.loop import RolloutParams, rollout
 from sim.rollout.tuning import score
 from sim.rollout.world import robot_info
@@ -101,6 +101,18 @@ def test_lqr_closed_loops_are_stable(setup):
         al = np.array([[0, 1, 0, 0], [0, 0, -v, -info.reach_m], [0, 0, 0, 1], [0, 0, 0, -1 / tau]])
         bl = np.array([[0], [0], [0], [1 / tau]])
         assert np.linalg.eigvals(al - bl @ kl[None]).real.max() < 0
+
+
+def test_scheduled_gains_are_the_riccati_solutions_and_are_solved_once(setup):
+    info = robot_info(setup[0])
+    args = (info.drive_tau_s, info.reach_m, 10.0, 100.0, 1.0, 20.0, 50.0, 2.0)
+    scheduled_gains.cache_clear()
+    k_fwd, k_lat = scheduled_gains(*args)
+    assert k_fwd == tuple(forward_gain(args[0], *args[2:5]).tolist())
+    tau, reach = args[:2]
+    assert k_lat == tuple(tuple(lateral_gain(v, reach, tau, *args[5:]).tolist()) for v in SPEED_GRID_MPS)
+    assert scheduled_gains(*args) is scheduled_gains(*args) and scheduled_gains.cache_info().misses == 1
+    assert scheduled_gains(*args[:-1], 3.0)[1] != k_lat  # other weights, other gains
 
 
 def test_adaptive_speed_estimate_ignores_intra_stride_oscillation(setup):
