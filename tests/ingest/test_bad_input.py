@@ -298,6 +298,20 @@ def test_mot_without_in_degrees_needs_a_declared_unit(corpus, camargo):
     assert 50 < np.nanmax(knee) < 80  # declared unit honoured: radians converted to degrees
 
 
+def test_mot_with_a_text_cell_names_its_column(corpus, camargo):
+    text = corpus.text(CAMARGO_MOT)
+    head, body = text.split("endheader\n", 1)
+    rows = body.splitlines()
+    knee = rows[0].split("\t").index("knee_angle_r")
+    cells = rows[100].split("\t")
+    cells[knee] = "abc"
+    rows[100] = "\t".join(cells)
+    key = corpus.add(CAMARGO_MOT, head + "endheader\n" + "\n".join(rows) + "\n")
+    subject = dataclasses.replace(camargo, trials=(TrialSpec("bad", "free", angles=key),))
+    with _raises(IngestError, corpus.path(key), "non-numeric values in columns ['knee_angle_r']"):
+        load_trial(subject, subject.trials[0], corpus.manifest())
+
+
 def test_knee_sign_not_declared(corpus, camargo):
     """Camargo's knee flexion is negative in the file; a subject file that forgets to say so."""
     key = _mot_with_header(corpus, None)
