@@ -45,6 +45,7 @@ class QualityParams:
     speed_gap_pct: Limits = field(default_factory=lambda: Limits(10.0, 25.0))
     missing_sides: Limits = field(default_factory=lambda: Limits(0.0, 1.0))
     non_steady_share: Limits = field(default_factory=lambda: Limits(0.0, 0.25))
+    repeated_walks: Limits = field(default_factory=lambda: Limits(0.0, 1.0))
 
 
 @dataclass(frozen=True)
@@ -254,10 +255,14 @@ def non_steady_share(strides: pd.DataFrame) -> float:
 
 
 def sim_checks(subject: str, real_strides: pd.DataFrame, sims: Mapping[str, pd.DataFrame],
-               policy_table_strides: pd.DataFrame | None, p: QualityParams) -> list[QualityCheck]:
+               policy_table_strides: pd.DataFrame | None, p: QualityParams,
+               policy_walks: pd.DataFrame | None = None) -> list[QualityCheck]:
     """Sim vs real free-walking speed and sides, per human mode in `sims` (mode -> strides: 'replay'
-    the sim/ human, 'policy' the policy human's free strides of its table scenario); and the share of
-    the policy strides entering the tables outside steady walking."""
+    the sim/ human, 'policy' the policy human's free strides of its table scenario); the share of
+    the policy strides entering the tables outside steady walking; and the share of the table
+    scenario's walks that repeat another of their condition (`policy_walks`:
+    `metrics.sampling.repeated_walks`; copies are left out of the tables, so the tables rest on
+    fewer walks than asked)."""
     out = []
     for mode, strides in sims.items():
         note = "" if not strides.empty else f"no {mode} simulation"
@@ -270,6 +275,13 @@ def sim_checks(subject: str, real_strides: pd.DataFrame, sims: Mapping[str, pd.D
         share = non_steady_share(policy_table_strides)
         out.append(check(subject, "simulate", "non_steady_share:policy", share, p.non_steady_share,
                          "policy strides entering the paper's tables"))
+    if policy_walks is not None and not policy_walks.empty:
+        copy = policy_walks["repeats"].notna()
+        per = ", ".join(f"{c}: {int((~g).sum())} of {len(g)}"
+                        for c, g in copy.groupby(policy_walks["condition"]))
+        out.append(check(subject, "simulate", "repeated_walks:policy", float(copy.mean()), p.repeated_walks,
+                         f"walks repeating another of their condition stride for stride, left out of the "
+                         f"paper's tables (distinct walks {per})"))
     return out
 
 

@@ -5,6 +5,12 @@ fixed number of complete gait cycles from each walk. `paper_strides` keeps, per 
 and side, the `cycles_per_walk` kept strides nearest the middle of the walk's steady phase (start
 and stop transitions left out), so every condition contributes the same number of cycles from the
 same part of the walk.
+
+A deterministic human repeats itself: the policy human walking free from quiet standing starts in
+the same state whatever the seed (the seed sets the start phase of a walk that starts walking, and
+the robot's sensor noise), so its free walks from standing are one walk several times. Copies would
+count as independent samples in the SDs and the SPM tests; `distinct_walks` keeps each walk once
+(and `metrics.quality.sim_checks` warns that the condition has fewer walks than asked).
 """
 
 from __future__ import annotations
@@ -14,14 +20,43 @@ import pandas as pd
 
 from metrics.errors import MetricsError
 
+WALK_KEYS = ["condition", "trial", "seed"]
+# what makes two walks the same walk: every stride of it, bit for bit
+WALK_SIGNATURE = ["side", "stride", "t_start_s", "t_end_s", "kept", "stride_length_m", "stride_time_s"]
+
+
+def repeated_walks(strides: pd.DataFrame) -> pd.DataFrame:
+    """One row per walk (condition, trial, seed) of `strides` with `repeats`: the trial of an earlier
+    walk of the same condition it repeats stride for stride, or None. Walks are taken in (trial,
+    seed) order."""
+    rows, seen = [], {}
+    signature = [c for c in WALK_SIGNATURE if c in strides.columns]
+    for (condition, trial, seed), g in strides.groupby(WALK_KEYS, sort=True):
+        key = (condition, tuple(g.sort_values(["side", "t_start_s"])[signature].itertuples(index=False)))
+        rows.append((condition, trial, seed, seen.get(key)))
+        seen.setdefault(key, trial)
+    return pd.DataFrame(rows, columns=[*WALK_KEYS, "repeats"])
+
+
+def distinct_walks(strides: pd.DataFrame) -> pd.DataFrame:
+    """`strides` without the walks that repeat an earlier walk of their condition (module docstring)."""
+    walks = repeated_walks(strides)
+    copies = walks[walks["repeats"].notna()][WALK_KEYS]
+    if copies.empty:
+        return strides
+    marked = strides.merge(copies.assign(_copy=True), on=WALK_KEYS, how="left")
+    return strides[~marked["_copy"].fillna(False).to_numpy(bool)]
+
 
 def paper_strides(strides: pd.DataFrame, cycles_per_walk: int, phase: str = "steady") -> pd.DataFrame:
     """Rows of `strides` (with `kept`, `phase`, `t_start_s`, `t_end_s`) chosen as in the paper:
-    per trial, seed and side, the `cycles_per_walk` kept strides in `phase` around its middle."""
-    missing = [c for c in ("trial", "seed", "side", "kept", "phase", "t_start_s", "t_end_s")
+    per trial, seed and side, the `cycles_per_walk` kept strides in `phase` around its middle; a
+    walk that repeats an earlier one of its condition is left out (`distinct_walks`)."""
+    missing = [c for c in ("condition", "trial", "seed", "side", "kept", "phase", "t_start_s", "t_end_s")
                if c not in strides.columns]
     if missing:
         raise MetricsError("strides table", f"cannot sample like the paper: missing columns {missing}")
+    strides = distinct_walks(strides)
     pool = strides[strides["kept"].astype(bool) & (strides["phase"] == phase)]
     chosen = []
     for _, g in pool.groupby(["condition", "trial", "seed", "side"], sort=True):
@@ -53,4 +88,4 @@ def paper_inputs(tables: dict[str, pd.DataFrame], scenario: str, cycles_per_walk
     return {"strides": chosen, "cycles": restrict_cycles(cycles, chosen), "robot": robot}
 
 
-__all__ = ["paper_inputs", "paper_strides", "restrict_cycles"]
+__all__ = ["distinct_walks", "paper_inputs", "paper_strides", "repeated_walks", "restrict_cycles"]

@@ -269,6 +269,7 @@ class QualitySchema(Schema):
     speed_gap_pct: Pair
     missing_sides: Pair
     non_steady_share: Pair
+    repeated_walks: Pair
 
     @model_validator(mode="after")
     def _ordered(self) -> QualitySchema:

@@ -39,7 +39,7 @@ from metrics import (
 from metrics.errors import MetricsError
 from metrics.phases import event_traces, phase_table
 from metrics.quality import TrialSpan, ingest_checks, quality_table, scale_checks, sim_checks, transfer_checks
-from metrics.sampling import paper_inputs, paper_strides
+from metrics.sampling import paper_inputs, paper_strides, repeated_walks
 from metrics.tracking import TRACKING_COLUMNS, tracking_table
 from pipeline.params import MetricsParams, Params
 from pipeline.paths import (
@@ -190,17 +190,19 @@ def quality_checks(subject: str, params: Params, root: Path = PROCESSED_ROOT,
     real = {n: _read_table(real_dir(root, subject) / f"{n}.parquet") for n in ("strides", "events", "cycles")}
     sims = {"replay": _read_table(sim_dir(root, subject) / "strides.parquet")}
     policy = _read_table(sim_policy_dir(root, subject) / "strides.parquet")
-    table_strides = None
+    table_strides = walks = None
     if not policy.empty:
         paper = params.scenarios.paper
-        table_strides = paper_strides(policy[policy["scenario"] == paper.scenario], paper.cycles_per_walk)
+        scenario = policy[policy["scenario"] == paper.scenario]
+        table_strides = paper_strides(scenario, paper.cycles_per_walk)
+        walks = repeated_walks(scenario) if not scenario.empty else None
     sims["policy"] = table_strides if table_strides is not None else policy
     policy_summary = read_json(sim_policy_dir(root, subject) / "summary.json") or {}
     checks = [*scale_checks(subject, model, reference, q),
               *ingest_checks(subject, real["events"], real["cycles"],
                              spans if spans is not None else trial_spans(subject),
                              params.metrics.spm.min_cycles, q),
-              *sim_checks(subject, real["strides"], sims, table_strides, q),
+              *sim_checks(subject, real["strides"], sims, table_strides, q, walks),
               *transfer_checks(subject, policy_summary.get("transfer"))]
     return quality_table(checks)
 

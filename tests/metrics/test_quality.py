@@ -88,6 +88,11 @@ def test_sim_checks_speed_sides_and_phases():
     status = rows.set_index("check")["status"]
     assert status["speed_gap_pct:replay"] == "ok" and status["speed_gap_pct:policy"] == "fail"
     assert status["missing_sides:policy"] == "ok" and status["non_steady_share:policy"] == "ok"
+    walks = pd.DataFrame({"condition": ["free"] * 4 + ["pid"] * 4, "trial": [f"w{i}" for i in range(8)],
+                          "seed": [0, 1, 2, 3] * 2, "repeats": [None, "w0", "w0", "w0"] + [None] * 4})
+    rows = quality_table(sim_checks("s", real, {"policy": policy}, policy, P, walks)).set_index("check")
+    assert tuple(rows.loc["repeated_walks:policy", ["value", "status"]]) == (3 / 8, "warn")
+    assert "free: 1 of 4, pid: 4 of 4" in rows.loc["repeated_walks:policy", "note"]
     empty = quality_table(sim_checks("s", real, {"replay": pd.DataFrame()}, None, P)).set_index("check")
     assert empty.loc["speed_gap_pct:replay", "status"] == "warn"
     assert "no replay simulation" in empty.loc["speed_gap_pct:replay", "note"]

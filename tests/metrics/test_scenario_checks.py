@@ -8,7 +8,7 @@ import pandas as pd
 import pytest
 
 from metrics.phases import mean_ci95, phase_table
-from metrics.sampling import paper_strides, restrict_cycles
+from metrics.sampling import paper_strides, repeated_walks, restrict_cycles
 from metrics.scenario_checks import speed_changes, standing_at_end, start_time_s, stop_time_s, stride_speed
 
 RATE = 100.0
@@ -83,3 +83,22 @@ def test_paper_sampling_takes_the_middle_of_the_steady_phase():
     assert chosen["stride"].tolist() == [2, 3, 4, 5]  # nearest the middle (4.5 s); ties to the earlier
     cycles = strides.assign(pct=0.0)[["condition", "trial", "seed", "side", "stride", "pct"]]
     assert sorted(restrict_cycles(cycles, chosen)["stride"]) == sorted(chosen["stride"])
+
+
+def _walk(condition: str, seed: int, lengths: list[float]) -> list[dict]:
+    return [{"condition": condition, "trial": f"w_{condition}_seed{seed}", "seed": seed, "side": "right",
+             "stride": i, "kept": True, "phase": "steady", "t_start_s": float(i), "t_end_s": i + 1.0,
+             "stride_length_m": length, "stride_time_s": 1.0} for i, length in enumerate(lengths)]
+
+
+def test_a_walk_repeated_by_another_seed_enters_the_tables_once():
+    same = [1.50, 1.52, 1.51, 1.49]
+    strides = pd.DataFrame(_walk("free", 0, same) + _walk("free", 1, same) + _walk("free", 2, [1.5] * 4)
+                           + _walk("pid", 0, same) + _walk("pid", 1, same[::-1]))
+    walks = repeated_walks(strides).set_index(["condition", "seed"])["repeats"]
+    assert walks[("free", 1)] == "w_free_seed0"  # the same strides as seed 0
+    # pid's seed 0 walks free's seed 0 again, in another condition: not a copy
+    assert walks[[("free", 0), ("free", 2), ("pid", 0), ("pid", 1)]].isna().all()
+    chosen = paper_strides(strides, 4)
+    assert chosen.groupby("condition")["seed"].unique().map(list).to_dict() == {"free": [0, 2], "pid": [0, 1]}
+    assert len(chosen) == 16
