@@ -110,6 +110,9 @@ TUNING_DDL = ("version_id BIGINT NOT NULL, subject VARCHAR, variant VARCHAR, con
               "content_hash VARCHAR, run_id BIGINT, created_at TIMESTAMP")
 QUALITY_DDL = ('run_id BIGINT NOT NULL, subject VARCHAR NOT NULL, stage VARCHAR, "check" VARCHAR, '
                "value DOUBLE, warn_above DOUBLE, fail_above DOUBLE, status VARCHAR, note VARCHAR")
+# a sweep walk's summary: two walks with the same one are the same walk (a deterministic walk from
+# standing repeats itself in every seed)
+WALK_SUMMARY = "(gait_speed_mps, stride_length_m, stride_time_cv_pct, n_strides, fell)"
 LINKED = ("spm_curves", "spm_clusters")  # rows that belong to an SPM test's group via test_id
 
 
@@ -293,9 +296,11 @@ def _views() -> list[str]:
         "FROM sweep_rollouts WHERE coalesce(event, 'none') = 'none' AND condition <> 'free' "
         "AND walk_s IS NOT NULL GROUP BY ALL ORDER BY subject, variant, condition",
         # each variant's gait signature walking free without events (metrics.gait_symmetry)
+        # distinct_walks (WALK_SUMMARY); the SD across walks needs two distinct ones
         "CREATE OR REPLACE VIEW cohort_gait AS SELECT subject, variant, scenario, count(*) AS walks, "
-        "sum(fell::INT) AS falls, avg(gait_speed_mps) AS gait_speed_mps, "
-        "stddev_samp(gait_speed_mps) AS gait_speed_sd, avg(stride_length_m) AS stride_length_m, "
+        f"count(DISTINCT {WALK_SUMMARY}) AS distinct_walks, sum(fell::INT) AS falls, "
+        f"avg(gait_speed_mps) AS gait_speed_mps, CASE WHEN count(DISTINCT {WALK_SUMMARY}) > 1 "
+        "THEN stddev_samp(gait_speed_mps) END AS gait_speed_sd, avg(stride_length_m) AS stride_length_m, "
         "avg(stance_ratio_lr) AS stance_ratio_lr, avg(swing_ratio_lr) AS swing_ratio_lr, "
         "avg(stride_time_cv_pct) AS stride_time_cv_pct, sum(n_strides) AS strides "
         "FROM sweep_rollouts WHERE coalesce(event, 'none') = 'none' AND condition = 'free' "

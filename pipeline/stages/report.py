@@ -271,6 +271,14 @@ def _mean_sd(mean, sd, digits: int, n=None) -> str:
     return text + ("" if n is None or _num(n, 0) == "–" else f" (n={int(n)})")
 
 
+def _walks(walks, distinct) -> str:
+    """`walks`, and how many are distinct when fewer are."""
+    text = _num(walks, 0)
+    if text == "–" or _num(distinct, 0) == "–" or int(distinct) >= int(walks):
+        return text
+    return f"{text} ({int(distinct)} distinct)"
+
+
 def md_table(header: list[str], rows: list[list[str]]) -> str:
     if not rows:
         return "_No rows._\n"
@@ -655,15 +663,18 @@ def cohort_lines(gait: pd.DataFrame, controllers: pd.DataFrame, ranges: dict[str
               "actions. Each walks with its own policy, fine-tuned for that body. "
               + _missing_variants(gait, controllers), "",
               "### Gait signature, walking free", "",
-              "Walking without robot and without scripted events, per scenario. Falls: walks in which the "
-              "human fell, of all walks. Gait speed: mean ± SD across walks. Stride length: mean over walks. "
+              "Walking without robot and without scripted events, per scenario. Walks: how many, and how "
+              "many of them differ when some seeds repeat one walk (a walk from standing without motor "
+              "noise is the same in every seed). Falls: walks in which the human fell, of all walks. Gait "
+              "speed: mean ± SD across walks (no SD from fewer than two distinct walks). Stride length: "
+              "mean over walks. "
               "Stance (swing) ratio L/R: the left leg's mean stance (swing) time divided by the right's; "
               "1 is symmetric, above 1 the left leg's phase lasts longer. Stride time CV: the SD of the kept "
               "strides' durations over their mean in one walk (%), averaged over walks; higher is less "
               "steady. Strides: kept strides over all walks.", ""]
     header = ["Variant", "Scenario", "Walks", "Falls", "Gait speed (m/s)", "Stride length (m)",
               "Stance ratio L/R", "Swing ratio L/R", "Stride time CV (%)", "Strides"]
-    rows = [[r.variant, r.scenario, _num(r.walks, 0), _falls_of(r.falls, r.walks),
+    rows = [[r.variant, r.scenario, _walks(r.walks, r.distinct_walks), _falls_of(r.falls, r.walks),
              _mean_sd(r.gait_speed_mps, r.gait_speed_sd, 3), _num(r.stride_length_m, 3),
              _num(r.stance_ratio_lr, 3), _num(r.swing_ratio_lr, 3), _num(r.stride_time_cv_pct, 2),
              _num(r.strides, 0)]

@@ -114,6 +114,10 @@ def sweep_rows(subject: str) -> pd.DataFrame:
     a push, two seeds each (`sweep_row`)."""
     rows = [sweep_row(subject, v, c, e, seed) for v in ("healthy", "weak")
             for c in ("free", "pid", "adaptive") for e in ("none", "trip", "push") for seed in (0, 1)]
+    # healthy walking free from standing (walk_10m): both seeds the same walk, as a deterministic one is
+    same = sweep_row(subject, "healthy", "free", "none", 0)
+    rows += [{**same, "scenario": "walk_10m", "seed": seed, "job_key": f"{same['job_key']}-walk_10m-{seed}"}
+             for seed in (0, 1)]
     return pd.DataFrame(rows, columns=SWEEP_COLUMNS)
 
 
@@ -271,8 +275,12 @@ def test_cohort_and_fall_sections_match_the_views(store, reports):
     md = (reports / "camargo" / "report.md").read_text()
     assert md.index("## Virtual cohort") < md.index("## Fall intervention")
     assert "is missing from these tables: here hemiparetic_left, hemiparetic_right, slow, unsteady." in md
-    gait = query(db, "select * from cohort_gait where subject = 'camargo' order by variant")
-    assert list(gait["variant"]) == ["healthy", "weak"]
+    gait = query(db, "select * from cohort_gait where subject = 'camargo' and scenario = 'steady' "
+                     "order by variant")
+    assert list(gait["variant"]) == ["healthy", "weak"] and list(gait["distinct_walks"]) == [2, 2]
+    repeated = query(db, "select * from cohort_gait where scenario = 'walk_10m'").iloc[0]
+    assert repeated["walks"] == 2 and repeated["distinct_walks"] == 1 and pd.isna(repeated["gait_speed_sd"])
+    assert f"| healthy | walk_10m | 2 (1 distinct) | 0/2 | {repeated['gait_speed_mps']:.3f} | " in md
     for r in gait.itertuples():
         assert (f"| {r.variant} | steady | 2 | 0/2 | {r.gait_speed_mps:.3f} ± {r.gait_speed_sd:.3f} | "
                 f"{r.stride_length_m:.3f} | {r.stance_ratio_lr:.3f} | {r.swing_ratio_lr:.3f} | "

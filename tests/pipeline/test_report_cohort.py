@@ -25,8 +25,9 @@ from pipeline.stages.report import (
 
 NAN = math.nan
 CAUGHT_DROP_M = 0.22
-GAIT = ["subject", "variant", "scenario", "walks", "falls", "gait_speed_mps", "gait_speed_sd",
-        "stride_length_m", "stance_ratio_lr", "swing_ratio_lr", "stride_time_cv_pct", "strides"]
+GAIT = ["subject", "variant", "scenario", "walks", "distinct_walks", "falls", "gait_speed_mps",
+        "gait_speed_sd", "stride_length_m", "stance_ratio_lr", "swing_ratio_lr", "stride_time_cv_pct",
+        "strides"]
 CONTROLLERS = ["subject", "variant", "condition", "scenario", "walks", "falls", "mean_abs_ex_cm",
                "mean_abs_ey_cm", "force_rms_n", "speed_change_pct", "stride_change_pct", "cv_change_pct"]
 FALL = ["subject", "variant", "event", "condition", "rollouts", "fell_before_onset", "events",
@@ -39,11 +40,11 @@ ALARMS = ["subject", "variant", "condition", "rollouts", "walking_h", "alarms", 
 
 def gait_frame() -> pd.DataFrame:
     """healthy and a left hemiparetic variant walking free; the hemiparetic one has no stance ratio
-    (no toe-off found on one side) and fell once in walk_10m."""
+    (no toe-off found on one side) and fell once in walk_10m, where its 4 walks are 2 distinct ones."""
     return pd.DataFrame([
-        ["s1", "hemiparetic_left", "steady", 4, 0, 0.71, 0.02, 0.82, 1.12, 0.78, 4.1, 60],
-        ["s1", "healthy", "steady", 4, 0, 1.31, 0.01, 1.36, 1.01, 0.99, 1.4, 80],
-        ["s1", "hemiparetic_left", "walk_10m", 4, 1, 0.69, NAN, 0.80, NAN, 0.80, 4.5, 30],
+        ["s1", "hemiparetic_left", "steady", 4, 4, 0, 0.71, 0.02, 0.82, 1.12, 0.78, 4.1, 60],
+        ["s1", "healthy", "steady", 4, 4, 0, 1.31, 0.01, 1.36, 1.01, 0.99, 1.4, 80],
+        ["s1", "hemiparetic_left", "walk_10m", 4, 2, 1, 0.69, NAN, 0.80, NAN, 0.80, 4.5, 30],
     ], columns=GAIT)
 
 
@@ -148,7 +149,8 @@ def test_cohort_section_prints_the_gait_beside_the_clinical_ranges():
     assert text.startswith("## Virtual cohort")
     assert "| healthy | steady | 4 | 0/4 | 1.310 ± 0.010 | 1.360 | 1.010 | 0.990 | 1.40 | 80 |" in text
     # no SD across walks, no stance ratio: dashes, the rest still printed
-    assert "| hemiparetic_left | walk_10m | 4 | 1/4 | 0.690 | 0.800 | – | 0.800 | 4.50 | 30 |" in text
+    assert ("| hemiparetic_left | walk_10m | 4 (2 distinct) | 1/4 | 0.690 | 0.800 | – | 0.800 | 4.50 | 30 |"
+            in text)
     assert text.index("| healthy | steady | 4") < text.index("| hemiparetic_left | steady")
     assert "missing from these tables: here hemiparetic_right, slow, unsteady." in text
     for r in ranges.values():
