@@ -90,14 +90,16 @@ def clean_markers(trial: Trial, markerset: dict[str, str], p: IngestParams) -> T
         raise IngestError(trial.origin, f"only {trial.n_frames} frames: too short to filter")
     if fc >= rate / 2:
         raise IngestError(trial.origin, f"cutoff {fc} Hz is above Nyquist of a {rate} Hz recording")
-    markers = _filtered({n: fill_short(x, rate, p.max_gap_s) for n, x in markers.items()}, rate, p)
-    angles = _filtered({n: fill_short(x, rate, p.max_gap_s) for n, x in trial.angles.items()},
-                       rate, p)
+    markers = _filtered(markers, rate, p)
+    angles = _filtered(trial.angles, rate, p)
     return trial.with_(markers=markers, angles=angles)
 
 
 def _filtered(signals: dict[str, np.ndarray], rate_hz: float, p: IngestParams) -> dict[str, np.ndarray]:
-    """Low-pass many signals at once: the gap-free ones in one call, the others one by one."""
+    """Gap-fill (`fill_short`, only the signals with a gap) and low-pass many signals at once: the
+    gap-free ones (after filling) in one call, the others one by one."""
+    signals = {n: x if np.isfinite(x).all() else fill_short(x, rate_hz, p.max_gap_s)
+               for n, x in signals.items()}
     complete = [n for n, x in signals.items() if np.isfinite(x).all()]
     out = {n: lowpass(x, rate_hz, p.cutoff_hz, p.filter_order) for n, x in signals.items()
            if n not in complete}
