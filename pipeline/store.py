@@ -111,8 +111,8 @@ TUNING_DDL = ("version_id BIGINT NOT NULL, subject VARCHAR, variant VARCHAR, con
 QUALITY_DDL = ('run_id BIGINT NOT NULL, subject VARCHAR NOT NULL, stage VARCHAR, "check" VARCHAR, '
                "value DOUBLE, warn_above DOUBLE, fail_above DOUBLE, status VARCHAR, note VARCHAR")
 # a sweep walk's summary: two walks with the same one are the same walk (a deterministic walk from
-# standing repeats itself in every seed)
-WALK_SUMMARY = "(gait_speed_mps, stride_length_m, stride_time_cv_pct, n_strides, fell)"
+# standing repeats itself in every seed); the fall time tells apart walks that fell before a stride
+WALK_SUMMARY = "(gait_speed_mps, stride_length_m, stride_time_cv_pct, n_strides, fell, human_fall_s, walk_s)"
 LINKED = ("spm_curves", "spm_clusters")  # rows that belong to an SPM test's group via test_id
 
 

@@ -118,6 +118,11 @@ def sweep_rows(subject: str) -> pd.DataFrame:
     same = sweep_row(subject, "healthy", "free", "none", 0)
     rows += [{**same, "scenario": "walk_10m", "seed": seed, "job_key": f"{same['job_key']}-walk_10m-{seed}"}
              for seed in (0, 1)]
+    # weak falling free before a stride in walk_10m: two walks, told apart by when they fell
+    fell = {**sweep_row(subject, "weak", "free", "none", 0), "scenario": "walk_10m", "fell": True,
+            "gait_speed_mps": np.nan, "stride_length_m": np.nan, "stride_time_cv_pct": np.nan, "n_strides": 0}
+    rows += [{**fell, "seed": seed, "human_fall_s": 1.5 + seed, "job_key": f"{fell['job_key']}-w10-{seed}"}
+             for seed in (0, 1)]
     return pd.DataFrame(rows, columns=SWEEP_COLUMNS)
 
 
@@ -278,7 +283,9 @@ def test_cohort_and_fall_sections_match_the_views(store, reports):
     gait = query(db, "select * from cohort_gait where subject = 'camargo' and scenario = 'steady' "
                      "order by variant")
     assert list(gait["variant"]) == ["healthy", "weak"] and list(gait["distinct_walks"]) == [2, 2]
-    repeated = query(db, "select * from cohort_gait where scenario = 'walk_10m'").iloc[0]
+    walk_10m = query(db, "select * from cohort_gait where scenario = 'walk_10m'").set_index("variant")
+    fallen, repeated = walk_10m.loc["weak"], walk_10m.loc["healthy"]
+    assert fallen["walks"] == 2 and fallen["distinct_walks"] == 2 and fallen["falls"] == 2
     assert repeated["walks"] == 2 and repeated["distinct_walks"] == 1 and pd.isna(repeated["gait_speed_sd"])
     assert f"| healthy | walk_10m | 2 (1 distinct) | 0/2 | {repeated['gait_speed_mps']:.3f} | " in md
     for r in gait.itertuples():
