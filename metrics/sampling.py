@@ -8,7 +8,8 @@ same part of the walk.
 
 A deterministic human repeats itself: the policy human walking free from quiet standing starts in
 the same state whatever the seed (the seed sets the start phase of a walk that starts walking, and
-the robot's sensor noise), so its free walks from standing are one walk several times. Copies would
+the robot's sensor noise), so without motor noise (`rollout.policy_motor_noise`) its free walks
+from standing are one walk several times. Copies would
 count as independent samples in the SDs and the SPM tests; `distinct_walks` keeps each walk once
 (and `metrics.quality.sim_checks` warns that the condition has fewer walks than asked).
 """

@@ -12,12 +12,14 @@ writes it. Plain `dvc repro` writes the same file.
 
 from __future__ import annotations
 
+import copy
 import io
 import os
 import sys
 from collections import OrderedDict
 from collections.abc import Iterator
 from contextlib import contextmanager
+from pathlib import Path
 from typing import Any
 
 import yaml
@@ -67,10 +69,10 @@ def lock_text(text: str, before: dict, after: dict) -> str:
     file is its entries one after the other). Otherwise DVC's own way: its round-trip parse of
     `text` with the same changes, dumped by its dumper."""
     old, new = before.get("stages", {}), after.get("stages", {})
-    changed = [n for n in new if new[n] is not old.get(n)]
+    changed = [n for n in new if n not in old or new[n] != old[n]]
     removed = [n for n in old if n not in new]
     same_top = [k for k in after if k != "stages"] == [k for k in before if k != "stages"] and \
-        all(after[k] is before[k] for k in after if k != "stages")
+        all(after[k] == before[k] for k in after if k != "stages")
     try:
         if same_top and dump_lock_text(before) == text and all(
                 dump_lock_text({"stages": {n: new[n]}}) == dvc_dump_text({"stages": {n: new[n]}})
@@ -82,7 +84,7 @@ def lock_text(text: str, before: dict, after: dict) -> str:
 
     data = parse_yaml_for_update(text, LOCK_NAME) if text else {}
     for k in after:
-        if k != "stages" and not (k in before and after[k] is before[k]):
+        if k != "stages" and not (k in before and after[k] == before[k]):
             data[k] = after[k]
     if "stages" in after:
         stages = data.setdefault("stages", {})
@@ -105,13 +107,11 @@ def fast_modify_yaml(original: Any) -> Any:
             with original(path, fs=fs) as data:
                 yield data
             return
-        text = open(path, encoding="utf-8").read() if os.path.exists(path) else ""
+        text = Path(path).read_text(encoding="utf-8") if os.path.exists(path) else ""
         data = load_lock_text(text) if text else {}
-        before = {**data, "stages": dict(data["stages"])} if "stages" in data else dict(data)
+        before = copy.deepcopy(data)  # as read, whatever DVC changes in place (~25 ms)
         yield data
-        out = lock_text(text, before, data)
-        with open(path, "w", encoding="utf-8") as fd:
-            fd.write(out)
+        Path(path).write_text(lock_text(text, before, data), encoding="utf-8")
 
     return modify_yaml
 
