@@ -98,9 +98,13 @@ def clean_markers(trial: Trial, markerset: dict[str, str], p: IngestParams) -> T
 def _filtered(signals: dict[str, np.ndarray], rate_hz: float, p: IngestParams) -> dict[str, np.ndarray]:
     """Gap-fill (`fill_short`, only the signals with a gap) and low-pass many signals at once: the
     gap-free ones (after filling) in one call, the others one by one."""
-    signals = {n: x if np.isfinite(x).all() else fill_short(x, rate_hz, p.max_gap_s)
-               for n, x in signals.items()}
-    complete = [n for n, x in signals.items() if np.isfinite(x).all()]
+    signals, complete = dict(signals), []
+    for n, x in signals.items():
+        if not np.isfinite(x).all():
+            x = signals[n] = fill_short(x, rate_hz, p.max_gap_s)
+            if not np.isfinite(x).all():
+                continue
+        complete.append(n)
     out = {n: lowpass(x, rate_hz, p.cutoff_hz, p.filter_order) for n, x in signals.items()
            if n not in complete}
     if complete:
