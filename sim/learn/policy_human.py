@@ -129,6 +129,11 @@ class PolicyHuman(HumanDriver):
         data.qvel[self.idx.jdof] = qvel[6:]
         self.amp = np.zeros(AMP_SIZE)
         self.obs = np.zeros(OBS_SIZE, np.float32)
+        # the walk's motor noise, one row per policy step, drawn at once: the same numbers as a draw
+        # per step (the generator fills an array element by element in order)
+        n_steps = -(-(len(sample_times_s) - 1) // self.every)
+        self.noise_rows = self.noise.normal(0.0, self.action_noise, (n_steps, len(self.idx.act))) \
+            if self.action_noise else None
         self.wrench = np.zeros(6)
         self.min_height = self.fall_height_fraction * float(self.ref.height.mean())
         self.min_up = float(np.cos(np.radians(self.p.max_tilt_deg)))
@@ -158,8 +163,8 @@ class PolicyHuman(HumanDriver):
             observe(data, idx, self.amp, self.gait, self.wrench, self.obs)
             action = np.asarray(self.policy(self.obs), float).reshape(-1)
             action = np.minimum(np.maximum(action, -1.0), 1.0)  # np.clip's numbers, without its wrapper
-            if self.action_noise:
-                action = action + self.noise.normal(0.0, self.action_noise, len(action))
+            if self.noise_rows is not None:
+                action = action + self.noise_rows[k // self.every]
             self.gait.advance(self.step_phase, *self._command(k + self.every))
             data.ctrl[idx.act] = self.gait.targets(action, self.p, self.lo, self.hi)
         if self.event_run is not None:

@@ -170,27 +170,40 @@ def _geom_bottom(model: mujoco.MjModel, data: mujoco.MjData, g: int) -> float:
 
 class SteeredReference:
     """The reference under a command: cycle tables (`sim.learn.walk_env.ReferenceTable`) blended
-    with the standing pose by the gait amplitude and time-warped by the speed ratio."""
+    with the standing pose by the gait amplitude and time-warped by the speed ratio.
+
+    The tables are packed side by side into one row per cycle sample (the blended part, servo
+    coordinates, feet and pelvis height, then the velocities, then the root velocity), so a lookup
+    is one interpolation of one row and three scalings: the same element-wise operations as
+    interpolating each table apart (bit for bit), with a third of numpy's per-call overhead; it runs
+    at every policy step of every rollout."""
 
     def __init__(self, table, stand_ctrl: np.ndarray, stand_feet: np.ndarray, stand_height: float) -> None:
         self.table = table
         self.stand_ctrl, self.stand_feet, self.stand_height = stand_ctrl, stand_feet, float(stand_height)
+        nu, nf = table.ctrl.shape[1], table.feet.shape[1]
+        self._rows = np.hstack([table.ctrl, table.feet, table.height[:, None], table.ctrl_vel,
+                                table.joint_vel, table.root_vel[:, :2]])
+        self._stand = np.r_[stand_ctrl, stand_feet, self.stand_height]
+        self._n_pos = nu + nf + 1
+        self._cut = (nu, nu + nf)
 
     def at(self, phase: float, a: float, rate: float, speed_ratio: float
            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float, np.ndarray]:
         """(servo coordinates, their velocity, joint velocities, feet, pelvis height, root xy
         velocity in the heading frame) at `phase`, gait amplitude `a`, phase rate `rate` and
         `speed_ratio` (commanded / cycle speed: the root's)."""
-        t = self.table
-        k0, k1, f = t.index(phase)
-        g = 1 - f
-        ctrl = (1 - a) * self.stand_ctrl + a * (t.ctrl[k0] * g + t.ctrl[k1] * f)
-        ctrl_vel = (a * rate) * (t.ctrl_vel[k0] * g + t.ctrl_vel[k1] * f)
-        joint_vel = (a * rate) * (t.joint_vel[k0] * g + t.joint_vel[k1] * f)
-        feet = (1 - a) * self.stand_feet + a * (t.feet[k0] * g + t.feet[k1] * f)
-        height = (1 - a) * self.stand_height + a * (t.height[k0] * g + t.height[k1] * f)
-        root_vel = speed_ratio * (t.root_vel[k0, :2] * g + t.root_vel[k1, :2] * f)
-        return ctrl, ctrl_vel, joint_vel, feet, height, root_vel
+        k0, k1, f = self.table.index(phase)
+        rows = self._rows
+        row = rows[k0] * (1 - f)
+        row += rows[k1] * f
+        n_pos = self._n_pos
+        pos = (1 - a) * self._stand
+        pos += a * row[:n_pos]
+        vel = (a * rate) * row[n_pos:-2]
+        nu, feet_end = self._cut
+        return (pos[:nu], vel[:nu], vel[nu:], pos[nu:feet_end], float(pos[feet_end]),
+                speed_ratio * row[-2:])
 
 
 __all__ = ["CommandSampling", "SteeredReference", "blend_qpos", "command_at", "level_speed_ratio",
