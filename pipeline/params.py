@@ -561,6 +561,7 @@ class CommandsSchema(Schema):
     event_probabilities: tuple[float, float, float]
     full_gait_fraction: Annotated[float, Field(gt=0.0, le=1.0)]
     stride_speed_exponent: Annotated[float, Field(gt=0.0, le=1.0)] | None
+    min_cadence: Annotated[float, Field(gt=0.0, le=1.0)] | None
     start_s_range: Pair
     stop_s_range: Pair
     turn_rate_deg_s_range: Pair

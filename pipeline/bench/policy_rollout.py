@@ -29,10 +29,10 @@ Where a 10 s walk's loop time goes (thread CPU time, 2-core machine shared with 
 ~150 ms (the replayed steps ~140 ms, the same steps inside the loop ~10 ms more: caches). The
 Python: 334 policy steps ~30 ms (the forward pass, plain numpy `sim.learn.policy_human.ActorMlp`,
 ~20 us hot, its 0.6 MB of float64 weights reloaded after the physics; features ~15 us; the steered
-reference ~6 us, one lookup in a packed table, and the servo targets ~3 us), 1000 controller ticks and the warm start's 500 ~12 ms, sensors, drive and
-recording ~6 ms. Batching the forward pass across rollouts run in lockstep would save a few ms a
-walk at most, and a matrix product of a batch rounds differently from one vector's (1-2 ulp), so
-trajectories would not stay bit-identical; not done.
+reference ~6 us, one lookup in a packed table; the servo targets ~3 us), 1000 controller ticks and
+the warm start's 500 ~12 ms, sensors, drive and recording ~6 ms. Batching the forward pass across
+rollouts run in lockstep would save a few ms a walk at most, and a matrix product of a batch rounds
+differently from one vector's (1-2 ulp), so trajectories would not stay bit-identical; not done.
 """
 
 from __future__ import annotations

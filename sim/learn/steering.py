@@ -11,9 +11,10 @@ stride length is about `a` x the cycle's) and time-warped by the phase rate `r` 
 cycle's), with `a r` = commanded / cycle speed (`speed_law`). Above `full_gait_fraction` of the
 cycle's speed the stride is kept and the cadence follows the speed; below it the stride shortens as
 speed^`stride_speed_exponent` (0.42: the preferred step length of Kuo 2001, J Biomech Eng 123:264)
-and the cadence takes the rest, so a walk slows and stops in short, quick steps. Policies trained
-before this law (`stride_speed_exponent` None: `a` a smoothstep of the speed, the cadence alone
-following it, so slow walking asked for long, slow strides) keep their own.
+and the cadence takes the rest, so a walk slows and stops in short, quick steps. A cadence floor
+(`min_cadence`, off unless set) keeps steps coming at the end of a stop and the beginning of a
+start. Policies trained before this law (`stride_speed_exponent` None: `a` a smoothstep of the
+speed, the cadence alone following it, so slow walking asked for long, slow strides) keep their own.
 
 The standing pose is the body's anatomical neutral (every joint coordinate zero:
 upright, arms down) with the feet on the floor. While standing, the cycle waits where the legs pass
@@ -49,6 +50,11 @@ class CommandSampling:
     start_s_range: tuple[float, float] = (1.7, 4.0)  # gentler starts, stops and turns than the
     stop_s_range: tuple[float, float] = (1.4, 3.0)   # scenarios' too, so the policy meets easier
     turn_rate_deg_s_range: tuple[float, float] = (40.0, 90.0)  # versions of each transition
+    # Phase-rate floor while walking (None: none). Without it the law's cadence falls to 0 with the
+    # speed, so the last ~0.3 s of a stop (and the first of a start) blend the gait amplitude from
+    # ~0.3-0.4 to 0 while the phase moves ~3 % of a cycle: the reference slides the stance foot on
+    # the floor instead of stepping. With a floor, steps keep coming and shorten with the speed.
+    min_cadence: float | None = None
 
 
 def sample_commands(rng: np.random.Generator, speed_mps: float, duration_s: float, rate_hz: float,
@@ -92,24 +98,33 @@ def command_at(speed_mps: np.ndarray, heading_rad: np.ndarray, k: int, ahead: in
     return float(speed_mps[k]), float(heading_rad[k]), float(rate)
 
 
-def speed_law(speed_ratio: float, full_gait_fraction: float,
-              stride_speed_exponent: float | None) -> tuple[float, float]:
+def speed_law(speed_ratio: float, full_gait_fraction: float, stride_speed_exponent: float | None,
+              min_cadence: float | None = None) -> tuple[float, float]:
     """(gait amplitude `a`, phase rate `r`) at `speed_ratio` = commanded / cycle speed (module
     docstring): `a r` = `speed_ratio`; the legacy law (exponent None) has `a` a smoothstep and
-    `r` = `speed_ratio`."""
+    `r` = `speed_ratio`. `min_cadence` (None: none) floors the phase rate while walking: below the
+    speed where the law's cadence reaches it, the cadence stays there and the stride shortens in
+    proportion to the speed (see `CommandSampling.min_cadence`)."""
     x = min(max(speed_ratio / full_gait_fraction, 0.0), 1.0)
     if stride_speed_exponent is None:
         return x * x * (3 - 2 * x), max(speed_ratio, 0.0)
     a = x ** stride_speed_exponent
-    return a, (speed_ratio / a if a > 0.0 else 0.0)
+    rate = speed_ratio / a if a > 0.0 else 0.0
+    if min_cadence is not None and 0.0 < rate < min_cadence:
+        return speed_ratio / min_cadence, min_cadence
+    return a, rate
 
 
-def level_speed_ratio(a: float, full_gait_fraction: float, stride_speed_exponent: float | None) -> float:
+def level_speed_ratio(a: float, full_gait_fraction: float, stride_speed_exponent: float | None,
+                      min_cadence: float | None = None) -> float:
     """The speed ratio at which `speed_law` gives gait amplitude `a` (its inverse; 1 at `a` = 1, the
     cycle itself); the legacy law's reference transitions took the ratio equal to `a`."""
     if stride_speed_exponent is None or a >= 1.0:
         return a
-    return full_gait_fraction * a ** (1.0 / stride_speed_exponent)
+    ratio = full_gait_fraction * a ** (1.0 / stride_speed_exponent)
+    if min_cadence is not None and 0.0 < ratio / a < min_cadence:  # below the floor: a = ratio / floor
+        return a * min_cadence
+    return ratio
 
 
 def standing_pose(model: mujoco.MjModel, foot_bodies: np.ndarray) -> np.ndarray:

@@ -246,8 +246,10 @@ def train(model_path: str | Path, cycle: ReferenceCycle, p: TrainParams, out_dir
 
     def save() -> dict:
         save_body(out, model_path, cycle)
-        law = {"stride_speed_exponent": p.env.commands.stride_speed_exponent,
-               "full_gait_fraction": p.env.commands.full_gait_fraction}
+        c = p.env.commands
+        law = {"stride_speed_exponent": c.stride_speed_exponent, "full_gait_fraction": c.full_gait_fraction}
+        if c.min_cadence is not None:  # written only when set: the files of earlier policies stay as they are
+            law["min_cadence"] = c.min_cadence
         (out / STEERING_FILE).write_text(json.dumps(law) + "\n")
         model.save(str(out / POLICY_FILE))
         venv.save(str(out / NORM_FILE))
@@ -403,12 +405,13 @@ def load_body(out_dir: str | Path) -> tuple[Path, ReferenceCycle]:
 def policy_env(out_dir: str | Path, env: WalkEnvParams) -> WalkEnvParams:
     """`env` under the speed law the policy in `out_dir` was trained with (`STEERING_FILE`); a policy
     from before the law was recorded has none and keeps the legacy law (exponent None); one from
-    before `full_gait_fraction` was recorded keeps the params' value."""
+    before `full_gait_fraction` was recorded keeps the params' value; one without `min_cadence` was
+    trained without a cadence floor."""
     f = Path(out_dir) / STEERING_FILE
     law = json.loads(f.read_text()) if f.exists() else {}
     fraction = law.get("full_gait_fraction") or env.commands.full_gait_fraction
     return replace(env, commands=replace(env.commands, stride_speed_exponent=law.get("stride_speed_exponent"),
-                                         full_gait_fraction=fraction))
+                                         full_gait_fraction=fraction, min_cadence=law.get("min_cadence")))
 
 
 def load_policy(out_dir: str | Path) -> tuple[PPO, VecNormalize | None]:

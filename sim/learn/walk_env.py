@@ -166,7 +166,7 @@ class ReferenceTable:
         self.stand_feet = feet_in_heading(data, idx)
         self.stand_height = float(self.stand_qpos[2])
         self.amp_levels = np.empty((len(AMP_LEVELS), n, AMP_SIZE))
-        law = (commands.full_gait_fraction, commands.stride_speed_exponent)
+        law = (commands.full_gait_fraction, commands.stride_speed_exponent, commands.min_cadence)
         ratios = [level_speed_ratio(a, *law) for a in AMP_LEVELS]
         self.level_rate = np.array([speed_law(r, *law)[1] for r in ratios])  # phase rate per level
         for i, a in enumerate(AMP_LEVELS):
@@ -443,7 +443,7 @@ class GaitState:
 
     def __init__(self, ref: ReferenceTable, commands: CommandSampling) -> None:
         self.ref = ref
-        self.law = (commands.full_gait_fraction, commands.stride_speed_exponent)
+        self.law = (commands.full_gait_fraction, commands.stride_speed_exponent, commands.min_cadence)
         self.phase = self.speed = self.heading = self.yaw_rate = self.a = self.rate = self.speed_ratio = 0.0
         self.reference = ref.steered.at(0.0, 0.0, 0.0, 0.0)
 

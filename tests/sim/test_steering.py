@@ -77,12 +77,30 @@ def test_speed_law_shares_a_slowdown_between_stride_and_cadence():
     assert (a, rate) == (0.5, 0.25) and level_speed_ratio(0.5, 0.5, None) == 0.5
 
 
+def test_a_cadence_floor_keeps_steps_coming_to_the_end_of_a_stop():
+    floor = 0.6 ** 0.58  # the law's cadence at 0.6 x the cycle's speed
+    for ratio in (0.01, 0.1, 0.3, 0.55):
+        a, rate = speed_law(ratio, 1.0, 0.42, floor)
+        assert rate == floor and a == pytest.approx(ratio / floor)  # stride shrinks with the speed
+        assert a < speed_law(ratio, 1.0, 0.42)[0]  # shorter than without the floor: no collapse at the end
+        assert level_speed_ratio(a, 1.0, 0.42, floor) == pytest.approx(ratio)
+    assert speed_law(0.8, 1.0, 0.42, floor) == speed_law(0.8, 1.0, 0.42)  # above it: the law itself
+    assert level_speed_ratio(0.95, 1.0, 0.42, floor) == level_speed_ratio(0.95, 1.0, 0.42)
+    assert speed_law(0.0, 1.0, 0.42, floor) == (0.0, 0.0)  # standing: no steps
+    a0, _ = speed_law(0.6 * (1 - 1e-9), 1.0, 0.42, floor)  # continuous where the floor takes over
+    assert a0 == pytest.approx(speed_law(0.6 * (1 + 1e-9), 1.0, 0.42, floor)[0], rel=1e-6)
+
+
 def test_a_policy_keeps_the_speed_law_it_was_trained_under(tmp_path, params):
     env = params.train_params().env
     assert env.commands.stride_speed_exponent == 0.42
     assert policy_env(tmp_path, env).commands.stride_speed_exponent is None  # trained before the law
     (tmp_path / STEERING_FILE).write_text('{"stride_speed_exponent": 0.3}')
     assert policy_env(tmp_path, env).commands.stride_speed_exponent == 0.3
+    assert policy_env(tmp_path, replace(env, commands=replace(env.commands, min_cadence=0.7))
+                      ).commands.min_cadence is None  # trained without a floor: none, whatever params say
+    (tmp_path / STEERING_FILE).write_text('{"stride_speed_exponent": 0.42, "min_cadence": 0.74}')
+    assert policy_env(tmp_path, env).commands.min_cadence == 0.74
 
 
 def test_gait_follows_the_commanded_speed(env):
