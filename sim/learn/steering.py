@@ -122,7 +122,7 @@ def level_speed_ratio(a: float, full_gait_fraction: float, stride_speed_exponent
     if stride_speed_exponent is None or a >= 1.0:
         return a
     ratio = full_gait_fraction * a ** (1.0 / stride_speed_exponent)
-    if min_cadence is not None and 0.0 < ratio / a < min_cadence:  # below the floor: a = ratio / floor
+    if min_cadence is not None and a > 0.0 and ratio / a < min_cadence:  # below the floor: ratio = a floor
         return a * min_cadence
     return ratio
 

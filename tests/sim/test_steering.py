@@ -87,6 +87,7 @@ def test_a_cadence_floor_keeps_steps_coming_to_the_end_of_a_stop():
     assert speed_law(0.8, 1.0, 0.42, floor) == speed_law(0.8, 1.0, 0.42)  # above it: the law itself
     assert level_speed_ratio(0.95, 1.0, 0.42, floor) == level_speed_ratio(0.95, 1.0, 0.42)
     assert speed_law(0.0, 1.0, 0.42, floor) == (0.0, 0.0)  # standing: no steps
+    assert level_speed_ratio(0.0, 1.0, 0.42, floor) == 0.0
     a0, _ = speed_law(0.6 * (1 - 1e-9), 1.0, 0.42, floor)  # continuous where the floor takes over
     assert a0 == pytest.approx(speed_law(0.6 * (1 + 1e-9), 1.0, 0.42, floor)[0], rel=1e-6)
 
