@@ -217,7 +217,8 @@ def policy_spm_figure(curves_by_joint: dict, results: dict, subject: str) -> Fig
 
 def tuning_figure(tuning: pd.DataFrame, title: str = "Controller tuning: held-back objective") -> Figure:
     """Generic vs tuned gains per controller and variant (`tune`): the held-back objective, mean with its
-    95 % CI across rollouts (`tuning_comparison`), falls out of the held-back rollouts over each bar."""
+    95 % CI across rollouts (`tuning_comparison`), falls out of the held-back rollouts over each bar; a
+    pair whose search had no signal (every search rollout fell) is labelled so."""
     rows = tuning.sort_values(["controller", "variant"]).reset_index(drop=True)
     fig, ax = plt.subplots(figsize=(max(6.0, 1.8 * len(rows) + 1.5), 3.8))
     for k, (which, colour) in enumerate((("generic", "0.6"), ("tuned", "tab:blue"))):
@@ -227,7 +228,11 @@ def tuning_figure(tuning: pd.DataFrame, title: str = "Controller tuning: held-ba
         for xi, m, c, falls, n in zip(x, mean, ci, rows[f"{which}_falls"], rows["n_heldout"], strict=True):
             ax.annotate(f"{int(falls)}/{int(n)} falls", (xi, m + c), xytext=(0, 2),
                         textcoords="offset points", ha="center", va="bottom", fontsize=7)
-    labels = [f"{r.controller}\n({r.variant})" for r in rows.itertuples(index=False)]
+    # a search whose every rollout fell had no signal: its "tuned" gains are the generic ones
+    status = rows["search_status"] if "search_status" in rows else pd.Series("ok", index=rows.index)
+    flag = "\nno signal: all search\nrollouts fell"
+    labels = [f"{r.controller}\n({r.variant})" + (flag if st == "no signal" else "")
+              for r, st in zip(rows.itertuples(index=False), status, strict=True)]
     ax.set_xticks(list(range(len(rows))), labels, fontsize=8)
     ax.set_ylabel("objective (m), lower is better")
     ax.margins(y=0.15)

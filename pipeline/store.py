@@ -102,12 +102,13 @@ SWEEP_DDL = ("study VARCHAR NOT NULL, job_key VARCHAR NOT NULL, subject VARCHAR,
 # tuned result changes (data/tuning/<subject>/<variant>/<controller>.json).
 TUNING_COLUMNS = ["subject", "variant", "controller", "method", "n_trials", "seed", "generic_gains",
                   "tuned_gains", "search_best_objective", "generic_mean", "generic_ci95", "generic_falls",
-                  "tuned_mean", "tuned_ci95", "tuned_falls", "n_heldout"]
+                  "tuned_mean", "tuned_ci95", "tuned_falls", "n_heldout", "search_rollouts", "search_falls"]
 TUNING_DDL = ("version_id BIGINT NOT NULL, subject VARCHAR, variant VARCHAR, controller VARCHAR, "
               "method VARCHAR, n_trials BIGINT, seed BIGINT, generic_gains VARCHAR, tuned_gains VARCHAR, "
               "search_best_objective DOUBLE, generic_mean DOUBLE, generic_ci95 DOUBLE, generic_falls BIGINT, "
               "tuned_mean DOUBLE, tuned_ci95 DOUBLE, tuned_falls BIGINT, n_heldout BIGINT, "
-              "content_hash VARCHAR, run_id BIGINT, created_at TIMESTAMP")
+              "content_hash VARCHAR, run_id BIGINT, created_at TIMESTAMP, search_rollouts BIGINT, "
+              "search_falls BIGINT")
 QUALITY_DDL = ('run_id BIGINT NOT NULL, subject VARCHAR NOT NULL, stage VARCHAR, "check" VARCHAR, '
                "value DOUBLE, warn_above DOUBLE, fail_above DOUBLE, status VARCHAR, note VARCHAR")
 # a sweep walk's summary: two walks with the same one are the same walk (a deterministic walk from
@@ -252,7 +253,11 @@ def _views() -> list[str]:
         "JOIN result_spm_clusters c USING (version_id, test_id) "
         "ORDER BY t.subject, t.comparison, t.joint, t.condition_a, t.condition_b, c.cluster",
         # the latest tuned gains per subject, variant and controller, beside the generic ones
-        "CREATE OR REPLACE VIEW tuning_comparison AS SELECT t.* EXCLUDE (content_hash, run_id) "
+        # search_status: 'no signal' when every search rollout fell (each trial scored the fall penalty,
+        # so the tuned gains are the first trial's, the generic ones; pipeline.commands.tune.search_falls)
+        "CREATE OR REPLACE VIEW tuning_comparison AS SELECT t.* EXCLUDE (content_hash, run_id), "
+        "CASE WHEN t.search_rollouts > 0 AND t.search_falls = t.search_rollouts THEN 'no signal' "
+        "WHEN t.search_rollouts IS NULL THEN 'unknown' ELSE 'ok' END AS search_status "
         "FROM tuned_gains t "
         "WHERE t.version_id = (SELECT max(u.version_id) FROM tuned_gains u WHERE u.subject = t.subject AND "
         "u.variant = t.variant AND u.controller = t.controller) ORDER BY subject, variant, controller",
@@ -355,6 +360,8 @@ def ensure_schema(con: duckdb.DuckDBPyConnection) -> None:
     for col, kind in SWEEP_EVENT_DDL.items():
         con.execute(f"ALTER TABLE sweep_results ADD COLUMN IF NOT EXISTS {col} {kind}")
     con.execute(f"CREATE TABLE IF NOT EXISTS tuned_gains ({TUNING_DDL})")
+    for col in ("search_rollouts", "search_falls"):  # stores from before these columns
+        con.execute(f"ALTER TABLE tuned_gains ADD COLUMN IF NOT EXISTS {col} BIGINT")
     con.execute(f"CREATE TABLE IF NOT EXISTS quality ({QUALITY_DDL})")
     con.execute("CREATE TABLE IF NOT EXISTS subjects (subject VARCHAR PRIMARY KEY, round_trip_of VARCHAR, "
                 "run_id BIGINT NOT NULL)")

@@ -220,6 +220,14 @@ def search(ctx: SearchContext, params: Params, n_trials: int, generic: dict[str,
              "falls": falls.get(tuple(float(t.params[g]) for g in space))} for t in trials]
 
 
+def search_falls(history: list[dict], rollouts_per_trial: int) -> dict[str, int]:
+    """Rollouts of the search and how many fell. When every one fell the objective is the same
+    for every trial (the fall penalty), the search has no signal, and the "tuned" gains are the
+    first trial's, the generic ones: the store's `tuning_comparison` says so (`search_status`)."""
+    return {"search_rollouts": len(history) * rollouts_per_trial,
+            "search_falls": int(sum(h["falls"] or 0 for h in history))}
+
+
 def _finite(x: float | None) -> float | None:
     return None if x is None or not math.isfinite(x) else float(x)
 
@@ -254,7 +262,7 @@ def run_tune(subject: str, controller: str, params: Params, variant: str = HEALT
     gen, tun = (heldout_summary(rows.iloc[k * len(heldout):(k + 1) * len(heldout)], speed, w) for k in (0, 1))
     doc = {"subject": subject, "variant": variant, "controller": controller, "method": t.method,
            "n_trials": n_trials, "seed": t.seed, "generic_gains": generic, "tuned_gains": tuned,
-           "search_best_objective": best[METRIC],
+           "search_best_objective": best[METRIC], **search_falls(history, len(ctx.jobs)),
            "generic_mean": gen["mean"], "generic_ci95": _finite(gen["ci95"]), "generic_falls": gen["falls"],
            "tuned_mean": tun["mean"], "tuned_ci95": _finite(tun["ci95"]), "tuned_falls": tun["falls"],
            "n_heldout": len(heldout), "scenarios": list(t.scenarios), "seeds": list(t.seeds),
@@ -268,5 +276,6 @@ def run_tune(subject: str, controller: str, params: Params, variant: str = HEALT
     return path
 
 
-__all__ = ["SearchContext", "heldout_summary", "optuna_space", "run_tune", "search", "search_space",
+__all__ = ["SearchContext", "heldout_summary", "optuna_space", "run_tune", "search", "search_falls",
+           "search_space",
            "seeded_jobs", "trial_worker", "with_gains"]

@@ -580,6 +580,13 @@ def _cost(mean, ci, falls, n) -> str:
     return f"{_mean_sd(mean, ci, 4)} ({_num(falls, 0)}/{_num(n, 0)} falls)"
 
 
+def _search_falls(status: str, falls, rollouts) -> str:
+    if status == "unknown":
+        return "–"
+    text = f"{int(falls)}/{int(rollouts)}"
+    return f"{text} **no signal**" if status == "no signal" else text
+
+
 def tuning_lines(tuning: pd.DataFrame, figure: bool) -> list[str]:
     """The "Controller tuning" section: per controller and variant the held-back objective with the
     generic and the tuned gains (mean ± 95 % CI across rollouts, falls) and the tuned gains."""
@@ -588,14 +595,17 @@ def tuning_lines(tuning: pd.DataFrame, figure: bool) -> list[str]:
         return lines + ["No tuned gains for this subject yet (run `python -m pipeline tune <subject> "
                         "--controller <name>`, then `store`).", ""]
     rows = [[r.controller, r.variant, f"{r.method}, {int(r.n_trials)} trials",
+             _search_falls(r.search_status, r.search_falls, r.search_rollouts),
              _cost(r.generic_mean, r.generic_ci95, r.generic_falls, r.n_heldout),
              _cost(r.tuned_mean, r.tuned_ci95, r.tuned_falls, r.n_heldout), _gains(r.tuned_gains)]
             for r in tuning.sort_values(["controller", "variant"]).itertuples(index=False)]
     lines += ["Objective (metrics/outcomes.py, lower is better): |e_x| + |e_y| (m) + harness force RMS and "
               "gait-speed change versus walking free, weighted, + a penalty per fall; on held-back walks "
-              "the search never saw (mean ± 95 % CI across rollouts).", "",
-              md_table(["Controller", "Variant", "Search", "Generic gains", "Tuned gains",
-                        "Tuned gain values"], rows)]
+              "the search never saw (mean ± 95 % CI across rollouts). **no signal**: every search rollout "
+              "fell, so every trial scored the same and the tuned gains are the first trial's, the generic "
+              "ones; that row compares nothing.", "",
+              md_table(["Controller", "Variant", "Search", "Search rollouts fallen", "Generic gains",
+                        "Tuned gains", "Tuned gain values"], rows)]
     return lines + (_image("tuning") if figure else [])
 
 

@@ -238,3 +238,37 @@ def test_round_trip_subject_is_labelled_in_the_store_and_report(processed, tmp_p
     assert any("Round trip" in line and "camargo's simulated" in line for line in head)
     plain = subject_report("camargo", data, tmp_path / "reports").read_text()
     assert "Round trip" not in plain
+
+
+def test_a_tuning_whose_every_search_rollout_fell_is_marked_no_signal(tmp_path):
+    """The committed tuning results: camargo's hemiparetic_left fell in all 96 search rollouts with
+    either controller, so its "tuned" gains are the generic ones by a tie, and the view says so."""
+    from pipeline.stages.store import load_tunings
+
+    tunings = load_tunings()
+    db = tmp_path / "results.duckdb"
+    with open_store(db, False, 1.0, 0.05) as con:  # a store from before the search columns
+        con.execute("CREATE TABLE tuned_gains (version_id BIGINT NOT NULL, subject VARCHAR, "
+                    "variant VARCHAR, controller VARCHAR, method VARCHAR, n_trials BIGINT, seed BIGINT, "
+                    "generic_gains VARCHAR, "
+                    "tuned_gains VARCHAR, search_best_objective DOUBLE, generic_mean DOUBLE, "
+                    "generic_ci95 DOUBLE, generic_falls BIGINT, tuned_mean DOUBLE, tuned_ci95 DOUBLE, "
+                    "tuned_falls BIGINT, n_heldout BIGINT, content_hash VARCHAR, run_id BIGINT, "
+                    "created_at TIMESTAMP)")
+    store_results(db, [], FAST, rev="rev1", tunings=tunings)
+    view = query(db, "SELECT variant, controller, search_falls, search_rollouts, search_status, "
+                     "generic_gains = tuned_gains AS same FROM tuning_comparison WHERE subject = 'camargo'")
+    by = {(r.variant, r.controller): r for r in view.itertuples(index=False)}
+    for c in ("pid", "adaptive"):
+        hemi = by[("hemiparetic_left", c)]
+        assert hemi.search_falls == hemi.search_rollouts == 96 and hemi.search_status == "no signal"
+        assert hemi.same  # the first trial (the generic gains) wins the tie
+        healthy = by[("healthy", c)]
+        assert healthy.search_falls < healthy.search_rollouts and healthy.search_status == "ok"
+    from pipeline.stages.report import tuning_lines
+
+    view = query(db, "SELECT * FROM tuning_comparison WHERE subject = 'camargo'")
+    lines = "\n".join(tuning_lines(view, False))
+    rows = [ln for ln in lines.splitlines() if ln.startswith("| ")]
+    assert all(("**no signal**" in ln) == ("hemiparetic_left" in ln) for ln in rows[2:]), rows
+    assert "96/96 **no signal**" in lines and "58/96" in lines
