@@ -229,7 +229,7 @@ def tuning_figure(tuning: pd.DataFrame, title: str = "Controller tuning: held-ba
             ax.annotate(f"{int(falls)}/{int(n)} falls", (xi, m + c), xytext=(0, 2),
                         textcoords="offset points", ha="center", va="bottom", fontsize=7)
     # a search whose every rollout fell had no signal: its "tuned" gains are the generic ones
-    status = rows["search_status"] if "search_status" in rows else pd.Series("ok", index=rows.index)
+    status = rows["search_status"]
     flag = "\nno signal: all search\nrollouts fell"
     labels = [f"{r.controller}\n({r.variant})" + (flag if st == "no signal" else "")
               for r, st in zip(rows.itertuples(index=False), status, strict=True)]

@@ -39,9 +39,10 @@ def repeated_walks(strides: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=[*WALK_KEYS, "repeats"])
 
 
-def distinct_walks(strides: pd.DataFrame) -> pd.DataFrame:
-    """`strides` without the walks that repeat an earlier walk of their condition (module docstring)."""
-    walks = repeated_walks(strides)
+def distinct_walks(strides: pd.DataFrame, walks: pd.DataFrame | None = None) -> pd.DataFrame:
+    """`strides` without the walks that repeat an earlier walk of their condition (module docstring);
+    `walks`: their `repeated_walks`, when the caller has it already."""
+    walks = repeated_walks(strides) if walks is None else walks
     copies = walks[walks["repeats"].notna()][WALK_KEYS]
     if copies.empty:
         return strides
@@ -49,15 +50,17 @@ def distinct_walks(strides: pd.DataFrame) -> pd.DataFrame:
     return strides[~marked["_copy"].fillna(False).to_numpy(bool)]
 
 
-def paper_strides(strides: pd.DataFrame, cycles_per_walk: int, phase: str = "steady") -> pd.DataFrame:
+def paper_strides(strides: pd.DataFrame, cycles_per_walk: int, phase: str = "steady",
+                  walks: pd.DataFrame | None = None) -> pd.DataFrame:
     """Rows of `strides` (with `kept`, `phase`, `t_start_s`, `t_end_s`) chosen as in the paper:
     per trial, seed and side, the `cycles_per_walk` kept strides in `phase` around its middle; a
-    walk that repeats an earlier one of its condition is left out (`distinct_walks`)."""
+    walk that repeats an earlier one of its condition is left out (`distinct_walks`; `walks`: the
+    strides' `repeated_walks` when the caller has it already)."""
     missing = [c for c in ("condition", "trial", "seed", "side", "kept", "phase", "t_start_s", "t_end_s")
                if c not in strides.columns]
     if missing:
         raise MetricsError("strides table", f"cannot sample like the paper: missing columns {missing}")
-    strides = distinct_walks(strides)
+    strides = distinct_walks(strides, walks)
     pool = strides[strides["kept"].astype(bool) & (strides["phase"] == phase)]
     chosen = []
     for _, g in pool.groupby(["condition", "trial", "seed", "side"], sort=True):

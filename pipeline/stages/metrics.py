@@ -194,8 +194,8 @@ def quality_checks(subject: str, params: Params, root: Path = PROCESSED_ROOT,
     if not policy.empty:
         paper = params.scenarios.paper
         scenario = policy[policy["scenario"] == paper.scenario]
-        table_strides = paper_strides(scenario, paper.cycles_per_walk)
         walks = repeated_walks(scenario) if not scenario.empty else None
+        table_strides = paper_strides(scenario, paper.cycles_per_walk, walks=walks)
     sims["policy"] = table_strides if table_strides is not None else policy
     policy_summary = read_json(sim_policy_dir(root, subject) / "summary.json") or {}
     checks = [*scale_checks(subject, model, reference, q),

@@ -195,11 +195,10 @@ class SteeredReference:
 
     def __init__(self, table, stand_ctrl: np.ndarray, stand_feet: np.ndarray, stand_height: float) -> None:
         self.table = table
-        self.stand_ctrl, self.stand_feet, self.stand_height = stand_ctrl, stand_feet, float(stand_height)
         nu, nf = table.ctrl.shape[1], table.feet.shape[1]
         self._rows = np.hstack([table.ctrl, table.feet, table.height[:, None], table.ctrl_vel,
                                 table.joint_vel, table.root_vel[:, :2]])
-        self._stand = np.r_[stand_ctrl, stand_feet, self.stand_height]
+        self._stand = np.r_[stand_ctrl, stand_feet, float(stand_height)]
         self._n_pos = nu + nf + 1
         self._cut = (nu, nu + nf)
 
