@@ -47,6 +47,8 @@ OPENSIM_COORDINATES = {
     "pelvis_list": ("pelvis_list", 1.0),
     "pelvis_rotation": ("pelvis_rotation", 1.0),
 }
+# The GRF columns a plate needs (<plate>_vx ... _pz: force and centre of pressure), the only ones read.
+PLATE_COLUMNS = tuple(f"_{q}{a}" for q in "vp" for a in "xyz")
 PELVIS_ABOVE_FEET_M = (0.4, 1.6)
 # Up axis `auto`: share of the frames (holding pelvis and foot markers) in which the pelvis must
 # stand PELVIS_ABOVE_FEET_M above the feet along the axis; 90 % tolerates jumps, falls and gaps.
@@ -246,7 +248,7 @@ def plates_from_grf(mot: MotTable, fmt: FileFormat, heading_rad: float) -> Force
     prefixes = [p for p in prefixes if {f"{p}_vy", f"{p}_vz", f"{p}_px", f"{p}_pz"} <= cols]
     if not prefixes:
         raise IngestError(mot.path, "no force plate columns (<name>_vx/_vy/_vz/_px/_py/_pz)")
-    columns = [f"{p}_{q}{a}" for p in prefixes for q in "vp" for a in "xyz"]
+    columns = [f"{p}{suffix}" for p in prefixes for suffix in PLATE_COLUMNS]
     values = mot.values(columns).reshape(len(mot.table), len(prefixes), 2, 3)
     force, cop = (np.ascontiguousarray(values[:, :, q]) for q in (0, 1))
     force, cop = up_to_z(force, fmt.up_axis), rotate_z(up_to_z(cop, fmt.up_axis), heading_rad)
@@ -286,7 +288,7 @@ def load_trial(subject: Subject, spec: TrialSpec, manifest: Manifest, source: st
         provenance.append(_provenance(manifest, spec.markers, path, reader))
     if spec.angles:
         path = manifest.resolve(spec.angles)
-        mot = read_mot(path)
+        mot = read_mot(path, columns=OPENSIM_COORDINATES.__contains__)  # the other columns are not read
         angles.update(canonical_angles(mot, subject.format, time))
         if time is None:
             time, rate = mot.time_s, mot.rate_hz
@@ -299,7 +301,8 @@ def load_trial(subject: Subject, spec: TrialSpec, manifest: Manifest, source: st
         if up == "auto":
             raise IngestError(path, "up axis 'auto' is detected from the trial's marker file, and this trial "
                               "has none: declare format.up_axis in the subject file (or --up-axis)")
-        plates = plates_from_grf(read_mot(path), dataclasses.replace(subject.format, up_axis=up), heading)
+        grf = read_mot(path, columns=lambda c: c.endswith(PLATE_COLUMNS))  # moments are not read
+        plates = plates_from_grf(grf, dataclasses.replace(subject.format, up_axis=up), heading)
         provenance.append(_provenance(manifest, spec.grf, path, "grf:mot"))
     log = None
     if spec.robot_log:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import io
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -15,6 +16,7 @@ import numpy as np
 import pandas as pd
 
 from ingest.errors import IngestError
+from ingest.readers.delimited import strict_float_rows
 
 
 @dataclass(frozen=True)
@@ -54,11 +56,13 @@ class MotTable:
 ENDHEADER = re.compile(rb"^[ \t]*endheader[ \t]*\r?$", re.IGNORECASE | re.MULTILINE)
 
 
-def read_mot(path: str | Path) -> MotTable:
+def read_mot(path: str | Path, columns: Callable[[str], bool] | None = None) -> MotTable:
     """Read a `.mot`/`.sto` file; raises `IngestError` naming the file on structural problems. The
-    file is read once, as bytes: the header from the text before `endheader`, the table by pandas
-    from the bytes after it (rows ending in a tab, as OpenSim-JAM's GRF files have, are read with
-    that trailing delimiter ignored)."""
+    file is read once, as bytes: the header from the text before `endheader`, the table from the
+    bytes after it by the strict fast reader (`ingest.readers.delimited`), or by pandas when that
+    refuses them (rows ending in a tab, as OpenSim-JAM's GRF files have, are then read with that
+    trailing delimiter ignored). `columns`, when given, picks the columns to keep by name (`time`
+    is always kept): the others are not converted."""
     path = Path(path)
     try:
         raw = path.read_bytes()
@@ -75,10 +79,15 @@ def read_mot(path: str | Path) -> MotTable:
     body = raw[end.end():]
     if not body.strip():
         raise IngestError(path, "no column names or data after 'endheader'")
-    table = _float_table(path, body)
-    table.columns = [str(c).strip() for c in table.columns]
-    trailing = [c for c in table.columns if c.startswith("Unnamed:") and table[c].isna().all()]
-    table = table.drop(columns=trailing) if trailing else table  # a header line ending in a tab
+    table, width = _fast_table(body, columns)
+    if table is None:
+        table = _float_table(path, body)
+        table.columns = [str(c).strip() for c in table.columns]
+        trailing = [c for c in table.columns if c.startswith("Unnamed:") and table[c].isna().all()]
+        table = table.drop(columns=trailing) if trailing else table  # a header line ending in a tab
+        width = table.shape[1]
+        if columns is not None:
+            table = table[[c for c in table.columns if c == "time" or columns(c)]]
     if "time" not in table.columns:
         raise IngestError(path, f"no 'time' column (columns: {', '.join(table.columns[:6])}, ...)")
     if table.empty:
@@ -86,7 +95,7 @@ def read_mot(path: str | Path) -> MotTable:
     values = table.to_numpy()
     end_of_rows = len(body.rstrip())  # the last row: after the last newline before trailing blanks
     last = body[body.rfind(b"\n", 0, end_of_rows) + 1:end_of_rows]
-    if np.isnan(values[-1]).any() or len(last.rstrip().split(b"\t")) < len(table.columns):
+    if np.isnan(values[-1]).any() or len(last.rstrip().split(b"\t")) < width:
         raise IngestError(path, "truncated: the last row is incomplete")
     n_rows = header.get("nrows") or header.get("datarows")
     if n_rows is not None and int(n_rows) != len(table):
@@ -94,6 +103,24 @@ def read_mot(path: str | Path) -> MotTable:
     if len(table) > 1 and not (np.diff(values[:, table.columns.get_loc("time")]) > 0).all():
         raise IngestError(path, "time column is not strictly increasing")
     return MotTable(path, header, table)
+
+
+def _fast_table(body: bytes, columns: Callable[[str], bool] | None) -> tuple[pd.DataFrame | None, int]:
+    """The table after `endheader` (its first non-blank line names the columns) by the strict fast
+    reader, the kept columns in one float block, and the file's number of columns; (None, 0) when
+    the names are not distinct and non-empty or the rows do not read strictly."""
+    text = body.lstrip(b"\r\n")
+    cut = text.find(b"\n")
+    if cut < 0:
+        return None, 0
+    names = [c.strip() for c in text[:cut].decode(errors="replace").split("\t")]
+    if not all(names) or len(set(names)) != len(names):
+        return None, 0
+    keep = [j for j, c in enumerate(names) if columns is None or c == "time" or columns(c)]
+    data = strict_float_rows(text[cut + 1:], len(names), keep)
+    if data is None:
+        return None, 0
+    return pd.DataFrame(data, columns=[names[j] for j in keep]), len(names)
 
 
 def _float_table(path: Path, body: bytes) -> pd.DataFrame:

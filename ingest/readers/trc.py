@@ -19,6 +19,7 @@ import numpy as np
 import pandas as pd
 
 from ingest.errors import IngestError
+from ingest.readers.delimited import strict_float_rows
 from ingest.readers.table import UNIT_TO_M, MarkerTable
 
 NON_SPACE = re.compile(rb"\S")
@@ -69,9 +70,23 @@ def _layout(raw: bytes, n_head: int = 5) -> tuple[list[str], bool, bool, list[st
     return head, start < len(raw), NON_SPACE.search(raw, start) is not None, tail
 
 
+def _rows(raw: bytes, n_cols: int) -> np.ndarray | None:
+    """The data rows after the 5 header lines by the strict fast reader (`ingest.readers.delimited`):
+    rows of `n_cols` cells, or of one more that is empty in every row (a trailing tab); None when
+    neither reads (pandas then reads, or names what is wrong)."""
+    data = strict_float_rows(raw, n_cols, skip_rows=5)  # rows ending in a tab fail at the first row
+    if data is None:
+        data = strict_float_rows(raw, n_cols + 1, skip_rows=5)
+        if data is None or not np.isnan(data[:, n_cols]).all():
+            return None
+        data = data[:, :n_cols]
+    return data
+
+
 def read_trc(path: str | Path) -> MarkerTable:
     """Read a `.trc` file; raises `IngestError` naming the file on any structural problem. The file
-    is read once: its header from the text, its rows by pandas from the same bytes."""
+    is read once: its header from the text, its rows from the same bytes by the strict fast reader
+    (`ingest.readers.delimited`), or by pandas when that refuses them."""
     path = Path(path)
     try:
         raw = path.read_bytes()
@@ -97,16 +112,18 @@ def read_trc(path: str | Path) -> MarkerTable:
     n_cols = 2 + 3 * n_markers
     if not has_rows:
         raise IngestError(path, "no data rows")
-    try:
-        table = pd.read_csv(  # in one piece (low_memory=False): a marker file is a few MB at most
-            io.BytesIO(raw), sep="\t", header=None, names=range(n_cols + 1), skiprows=5,
-            skip_blank_lines=True, dtype=float, engine="c", low_memory=False,
-        )
-    except ValueError as exc:
-        raise IngestError(path, f"malformed data rows: {exc}") from None
-    if table.shape[1] > n_cols and table[n_cols].notna().any():
-        raise IngestError(path, f"rows hold more than the {n_cols} cells the header declares")
-    data = table.to_numpy()[:, :n_cols]
+    data = _rows(raw, n_cols)
+    if data is None:
+        try:
+            table = pd.read_csv(  # in one piece (low_memory=False): a marker file is a few MB at most
+                io.BytesIO(raw), sep="\t", header=None, names=range(n_cols + 1), skiprows=5,
+                skip_blank_lines=True, dtype=float, engine="c", low_memory=False,
+            )
+        except ValueError as exc:
+            raise IngestError(path, f"malformed data rows: {exc}") from None
+        if table.shape[1] > n_cols and table[n_cols].notna().any():
+            raise IngestError(path, f"rows hold more than the {n_cols} cells the header declares")
+        data = table.to_numpy()[:, :n_cols]
     last = tail[-1] if tail[-1].strip() else tail[-2]
     if len(last.rstrip("\r\n").split("\t")) < n_cols:
         raise IngestError(path, f"truncated: the last row has fewer than {n_cols} cells")

@@ -45,6 +45,46 @@ def test_mot_reports_its_units(manifest):
     assert markerless.in_degrees is True and markerless.rate_hz == pytest.approx(100)
 
 
+def _pandas_rows(path: Path) -> np.ndarray:
+    """The .trc's data rows as pandas' C parser reads them (the reader's fallback)."""
+    return pd.read_csv(path, sep="\t", header=None, skiprows=5, dtype=float).to_numpy()
+
+
+def test_trc_fast_rows_equal_pandas_also_with_trailing_tabs(tmp_path, manifest):
+    """The strict fast reader gives pandas' floats bit for bit (gaps as NaN), also for rows ending in
+    a tab (kgc6's exporter); Camargo's file has gaps, so NaN placement is checked too."""
+    path = manifest.resolve(CAMARGO_TRC)
+    rows = _pandas_rows(path)
+    assert np.isnan(rows).any()
+    trc = read_trc(path)
+    np.testing.assert_array_equal(trc.xyz_m.reshape(len(rows), -1), rows[:, 2:])
+    lines = path.read_text().splitlines()
+    tabbed = tmp_path / "tabbed.trc"
+    tabbed.write_text("\n".join(lines[:5] + [ln + "\t" if ln else ln for ln in lines[5:]]) + "\n")
+    np.testing.assert_array_equal(read_trc(tabbed).xyz_m, trc.xyz_m)
+
+
+def test_strict_rows_refuse_what_pandas_must_judge():
+    """Ragged rows, text cells and a filled cell past the declared width return None (the readers
+    then parse with pandas and name the problem); empty cells are NaN; cells not kept are not read."""
+    from ingest.readers.delimited import strict_float_rows
+
+    ok = strict_float_rows(b"0\t1.5\t\n1\t2.5\t3\n", 3)
+    np.testing.assert_array_equal(ok, [[0, 1.5, np.nan], [1, 2.5, 3]])
+    assert strict_float_rows(b"0\t1.5\t2\n1\t2.5\n", 3) is None
+    assert strict_float_rows(b"0\t1.5\tx\n", 3) is None
+    assert strict_float_rows(b"0\t1.5\t2\t9\n", 3) is None
+    np.testing.assert_array_equal(strict_float_rows(b"0\t1.5\tx\n", 3, keep=[0, 1]), [[0, 1.5]])
+
+
+def test_mot_columns_keep_time_and_the_named_ones(manifest):
+    """`read_mot(columns=...)` keeps `time` and the columns picked, with the full read's values."""
+    full = read_mot(manifest.resolve(CAMARGO_MOT))
+    some = read_mot(manifest.resolve(CAMARGO_MOT), columns=lambda c: c.startswith("knee_angle"))
+    assert list(some.table.columns) == ["time", "knee_angle_r", "knee_angle_l"]
+    pd.testing.assert_frame_equal(some.table, full.table[list(some.table.columns)])
+
+
 def _swing_peak(knee: np.ndarray) -> float:
     return float(np.nanmax(knee))
 
