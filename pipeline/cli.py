@@ -462,7 +462,7 @@ def build_parser() -> argparse.ArgumentParser:
     evaluate.add_argument("--json", action="store_true", help="JSON only on stdout (no progress bar)")
     evaluate.add_argument("--out", type=Path, help="also write the JSON here")
     evaluate.add_argument("--policy-root", type=Path, help="policies folder holding <subject>/ "
-                          "(default: data/policies; e.g. data/policies/candidates/stop_gamma098)")
+                          "(default: data/policies; e.g. data/candidates/stop_gamma098)")
     evaluate.set_defaults(func=cmd_evaluate_policy)
 
     render = commands.add_parser("render", help="mp4 of one replay or scenario rollout (offscreen MuJoCo)")
