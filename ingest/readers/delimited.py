@@ -16,7 +16,7 @@ import pyarrow as pa
 from pyarrow import csv
 
 
-def strict_float_rows(text: bytes, width: int, keep: Sequence[int] | None = None,
+def strict_float_rows(text: bytes | memoryview, width: int, keep: Sequence[int] | None = None,
                       skip_rows: int = 0) -> np.ndarray | None:
     """The tab-separated rows of `text` after its first `skip_rows` lines (blank lines skipped) as an
     (n, len(keep)) float array of the cells `keep` (default: all `width`), or None when a row does

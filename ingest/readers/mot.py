@@ -54,6 +54,8 @@ class MotTable:
 
 
 ENDHEADER = re.compile(rb"^[ \t]*endheader[ \t]*\r?$", re.IGNORECASE | re.MULTILINE)
+# Searched instead of stripping the body (each strip copies a table of a few hundred kB).
+NON_SPACE, NON_NEWLINE = re.compile(rb"\S"), re.compile(rb"[^\r\n]")
 
 
 def read_mot(path: str | Path, columns: Callable[[str], bool] | None = None) -> MotTable:
@@ -77,7 +79,7 @@ def read_mot(path: str | Path, columns: Callable[[str], bool] | None = None) -> 
             key, _, value = ln.partition("=")
             header[key.strip().lower()] = value.strip()
     body = raw[end.end():]
-    if not body.strip():
+    if NON_SPACE.search(body) is None:
         raise IngestError(path, "no column names or data after 'endheader'")
     table, width = _fast_table(body, columns)
     if table is None:
@@ -93,7 +95,9 @@ def read_mot(path: str | Path, columns: Callable[[str], bool] | None = None) -> 
     if table.empty:
         raise IngestError(path, "no data rows")
     values = table.to_numpy()
-    end_of_rows = len(body.rstrip())  # the last row: after the last newline before trailing blanks
+    end_of_rows = len(body)  # the last row: after the last newline before trailing blanks
+    while body[end_of_rows - 1] in b" \t\r\n\x0b\x0c":
+        end_of_rows -= 1
     last = body[body.rfind(b"\n", 0, end_of_rows) + 1:end_of_rows]
     if np.isnan(values[-1]).any() or len(last.rstrip().split(b"\t")) < width:
         raise IngestError(path, "truncated: the last row is incomplete")
@@ -109,18 +113,18 @@ def _fast_table(body: bytes, columns: Callable[[str], bool] | None) -> tuple[pd.
     """The table after `endheader` (its first non-blank line names the columns) by the strict fast
     reader, the kept columns in one float block, and the file's number of columns; (None, 0) when
     the names are not distinct and non-empty or the rows do not read strictly."""
-    text = body.lstrip(b"\r\n")
-    cut = text.find(b"\n")
+    start = NON_NEWLINE.search(body).start()
+    cut = body.find(b"\n", start)
     if cut < 0:
         return None, 0
-    names = [c.strip() for c in text[:cut].decode(errors="replace").split("\t")]
+    names = [c.strip() for c in body[start:cut].decode(errors="replace").split("\t")]
     if not all(names) or len(set(names)) != len(names):
         return None, 0
     keep = [j for j, c in enumerate(names) if columns is None or c == "time" or columns(c)]
-    data = strict_float_rows(text[cut + 1:], len(names), keep)
+    data = strict_float_rows(memoryview(body)[cut + 1:], len(names), keep)
     if data is None:
         return None, 0
-    return pd.DataFrame(data, columns=[names[j] for j in keep]), len(names)
+    return pd.DataFrame(data, columns=[names[j] for j in keep], copy=False), len(names)
 
 
 def _float_table(path: Path, body: bytes) -> pd.DataFrame:
