@@ -71,7 +71,10 @@ def up_to_z(xyz: np.ndarray, up_axis: str) -> np.ndarray:
     if up_axis not in UP_AXES:
         raise ValueError(f"up axis {up_axis!r} is not one of {UP_AXES} (resolve 'auto' first)")
     order, sign = UP_ROTATIONS[up_axis]
-    return xyz[..., list(order)] * np.array(sign)
+    out = np.empty(np.shape(xyz))
+    for k, (j, s) in enumerate(zip(order, sign, strict=True)):  # axis by axis: a third of a gather's cost
+        np.multiply(xyz[..., j], s, out=out[..., k])
+    return out
 
 
 def z_up_to(xyz: np.ndarray, up_axis: str) -> np.ndarray:
