@@ -155,12 +155,12 @@ def opensim_coordinates(angles: dict[str, np.ndarray], knee_flexion_sign: int = 
 def _check_body_scale(markers: dict[str, np.ndarray], roles: dict[str, str], origin: str,
                       up_axis: str, unit: str) -> None:
     """Pelvis must sit 0.4-1.6 m above the feet along +Z: catches lying units and up axes."""
-    pelvis = [markers[roles[r]] for r in PELVIS_ROLES if roles.get(r) in markers]
-    feet = [markers[roles[r]] for r in FOOT_ROLES if roles.get(r) in markers]
+    pelvis = [markers[roles[r]][:, 2] for r in PELVIS_ROLES if roles.get(r) in markers]
+    feet = [markers[roles[r]][:, 2] for r in FOOT_ROLES if roles.get(r) in markers]
     if not pelvis or not feet:
         return
     with np.errstate(all="ignore"):
-        height = np.nanmedian(np.nanmean(pelvis, axis=0)[:, 2] - np.nanmean(feet, axis=0)[:, 2])
+        height = np.nanmedian(np.nanmean(pelvis, axis=0) - np.nanmean(feet, axis=0))
     lo, hi = PELVIS_ABOVE_FEET_M
     if not np.isfinite(height):
         raise IngestError(origin, "pelvis or foot markers hold no samples")
@@ -184,7 +184,7 @@ def heading_rotation(markers: dict[str, np.ndarray], roles: dict[str, str], rate
     if not parts:
         return 0.0
     with np.errstate(all="ignore"):
-        xy = np.nanmean(parts, axis=0)[:, :2]
+        xy = np.nanmean([p[:, :2] for p in parts], axis=0)
     ok = np.flatnonzero(np.isfinite(xy).all(axis=1))
     if len(ok) < 2:
         return 0.0
