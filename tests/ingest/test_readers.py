@@ -62,6 +62,9 @@ def test_trc_fast_rows_equal_pandas_also_with_trailing_tabs(tmp_path, manifest):
     tabbed = tmp_path / "tabbed.trc"
     tabbed.write_text("\n".join(lines[:5] + [ln + "\t" if ln else ln for ln in lines[5:]]) + "\n")
     np.testing.assert_array_equal(read_trc(tabbed).xyz_m, trc.xyz_m)
+    quoted = tmp_path / "quoted.trc"  # an unmatched quote in the header does not join lines
+    quoted.write_text("\n".join([lines[0] + '\t"C:\\trials'] + lines[1:]) + "\n")
+    np.testing.assert_array_equal(read_trc(quoted).xyz_m, trc.xyz_m)
 
 
 def test_strict_rows_refuse_what_pandas_must_judge():
