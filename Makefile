@@ -6,13 +6,17 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 export DVC_NO_ANALYTICS := 1
 export MPLBACKEND := Agg
+# Modules are byte-compiled when first imported, not at install: pip's compile of every installed
+# module (~19 k files, torch and ray included) took a minute of the venv build, and the pipeline
+# imports about a fifth of them. That needs bytecode to be written (a shell may forbid it).
+unexport PYTHONDONTWRITEBYTECODE
 
 .PHONY: run test lint bench videos clean-venv render-deps browser-deps
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	$(BIN)/python -m pip install --quiet --no-compile -e '.[dev]'
 	touch $(STAMP)
 
 # Headless MuJoCo rendering for `scale` (sim/body/render.py) needs EGL (Mesa, in the base image) or
