@@ -98,25 +98,23 @@ class Manifest:
             sources[key] = Source(key, url, str(entry["sha256"]).lower(), local)
         return cls(sources, mirror or default_mirror(), cache, Path(root))
 
-    def resolve(self, key: str) -> Path:
-        """Local path of a verified copy of `key`; raises `ManifestError` naming the file."""
+    def resolve(self, key: str, verify: bool = True) -> Path:
+        """Local path of a verified copy of `key`; raises `ManifestError` naming the file. With
+        `verify` False a local copy is returned unchecked: the caller verifies it (`verify`) before
+        trusting what it read (a download is verified before it is kept, either way)."""
         try:
             source = self.sources[key]
         except KeyError:
             raise ManifestError(key, "not listed in the data manifest (data/sources.yaml)") from None
-        if source.path:  # the repository's own DVC-tracked copy
-            tracked = self.root / source.path
-            if tracked.is_file():
-                self._verify(tracked, source)
-                return tracked
-        mirrored = self.mirror / key
-        if mirrored.is_file():
-            self._verify(mirrored, source)
-            return mirrored
-        cached = self.cache / key
-        if cached.is_file():
-            self._verify(cached, source)
-            return cached
+        local = [self.mirror / key, self.cache / key]
+        if source.path:  # the repository's own DVC-tracked copy first
+            local.insert(0, self.root / source.path)
+        for path in local:
+            if path.is_file():
+                if verify:
+                    self._verify(path, source)
+                return path
+        cached = local[-1]
         if source.url.startswith(DVC_SCHEME):
             raise ManifestError(key, f"tracked by DVC as {source.path} but not checked out under "
                                 f"{self.root}: run `dvc pull {source.path}.dvc`")
@@ -133,6 +131,10 @@ class Manifest:
         self._verify(partial, source)
         partial.replace(cached)
         return cached
+
+    def verify(self, key: str, path: Path) -> None:
+        """Check that `path` is `key`'s file (its sha256); raises `ManifestError` naming the file."""
+        self._verify(path, self.sources[key])
 
     def _verify(self, path: Path, source: Source) -> None:
         stat = path.stat()

@@ -10,11 +10,15 @@ Anything else returns None, and the caller reads the file with pandas, which nam
 
 from __future__ import annotations
 
+import re
 from collections.abc import Sequence
 
 import numpy as np
 import pyarrow as pa
 from pyarrow import csv
+
+# Searched instead of stripping a file's body (each strip copies a table of a few hundred kB).
+NON_SPACE, NON_NEWLINE = re.compile(rb"\S"), re.compile(rb"[^\r\n]")
 
 
 def strict_float_rows(text: bytes | memoryview, width: int, keep: Sequence[int] | None = None,

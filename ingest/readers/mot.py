@@ -16,7 +16,7 @@ import numpy as np
 import pandas as pd
 
 from ingest.errors import IngestError
-from ingest.readers.delimited import strict_float_rows
+from ingest.readers.delimited import NON_NEWLINE, NON_SPACE, strict_float_rows
 
 
 @dataclass(frozen=True)
@@ -54,8 +54,6 @@ class MotTable:
 
 
 ENDHEADER = re.compile(rb"^[ \t]*endheader[ \t]*\r?$", re.IGNORECASE | re.MULTILINE)
-# Searched instead of stripping the body (each strip copies a table of a few hundred kB).
-NON_SPACE, NON_NEWLINE = re.compile(rb"\S"), re.compile(rb"[^\r\n]")
 
 
 def read_mot(path: str | Path, columns: Callable[[str], bool] | None = None) -> MotTable:

@@ -12,17 +12,14 @@ not pair up, the runs of whitespace separate them. Data rows stay strictly tab-s
 from __future__ import annotations
 
 import io
-import re
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from ingest.errors import IngestError
-from ingest.readers.delimited import strict_float_rows
+from ingest.readers.delimited import NON_SPACE, strict_float_rows
 from ingest.readers.table import UNIT_TO_M, MarkerTable
-
-NON_SPACE = re.compile(rb"\S")
 
 
 def _header_fields(path: Path, keys: str, values: str) -> dict[str, str]:

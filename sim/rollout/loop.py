@@ -212,7 +212,7 @@ def rollout(world: mujoco.MjSpec, human: HumanDriver, controller: Controller | N
     try:
         for nstep, k, j in plan:
             if nstep:
-                step(model, data, nstep=nstep)
+                step(model, data, nstep)  # positional: pybind parses no keyword (~0.3 us a call)
             if k >= 0:
                 qpos_out[k] = qpos
                 if probe is not None:

@@ -543,6 +543,17 @@ def test_hash_mismatch(corpus, camargo):
         corpus.manifest().resolve(key)
 
 
+def test_a_changed_marker_file_is_refused_for_its_hash_not_its_contents(corpus, camargo):
+    # load_trial parses the marker file while another thread checks its sha256: a file that is
+    # not the manifest's (here also cut mid-row) is refused as such, never read as truncated
+    text = corpus.text(CAMARGO_TRC)
+    key = corpus.add(CAMARGO_TRC, text)
+    (corpus.root / "mirror" / key).write_text(text[: len(text) // 2])
+    subject, spec = _one_trial(camargo, key)
+    with _raises(ManifestError, corpus.path(key), "sha256 mismatch"):
+        load_trial(subject, spec, corpus.manifest())
+
+
 def test_missing_file_and_no_download(corpus):
     key = corpus.add("nowhere/gone.trc", "x")
     (corpus.root / "mirror" / key).unlink()
