@@ -562,6 +562,9 @@ class CommandsSchema(Schema):
     full_gait_fraction: Annotated[float, Field(gt=0.0, le=1.0)]
     stride_speed_exponent: Annotated[float, Field(gt=0.0, le=1.0)] | None
     min_cadence: Annotated[float, Field(gt=0.0, le=1.0)] | None
+    turn_lean: Annotated[float, Field(gt=0.0, le=2.0)] | None
+    turn_lean_time_constant_s: Annotated[float, Field(gt=0.0)]
+    max_lean_tan: Annotated[float, Field(gt=0.0, le=1.0)]
     start_s_range: Pair
     stop_s_range: Pair
     turn_rate_deg_s_range: Pair

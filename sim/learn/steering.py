@@ -16,6 +16,10 @@ and the cadence takes the rest, so a walk slows and stops in short, quick steps.
 start. Policies trained before this law (`stride_speed_exponent` None: `a` a smoothstep of the
 speed, the cadence alone following it, so slow walking asked for long, slow strides) keep their own.
 
+In a turn the feet may lean the body inward (`turn_lean`, off unless set): the cycle is straight
+walking, so without it the reference keeps the straight walk's foot placement while the turn needs
+the ground force pointing to its centre.
+
 The standing pose is the body's anatomical neutral (every joint coordinate zero:
 upright, arms down) with the feet on the floor. While standing, the cycle waits where the legs pass
 each other (feet closest fore-aft, mid-swing), so every start leaves from there: the blend lifts
@@ -55,6 +59,13 @@ class CommandSampling:
     # ~0.3-0.4 to 0 while the phase moves ~3 % of a cycle: the reference slides the stance foot on
     # the floor instead of stepping. With a floor, steps keep coming and shorten with the speed.
     min_cadence: float | None = None
+    # Lean into turns (None: off): the feet reference moves toward the outside of a turn by this x
+    # the lateral offset of an inverted pendulum taking the turn's centripetal acceleration
+    # (`turn_lean_offset`). The cycle is straight walking; without it the reference asks for the
+    # straight walk's foot placement while the turn needs the ground force pointing inward.
+    turn_lean: float | None = None
+    turn_lean_time_constant_s: float = 0.3  # the lean builds and fades over about a step
+    max_lean_tan: float = 0.35               # tan of the largest lean taken (~19 deg)
 
 
 def sample_commands(rng: np.random.Generator, speed_mps: float, duration_s: float, rate_hz: float,
@@ -125,6 +136,19 @@ def level_speed_ratio(a: float, full_gait_fraction: float, stride_speed_exponent
     if min_cadence is not None and a > 0.0 and ratio / a < min_cadence:  # below the floor: ratio = a floor
         return a * min_cadence
     return ratio
+
+
+GRAVITY_MPS2 = 9.81
+
+
+def turn_lean_offset(height_m: float, speed_mps: float, yaw_rate_rps: float, gain: float,
+                     max_tan: float) -> float:
+    """Lateral shift (m, + left in the heading frame) of the feet relative to the pelvis that leans
+    the body into a turn: a rigid inverted pendulum of the pelvis height whose lean balances the
+    centripetal acceleration v w (tan lean = v w / g, at most `max_tan`; the same law as a cyclist's
+    or runner's lean on a curve), so the feet sit `height x tan lean` outside the pelvis, x `gain`."""
+    ratio = min(max(speed_mps * yaw_rate_rps / GRAVITY_MPS2, -max_tan), max_tan)
+    return -gain * height_m * ratio
 
 
 def standing_pose(model: mujoco.MjModel, foot_bodies: np.ndarray) -> np.ndarray:
@@ -221,4 +245,4 @@ class SteeredReference:
 
 
 __all__ = ["CommandSampling", "SteeredReference", "blend_qpos", "command_at", "level_speed_ratio",
-           "sample_commands", "speed_law", "standing_pose"]
+           "sample_commands", "speed_law", "standing_pose", "turn_lean_offset"]

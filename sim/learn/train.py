@@ -42,6 +42,7 @@ from sim.rollout.cluster import connect
 
 POLICY_FILE, NORM_FILE, AMP_FILE, PROGRESS_FILE = "policy.zip", "vecnormalize.pkl", "amp.pt", "progress.json"
 BODY_FILE, CYCLE_FILE = "human.xml", "cycle.npz"  # the body and reference cycle the policy was trained on
+LEAN_LAW = ("turn_lean_time_constant_s", "max_lean_tan")  # kept with `turn_lean` in STEERING_FILE
 STEERING_FILE = "steering.json"  # the speed law it was trained under (sim/learn/steering.py)
 
 
@@ -250,6 +251,9 @@ def train(model_path: str | Path, cycle: ReferenceCycle, p: TrainParams, out_dir
         law = {"stride_speed_exponent": c.stride_speed_exponent, "full_gait_fraction": c.full_gait_fraction}
         if c.min_cadence is not None:  # written only when set: the files of earlier policies stay as they are
             law["min_cadence"] = c.min_cadence
+        if c.turn_lean is not None:
+            law |= {"turn_lean": c.turn_lean, "turn_lean_time_constant_s": c.turn_lean_time_constant_s,
+                    "max_lean_tan": c.max_lean_tan}
         (out / STEERING_FILE).write_text(json.dumps(law) + "\n")
         model.save(str(out / POLICY_FILE))
         venv.save(str(out / NORM_FILE))
@@ -406,12 +410,14 @@ def policy_env(out_dir: str | Path, env: WalkEnvParams) -> WalkEnvParams:
     """`env` under the speed law the policy in `out_dir` was trained with (`STEERING_FILE`); a policy
     from before the law was recorded has none and keeps the legacy law (exponent None); one from
     before `full_gait_fraction` was recorded keeps the params' value; one without `min_cadence` was
-    trained without a cadence floor."""
+    trained without a cadence floor, one without `turn_lean` without leaning into turns."""
     f = Path(out_dir) / STEERING_FILE
     law = json.loads(f.read_text()) if f.exists() else {}
     fraction = law.get("full_gait_fraction") or env.commands.full_gait_fraction
     return replace(env, commands=replace(env.commands, stride_speed_exponent=law.get("stride_speed_exponent"),
-                                         full_gait_fraction=fraction, min_cadence=law.get("min_cadence")))
+                                         full_gait_fraction=fraction, min_cadence=law.get("min_cadence"),
+                                         **{k: law.get(k, getattr(env.commands, k)) for k in LEAN_LAW},
+                                         turn_lean=law.get("turn_lean")))
 
 
 def load_policy(out_dir: str | Path) -> tuple[PPO, VecNormalize | None]:

@@ -51,6 +51,7 @@ from sim.learn.steering import (
     sample_commands,
     speed_law,
     standing_pose,
+    turn_lean_offset,
 )
 from sim.motion.reference import ReferenceCycle
 from sim.rollout.scenarios import CommandProfile, ProfileParams
@@ -444,6 +445,9 @@ class GaitState:
     def __init__(self, ref: ReferenceTable, commands: CommandSampling) -> None:
         self.ref = ref
         self.law = (commands.full_gait_fraction, commands.stride_speed_exponent, commands.min_cadence)
+        self.turn_lean = commands.turn_lean
+        self.lean_law = (commands.turn_lean_time_constant_s, commands.max_lean_tan)
+        self.lean_m = 0.0  # the feet's current lateral lean offset (`_look_up`)
         self.phase = self.speed = self.heading = self.yaw_rate = self.a = self.rate = self.speed_ratio = 0.0
         self.reference = ref.steered.at(0.0, 0.0, 0.0, 0.0)
 
@@ -456,7 +460,8 @@ class GaitState:
         """Start at `phase`; standing (no commanded speed) waits at the cycle's start phase."""
         self._set(speed, heading, yaw_rate)
         self.phase = self.ref.start_phase if self.a == 0.0 else phase % 1.0
-        self.reference = self.ref.steered.at(self.phase, self.a, self.rate, self.speed_ratio)
+        self.lean_m = 0.0
+        self._look_up(1.0)
 
     def advance(self, step_phase: float, speed: float, heading: float, yaw_rate: float) -> None:
         """One policy step: the phase moves by `step_phase` x the commanded speed ratio; while
@@ -464,7 +469,18 @@ class GaitState:
         self._set(speed, heading, yaw_rate)
         phase = (self.phase + step_phase * self.rate) % 1.0
         self.phase = self.ref.start_phase if self.a == 0.0 else phase
+        self._look_up(min(1.0, step_phase * self.ref.period_s / self.lean_law[0]))
+
+    def _look_up(self, blend: float) -> None:
+        """The steered reference at the current phase and command; when `CommandSampling.turn_lean`
+        is set, the feet lean into a turn, the offset moving `blend` of the way to the command's."""
         self.reference = self.ref.steered.at(self.phase, self.a, self.rate, self.speed_ratio)
+        if self.turn_lean:
+            feet, height = self.reference[3], self.reference[4]
+            target = turn_lean_offset(height, self.speed, self.yaw_rate, self.turn_lean, self.lean_law[1])
+            self.lean_m += (target - self.lean_m) * blend
+            feet[1] += self.lean_m  # feet are (x, y, z) left then right, in a fresh array
+            feet[4] += self.lean_m
 
     def targets(self, action: np.ndarray, p: WalkEnvParams, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
         """Servo inputs: the reference's actuator coordinates plus the scaled residual (clipped to

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
-from sim.learn.steering import blend_qpos, level_speed_ratio, sample_commands, speed_law
+from sim.learn.steering import blend_qpos, level_speed_ratio, sample_commands, speed_law, turn_lean_offset
 from sim.learn.train import (
     STEERING_FILE,
     STEERING_STATS,
@@ -20,7 +20,7 @@ from sim.learn.train import (
     policy_env,
     widen_policy,
 )
-from sim.learn.walk_env import LEGACY_OBS_SIZE, OBS_SIZE, make_walk_env
+from sim.learn.walk_env import LEGACY_OBS_SIZE, OBS_SIZE, GaitState, make_walk_env
 from sim.motion.reference import load_reference
 from sim.rollout.scenarios import PHASES, command_profile
 
@@ -121,6 +121,43 @@ def test_blend_keeps_unit_quaternions_and_its_ends(env):
         kind, adr = env.model.jnt_type[j], env.model.jnt_qposadr[j]
         if kind == mujoco.mjtJoint.mjJNT_BALL:
             assert np.linalg.norm(mid[adr:adr + 4]) == pytest.approx(1.0)
+
+
+def test_feet_lean_into_a_turn_and_back(env):
+    assert turn_lean_offset(0.9, 1.4, 0.0, 1.0, 0.35) == 0.0
+    left = turn_lean_offset(0.9, 1.4, np.radians(90.0), 1.0, 0.35)
+    assert left == pytest.approx(-0.9 * 1.4 * np.radians(90.0) / 9.81)  # feet outside a left turn
+    assert turn_lean_offset(0.9, 1.4, -np.radians(90.0), 1.0, 0.35) == -left
+    assert turn_lean_offset(0.9, 5.0, 3.0, 1.0, 0.35) == pytest.approx(-0.9 * 0.35)  # the largest lean taken
+    plain = GaitState(env.ref, env.p.commands)
+    lean = GaitState(env.ref, replace(env.p.commands, turn_lean=1.0))
+    v, w = env.ref.speed_mps, np.radians(90.0)
+    for g in (plain, lean):
+        g.start(0.3, v, 0.0, 0.0)
+    assert np.array_equal(lean.reference[3], plain.reference[3])  # straight: no lean
+    for _ in range(60):  # 1.8 s of turning: the lean settles
+        for g in (plain, lean):
+            g.advance(env.step_phase, v, 0.0, w)
+    shift = lean.reference[3] - plain.reference[3]
+    target = turn_lean_offset(lean.reference[4], v, w, 1.0, 0.35)
+    assert shift[1] == shift[4]  # both feet sideways, alike, by the lean of the pelvis height (which
+    assert shift[1] == pytest.approx(target, rel=0.05)  # moves over the cycle; the lean lags it)
+    assert np.array_equal(shift[[0, 2, 3, 5]], np.zeros(4))
+    for g in (plain, lean):
+        g.advance(env.step_phase, v, 0.0, 0.0)
+    assert abs(lean.lean_m) < abs(target)  # the turn is over: the lean fades over ~0.3 s, not at once
+    assert abs(lean.lean_m) > 0.5 * abs(target)
+
+
+def test_a_policy_keeps_the_turn_lean_it_was_trained_with(tmp_path, params):
+    env = params.train_params().env
+    (tmp_path / STEERING_FILE).write_text('{"stride_speed_exponent": 0.42}')
+    leaned = replace(env, commands=replace(env.commands, turn_lean=1.0))
+    assert policy_env(tmp_path, leaned).commands.turn_lean is None  # trained without: none
+    (tmp_path / STEERING_FILE).write_text('{"stride_speed_exponent": 0.42, "turn_lean": 0.8, '
+                                          '"turn_lean_time_constant_s": 0.5, "max_lean_tan": 0.2}')
+    c = policy_env(tmp_path, env).commands
+    assert (c.turn_lean, c.turn_lean_time_constant_s, c.max_lean_tan) == (0.8, 0.5, 0.2)
 
 
 def test_widened_policy_acts_like_the_straight_walker(params, camargo_model, cycle):
