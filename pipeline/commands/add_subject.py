@@ -434,5 +434,8 @@ class _FilesAsTheyLie:
     sources: dict[str, Source]
     files: dict[str, Path]
 
-    def resolve(self, key: str) -> Path:
+    def resolve(self, key: str, verify: bool = True) -> Path:
         return self.files[key]
+
+    def verify(self, key: str, path: Path) -> None:
+        """Nothing to check: the sha256 of each file was just taken from the file itself."""
