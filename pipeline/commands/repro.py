@@ -62,24 +62,35 @@ def dvc_dump_text(data: Any) -> str:
     return buf.getvalue()
 
 
-def lock_text(text: str, before: dict, after: dict) -> str:
-    """The lock file DVC writes when it changes the lock read from `text` (`before`, as loaded)
-    into `after`. Through libyaml when that gives DVC's bytes: the file as read dumps back to
-    itself, and every stage entry DVC replaced or added dumps the same with both dumpers (a block
-    file is its entries one after the other). Otherwise DVC's own way: its round-trip parse of
-    `text` with the same changes, dumped by its dumper."""
+def libyaml_lock_text(text: str, before: dict, after: dict, round_trips: bool = False) -> str | None:
+    """`lock_text` through libyaml, or None when that would not give DVC's bytes: the file as read
+    must dump back to itself (known when `round_trips`: this module wrote `text` from `before`), and
+    every stage entry DVC replaced or added must dump the same with both dumpers (a block file is
+    its entries one after the other)."""
     old, new = before.get("stages", {}), after.get("stages", {})
     changed = [n for n in new if n not in old or new[n] != old[n]]
-    removed = [n for n in old if n not in new]
     same_top = [k for k in after if k != "stages"] == [k for k in before if k != "stages"] and \
         all(after[k] == before[k] for k in after if k != "stages")
     try:
-        if same_top and dump_lock_text(before) == text and all(
+        if same_top and (round_trips or dump_lock_text(before) == text) and all(
                 dump_lock_text({"stages": {n: new[n]}}) == dvc_dump_text({"stages": {n: new[n]}})
                 for n in changed):
             return dump_lock_text(after)
     except (yaml.YAMLError, TypeError, ValueError):
         pass
+    return None
+
+
+def lock_text(text: str, before: dict, after: dict) -> str:
+    """The lock file DVC writes when it changes the lock read from `text` (`before`, as loaded)
+    into `after`. Through libyaml when that gives DVC's bytes (`libyaml_lock_text`); otherwise
+    DVC's own way: its round-trip parse of `text` with the same changes, dumped by its dumper."""
+    fast = libyaml_lock_text(text, before, after)
+    if fast is not None:
+        return fast
+    old, new = before.get("stages", {}), after.get("stages", {})
+    changed = [n for n in new if n not in old or new[n] != old[n]]
+    removed = [n for n in old if n not in new]
     from dvc.utils.serialize._yaml import parse_yaml_for_update
 
     data = parse_yaml_for_update(text, LOCK_NAME) if text else {}
@@ -97,7 +108,11 @@ def lock_text(text: str, before: dict, after: dict) -> str:
 
 def fast_modify_yaml(original: Any) -> Any:
     """DVC's `modify_yaml(path, fs=None)` with `lock_text` for `dvc.lock` on the local filesystem;
-    `original` for every other file."""
+    `original` for every other file. A lock this modifier wrote through libyaml is not parsed again
+    when it comes back unchanged (the next stage of the same `dvc repro`): its data is the copy kept
+    when it was written, which parses to the same (`load_lock_text(dump_lock_text(d)) == d`, tested),
+    and it is known to dump back to itself (~0.4 s a stage of the lock's parse and re-dump)."""
+    written: dict[str, dict] = {}  # the last lock text written through libyaml -> its data
 
     @contextmanager
     def modify_yaml(path: Any, fs: Any = None) -> Iterator[dict]:
@@ -108,10 +123,15 @@ def fast_modify_yaml(original: Any) -> Any:
                 yield data
             return
         text = Path(path).read_text(encoding="utf-8") if os.path.exists(path) else ""
-        data = load_lock_text(text) if text else {}
-        before = copy.deepcopy(data)  # as read, whatever DVC changes in place (~25 ms)
+        known = written.pop(text, None)
+        written.clear()
+        before = known if known is not None else (load_lock_text(text) if text else {})
+        data = copy.deepcopy(before)  # DVC changes it in place; `before` stays as read (~25 ms)
         yield data
-        Path(path).write_text(lock_text(text, before, data), encoding="utf-8")
+        fast = libyaml_lock_text(text, before, data, round_trips=known is not None)
+        Path(path).write_text(fast if fast is not None else lock_text(text, before, data), encoding="utf-8")
+        if fast is not None:
+            written[fast] = copy.deepcopy(data)
 
     return modify_yaml
 

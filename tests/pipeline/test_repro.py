@@ -52,6 +52,35 @@ def test_a_stage_written_through_the_fast_path_is_what_dvc_would_write(tmp_path,
     assert load_lock_text(lock.read_text())["stages"]["new@stage"]["params"]["params.yaml"]["flag"] is True
 
 
+def test_a_lock_it_wrote_is_not_parsed_again_and_gives_the_same_bytes(tmp_path, monkeypatch):
+    import pipeline.commands.repro as repro
+
+    def nothing(path, fs=None):
+        raise AssertionError("dvc.lock goes through the fast path")
+
+    text = (ROOT / "dvc.lock").read_text()
+    assert load_lock_text(dump_lock_text(load_lock_text(text))) == load_lock_text(text)
+    def entry(cmd: str) -> OrderedDict:
+        return OrderedDict(cmd=cmd, outs=[OrderedDict(path="b", hash="md5", md5="1" * 32, size=1)])
+
+    twice, fresh = tmp_path / "twice" / "dvc.lock", tmp_path / "fresh" / "dvc.lock"
+    for lock in (twice, fresh):
+        lock.parent.mkdir()
+        lock.write_text(text)
+    modify = fast_modify_yaml(nothing)
+    with modify(twice) as data:
+        data["stages"]["one@stage"] = entry("python -m y")
+    parsed = []
+    monkeypatch.setattr(repro, "load_lock_text", lambda t: parsed.append(t) or load_lock_text(t))
+    with modify(twice) as data:  # the next stage: the text this modifier wrote, not parsed again
+        data["stages"]["two@stage"] = entry("python -m z")
+    assert parsed == []
+    with fast_modify_yaml(nothing)(fresh) as data:  # both changes at once, from the file as read
+        data["stages"]["one@stage"] = entry("python -m y")
+        data["stages"]["two@stage"] = entry("python -m z")
+    assert len(parsed) == 1 and twice.read_text() == fresh.read_text()
+
+
 @pytest.mark.parametrize("value", ["1e5", "0o17", 1e-05, "it's a: b", "yes", "a\nb", [None, 1]])
 def test_entries_libyaml_writes_otherwise_get_dvcs_bytes(value):
     # YAML 1.1 (PyYAML) writes "1e5" and "0o17" plain, which YAML 1.2 (how DVC reads) takes for
