@@ -86,8 +86,11 @@ def lock_text(text: str, before: dict, after: dict) -> str:
     into `after`. Through libyaml when that gives DVC's bytes (`libyaml_lock_text`); otherwise
     DVC's own way: its round-trip parse of `text` with the same changes, dumped by its dumper."""
     fast = libyaml_lock_text(text, before, after)
-    if fast is not None:
-        return fast
+    return fast if fast is not None else dvc_lock_text(text, before, after)
+
+
+def dvc_lock_text(text: str, before: dict, after: dict) -> str:
+    """`lock_text` DVC's way: its round-trip parse of `text` with the same changes, its dumper."""
     old, new = before.get("stages", {}), after.get("stages", {})
     changed = [n for n in new if n not in old or new[n] != old[n]]
     removed = [n for n in old if n not in new]
@@ -129,7 +132,8 @@ def fast_modify_yaml(original: Any) -> Any:
         data = copy.deepcopy(before)  # DVC changes it in place; `before` stays as read (~25 ms)
         yield data
         fast = libyaml_lock_text(text, before, data, round_trips=known is not None)
-        Path(path).write_text(fast if fast is not None else lock_text(text, before, data), encoding="utf-8")
+        out = fast if fast is not None else dvc_lock_text(text, before, data)
+        Path(path).write_text(out, encoding="utf-8")
         if fast is not None:
             written[fast] = copy.deepcopy(data)
 
