@@ -19,6 +19,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import warnings
+from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 
@@ -266,14 +267,10 @@ def _provenance(manifest: Manifest, key: str, path, reader: str) -> Provenance:
     return Provenance(str(path), manifest.sources[key].sha256, reader)
 
 
-def _read_angles(manifest: Manifest, key: str) -> tuple[Path, MotTable]:
+def _read_mot(manifest: Manifest, key: str, columns: Callable[[str], bool]) -> tuple[Path, MotTable]:
+    """(verified path, table) of a storage file, only the `columns` it keeps converted."""
     path = manifest.resolve(key)
-    return path, read_mot(path, columns=OPENSIM_COORDINATES.__contains__)  # the other columns are not read
-
-
-def _read_grf(manifest: Manifest, key: str) -> tuple[Path, MotTable]:
-    path = manifest.resolve(key)
-    return path, read_mot(path, columns=lambda c: c.endswith(PLATE_COLUMNS))  # moments are not read
+    return path, read_mot(path, columns=columns)
 
 
 def load_trial(subject: Subject, spec: TrialSpec, manifest: Manifest, source: str = "real") -> Trial:
@@ -288,8 +285,10 @@ def load_trial(subject: Subject, spec: TrialSpec, manifest: Manifest, source: st
         # threads exist would inherit a pool without threads
         marker_path = manifest.resolve(spec.markers, verify=False) if spec.markers else None
         verified = pool.submit(manifest.verify, spec.markers, marker_path) if marker_path else None
-        angles_read = pool.submit(_read_angles, manifest, spec.angles) if spec.angles else None
-        grf_read = pool.submit(_read_grf, manifest, spec.grf) if spec.grf else None
+        angles_read = pool.submit(_read_mot, manifest, spec.angles,  # the other columns are not read
+                                  OPENSIM_COORDINATES.__contains__) if spec.angles else None
+        grf_read = pool.submit(_read_mot, manifest, spec.grf,  # moments are not read
+                               lambda c: c.endswith(PLATE_COLUMNS)) if spec.grf else None
         return _canonical_trial(subject, spec, manifest, source, marker_path, verified, angles_read, grf_read)
 
 

@@ -252,8 +252,7 @@ def train(model_path: str | Path, cycle: ReferenceCycle, p: TrainParams, out_dir
         if c.min_cadence is not None:  # written only when set: the files of earlier policies stay as they are
             law["min_cadence"] = c.min_cadence
         if c.turn_lean is not None:
-            law |= {"turn_lean": c.turn_lean, "turn_lean_time_constant_s": c.turn_lean_time_constant_s,
-                    "max_lean_tan": c.max_lean_tan}
+            law |= {"turn_lean": c.turn_lean, **{k: getattr(c, k) for k in LEAN_LAW}}
         (out / STEERING_FILE).write_text(json.dumps(law) + "\n")
         model.save(str(out / POLICY_FILE))
         venv.save(str(out / NORM_FILE))

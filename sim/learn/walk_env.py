@@ -461,7 +461,7 @@ class GaitState:
         self._set(speed, heading, yaw_rate)
         self.phase = self.ref.start_phase if self.a == 0.0 else phase % 1.0
         self.lean_m = 0.0
-        self._look_up(1.0)
+        self._look_up(None)
 
     def advance(self, step_phase: float, speed: float, heading: float, yaw_rate: float) -> None:
         """One policy step: the phase moves by `step_phase` x the commanded speed ratio; while
@@ -469,15 +469,17 @@ class GaitState:
         self._set(speed, heading, yaw_rate)
         phase = (self.phase + step_phase * self.rate) % 1.0
         self.phase = self.ref.start_phase if self.a == 0.0 else phase
-        self._look_up(min(1.0, step_phase * self.ref.period_s / self.lean_law[0]))
+        self._look_up(step_phase)
 
-    def _look_up(self, blend: float) -> None:
+    def _look_up(self, step_phase: float | None) -> None:
         """The steered reference at the current phase and command; when `CommandSampling.turn_lean`
-        is set, the feet lean into a turn, the offset moving `blend` of the way to the command's."""
+        is set, the feet lean into a turn, the offset moving toward the command's over the lean's
+        time constant (a step of `step_phase`; None: at once)."""
         self.reference = self.ref.steered.at(self.phase, self.a, self.rate, self.speed_ratio)
         if self.turn_lean:
             feet, height = self.reference[3], self.reference[4]
             target = turn_lean_offset(height, self.speed, self.yaw_rate, self.turn_lean, self.lean_law[1])
+            blend = 1.0 if step_phase is None else min(1.0, step_phase * self.ref.period_s / self.lean_law[0])
             self.lean_m += (target - self.lean_m) * blend
             feet[1] += self.lean_m  # feet are (x, y, z) left then right, in a fresh array
             feet[4] += self.lean_m
