@@ -83,6 +83,21 @@ def local_head(num_cpus: int, cwd: Path, start_timeout_s: float = 90.0) -> Itera
         except ProcessLookupError:
             pass
         head.wait(timeout=30)
+        _wait_port_closed(port, timeout_s=30.0)
+
+
+def _wait_port_closed(port: int, timeout_s: float) -> None:
+    """Wait until nothing listens on `port` any more: SIGKILL is delivered at once, but a busy machine
+    may take a while to tear the GCS server down and close its socket (seen on a 2-core CI run). Gives
+    up quietly after `timeout_s`: this runs while leaving the block, where raising would hide the
+    block's own error."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        try:
+            socket.create_connection(("127.0.0.1", port), timeout=1).close()
+        except OSError:
+            return
+        time.sleep(0.1)
 
 
 def _head_up(ray_cli: Path, address: str, env: dict[str, str]) -> bool:
