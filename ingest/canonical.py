@@ -20,11 +20,12 @@ import dataclasses
 import logging
 import warnings
 from collections.abc import Callable
-from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import Future
 from pathlib import Path
 
 import numpy as np
 
+from ingest.concurrency import helper_pool
 from ingest.errors import IngestError
 from ingest.manifest import Manifest
 from ingest.markersets import with_derived
@@ -274,22 +275,20 @@ def _read_mot(manifest: Manifest, key: str, columns: Callable[[str], bool]) -> t
 
 
 def load_trial(subject: Subject, spec: TrialSpec, manifest: Manifest, source: str = "real") -> Trial:
-    """Read a subject's trial files through the manifest into one canonical Trial. Two threads
-    check the marker file's sha256 and read the IK and GRF files while this one parses the marker
-    file (hashing and pyarrow's parser release the GIL: Camargo's trial reads in ~13 ms instead of
-    ~22 ms on 2 cores); what they hold is turned canonical after the markers, which fix the trial's
-    time, up axis and heading. A marker file that is not the manifest's is refused as before, and
-    before any error its contents would raise."""
-    with ThreadPoolExecutor(max_workers=2, thread_name_prefix="ingest-read") as pool:
-        # a pool per trial (two thread starts, ~0.1 ms): a process forked while a module-level pool's
-        # threads exist would inherit a pool without threads
-        marker_path = manifest.resolve(spec.markers, verify=False) if spec.markers else None
-        verified = pool.submit(manifest.verify, spec.markers, marker_path) if marker_path else None
-        angles_read = pool.submit(_read_mot, manifest, spec.angles,  # the other columns are not read
-                                  OPENSIM_COORDINATES.__contains__) if spec.angles else None
-        grf_read = pool.submit(_read_mot, manifest, spec.grf,  # moments are not read
-                               lambda c: c.endswith(PLATE_COLUMNS)) if spec.grf else None
-        return _canonical_trial(subject, spec, manifest, source, marker_path, verified, angles_read, grf_read)
+    """Read a subject's trial files through the manifest into one canonical Trial. The helper
+    threads (`ingest.concurrency`) check the marker file's sha256 and read the IK and GRF files
+    while this one parses the marker file (hashing and pyarrow's parser release the GIL: Camargo's
+    trial reads in ~13 ms instead of ~22 ms on 2 cores); what they hold is turned canonical after
+    the markers, which fix the trial's time, up axis and heading. A marker file that is not the
+    manifest's is refused as before, and before any error its contents would raise."""
+    pool = helper_pool()
+    marker_path = manifest.resolve(spec.markers, verify=False) if spec.markers else None
+    verified = pool.submit(manifest.verify, spec.markers, marker_path) if marker_path else None
+    angles_read = pool.submit(_read_mot, manifest, spec.angles,  # the other columns are not read
+                              OPENSIM_COORDINATES.__contains__) if spec.angles else None
+    grf_read = pool.submit(_read_mot, manifest, spec.grf,  # moments are not read
+                           lambda c: c.endswith(PLATE_COLUMNS)) if spec.grf else None
+    return _canonical_trial(subject, spec, manifest, source, marker_path, verified, angles_read, grf_read)
 
 
 def _canonical_trial(subject: Subject, spec: TrialSpec, manifest: Manifest, source: str,

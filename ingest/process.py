@@ -14,6 +14,7 @@ import numpy as np
 import pandas as pd
 
 from ingest.bouts import PelvisPath, pelvis_path, straight_bouts
+from ingest.concurrency import helper_pool
 from ingest.cycles import normalise_cycles
 from ingest.errors import IngestError
 from ingest.events import EventParams, detect_events, force_plate_events, kinematic_events
@@ -97,24 +98,23 @@ def clean_markers(trial: Trial, markerset: dict[str, str], p: IngestParams) -> T
 
 def _filtered(signals: dict[str, np.ndarray], rate_hz: float, p: IngestParams) -> dict[str, np.ndarray]:
     """Gap-fill (`fill_short`, only the signals with a gap) and low-pass many signals at once: the
-    gap-free ones (after filling) in one call, the others one by one."""
-    signals, complete = dict(signals), []
-    for n, x in signals.items():
-        if not np.isfinite(x).all():
-            x = signals[n] = fill_short(x, rate_hz, p.max_gap_s)
-            if not np.isfinite(x).all():
-                continue
-        complete.append(n)
-    out = {n: lowpass(x, rate_hz, p.cutoff_hz, p.filter_order) for n, x in signals.items()
-           if n not in complete}
+    gap-free ones (after filling) in one call, while a helper thread filters the others one by one
+    (`ingest.concurrency`). Each channel is filtered on its own whatever it is stacked with."""
+    signals = {n: x if np.isfinite(x).all() else fill_short(x, rate_hz, p.max_gap_s)
+               for n, x in signals.items()}
+    gapped = [n for n, x in signals.items() if not np.isfinite(x).all()]
+    complete = [n for n in signals if n not in gapped]
+    rest = helper_pool().submit(lambda: {n: lowpass(signals[n], rate_hz, p.cutoff_hz, p.filter_order)
+                                         for n in gapped}) if gapped else None
+    out: dict[str, np.ndarray] = {}
     if complete:
-        stacked = np.column_stack([signals[n].reshape(len(signals[n]), -1) for n in complete])
-        filtered = lowpass(stacked, rate_hz, p.cutoff_hz, p.filter_order)
-        col = 0
-        for n in complete:
-            width = signals[n].reshape(len(signals[n]), -1).shape[1]
-            out[n] = filtered[:, col:col + width].reshape(signals[n].shape)
-            col += width
+        flat = [signals[n].reshape(len(signals[n]), -1) for n in complete]
+        filtered = lowpass(np.column_stack(flat), rate_hz, p.cutoff_hz, p.filter_order)
+        starts = np.cumsum([0] + [f.shape[1] for f in flat])
+        out = {n: filtered[:, a:b].reshape(signals[n].shape)
+               for n, a, b in zip(complete, starts[:-1], starts[1:], strict=True)}
+    if rest is not None:
+        out |= rest.result()
     return {n: out[n] for n in signals}
 
 
