@@ -2,7 +2,8 @@
 
 Pure functions of a run's pelvis positions and its command profile (`sim.rollout.scenarios`):
 the pelvis speed averaged over one stride (the intra-stride surge cancels), the time from the start
-command to 90 % of the steady speed, from the stop command to standing (below 0.1 m/s, the
+command to 90 % of the walk's steady speed (its own, as for a recording: a walk slower than its
+command fails the steady-speed check, not this one), from the stop command to standing (below 0.1 m/s, the
 standing threshold of `ingest.phases`), whether it stands still at the end, and the time to reach
 each newly commanded speed within a tolerance. `evaluate-policy` applies them with the thresholds
 of `evaluate_policy.scenario_checks`.
@@ -57,12 +58,16 @@ def phase_start(command_time_s: np.ndarray, command_phase: np.ndarray, phase: st
 
 
 def start_time_s(time_s: np.ndarray, speed: np.ndarray, command_time_s: np.ndarray,
-                 command_speed: np.ndarray, command_phase: np.ndarray, fraction: float = 0.9) -> float | None:
-    """Seconds from the start command to `fraction` of the commanded steady speed (None: never)."""
+                 command_speed: np.ndarray, command_phase: np.ndarray, fraction: float = 0.9,
+                 steady_mps: float | None = None) -> float | None:
+    """Seconds from the start command to `fraction` of the steady speed (None: never): the walk's
+    own `steady_mps` when given, as a recording's start is measured (`ingest.phases`: to 0.9 of its
+    run's steady speed), else the commanded one."""
     t0 = phase_start(command_time_s, command_phase, "start")
     if t0 is None:
         return None
-    v = float(np.max(command_speed[command_phase == "steady"], initial=0.0))
+    v = steady_mps if steady_mps is not None else float(np.max(command_speed[command_phase == "steady"],
+                                                                initial=0.0))
     t = first_time(time_s, speed >= fraction * v, t0)
     return None if t is None else t - t0
 

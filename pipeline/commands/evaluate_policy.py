@@ -191,11 +191,12 @@ def scenario_report(outcomes: list[RolloutOutcome], profiles: dict[str, CommandP
                 continue
             t = np.arange(len(o.pelvis_xy)) / o.sample_rate_hz
             v = stride_speed(o.pelvis_xy, o.sample_rate_hz, stride_s)
-            starts.append(start_time_s(t, v, prof.time_s, prof.speed_mps, prof.phase))
-            stops.append(stop_time_s(t, v, prof.time_s, prof.phase, sc.standing_mps))
-            ends.append(standing_at_end(t, v, sc.end_standing_s, sc.standing_mps))
             cmd = np.interp(t, prof.time_s, (prof.phase == "steady").astype(float)) > 0.5
             steady.append(float(np.median(v[cmd])) if cmd.any() else np.nan)
+            starts.append(start_time_s(t, v, prof.time_s, prof.speed_mps, prof.phase,
+                                       steady_mps=steady[-1] if cmd.any() else None))
+            stops.append(stop_time_s(t, v, prof.time_s, prof.phase, sc.standing_mps))
+            ends.append(standing_at_end(t, v, sc.end_standing_s, sc.standing_mps))
             changes.append(speed_changes(t, v, prof.time_s, prof.speed_mps, prof.phase,
                                          sc.speed_change_tolerance_pct / 100))
         row["steady_speed_mps"] = [round(x, 3) for x in steady]

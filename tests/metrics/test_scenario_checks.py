@@ -34,6 +34,12 @@ def test_start_stop_and_standing_times_on_a_known_path():
     assert speed[500] == pytest.approx(1.5, rel=0.02)
     # 90 % of 1.5 m/s: 0.9 s into the linear ramp, plus the 0.5 s delay
     assert start_time_s(t, speed, t, v, ph) == pytest.approx(1.4, abs=0.03)
+    # a walk 15 % slower than its command never reaches 90 % of the command, but its own start
+    # (to 90 % of its own steady speed, as a recording's is measured) has the same length
+    slow = 0.85 * speed
+    assert start_time_s(t, slow, t, v, ph) is None
+    assert start_time_s(t, slow, t, v, ph, steady_mps=float(np.median(slow[400:700]))) == pytest.approx(
+        1.4, abs=0.03)
     # below 0.1 m/s: 1 - 0.1 / 1.5 of the ramp down, plus the delay
     assert stop_time_s(t, speed, t, ph) == pytest.approx(0.5 + 1 - 0.1 / 1.5, abs=0.03)
     assert standing_at_end(t, speed) and not standing_at_end(t[:600], speed[:600])
