@@ -24,6 +24,17 @@ def test_split_filter_gives_the_bytes_of_one_call():
         assert np.array_equal(lowpass(x, 200.0, 12.0, 4), scipy.signal.filtfilt(b, a, x, axis=0))
 
 
+def test_a_helper_task_filters_a_wide_array_without_waiting_on_the_pool():
+    """Both helper threads filter wide arrays at once: were they to split their work onto the pool,
+    each would wait for a thread the other holds."""
+    pool = helper_pool()
+    x = np.random.default_rng(4).normal(size=(2000, 4 * SPLIT_MIN_CHANNELS)).cumsum(axis=0)
+    b, a = butter_coefficients(4, 12.0, 200.0)
+    futures = [pool.submit(lowpass, x, 200.0, 12.0, 4) for _ in range(2)]
+    for f in futures:
+        assert np.array_equal(f.result(timeout=30), scipy.signal.filtfilt(b, a, x, axis=0))
+
+
 def _frames_in_child(queue) -> None:
     subject = load_subject("camargo")
     out = process_trial(load_trial(subject, subject.trials[0], Manifest.load()), subject.markerset,
