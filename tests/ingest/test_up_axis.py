@@ -11,9 +11,11 @@ import pytest
 
 from ingest.canonical import detect_up_axis, load_trial, up_to_z, z_up_to
 from ingest.errors import IngestError
-from ingest.manifest import Manifest
+from ingest.manifest import Manifest, Source, sha256_of
+from ingest.process import IngestParams, ProcessedTrial, process_trial
 from ingest.readers import read_trc
-from ingest.subject import FileFormat, load_subject
+from ingest.readers.trc import write_trc
+from ingest.subject import FileFormat, Subject, TrialSpec, load_subject
 
 
 @pytest.fixture(scope="module")
@@ -51,6 +53,36 @@ def test_auto_detects_each_axis_of_a_rotated_recording(camargo, manifest, axis):
     assert found == axis
     assert 0.8 < heights[axis] < 1.1  # camargo's pelvis centre stands ~0.9 m above the foot markers
     np.testing.assert_allclose(up_to_z(in_axis, axis), up_to_z(table.xyz_m, "y"), atol=1e-12)
+
+
+@pytest.mark.parametrize("subject_id", ["opencap4", "camargo"])
+def test_y_up_file_and_its_z_up_copy_give_the_same_events_with_auto(subject_id, manifest, ingest_params,
+                                                                     tmp_path):
+    """Issue 12: a real Y-up walk and its copy rewritten Z up, both read with up axis `auto` through the
+    subject machinery (markers only, as `events FILE` reads them): the same events and strides."""
+    subject = _auto(load_subject(subject_id))
+    key = subject.trials[0].markers
+    table = read_trc(manifest.resolve(key))
+    copy = write_trc(tmp_path / "zup.trc", table.time_s, table.names, up_to_z(table.xyz_m, "y"),
+                     unit=table.declared_unit)
+    copies = Manifest({"zup.trc": Source("zup.trc", copy.as_uri(), sha256_of(copy))}, tmp_path, tmp_path)
+    yup = _markers_only(subject, key, manifest, ingest_params)
+    z = _markers_only(subject, "zup.trc", copies, ingest_params)
+    assert (yup.trial.provenance[0].reader, z.trial.provenance[0].reader) == (
+        "markers:trc up=y(auto)", "markers:trc up=z(auto)")
+    assert len(yup.events) > 4
+    cols = ["side", "event"]
+    assert yup.events[cols].values.tolist() == z.events[cols].values.tolist()
+    np.testing.assert_allclose(z.events["time_s"], yup.events["time_s"], atol=1.0 / table.rate_hz)
+    assert z.strides["kept"].tolist() == yup.strides["kept"].tolist()
+    np.testing.assert_allclose(z.strides["stride_length_m"], yup.strides["stride_length_m"], atol=1e-5)
+
+
+def _markers_only(subject: Subject, key: str, manifest: Manifest, params: IngestParams) -> ProcessedTrial:
+    """`key` as the subject's only trial, without angles or forces, processed (`process_trial`)."""
+    spec = TrialSpec(id="walk", condition="free", markers=key)
+    trial = load_trial(dataclasses.replace(subject, trials=(spec,)), spec, manifest)
+    return process_trial(trial, subject.markerset, params)
 
 
 def test_upside_down_recording_names_heights_and_the_fix(camargo, manifest):

@@ -5,6 +5,7 @@ import json
 
 import pandas as pd
 
+from ingest.robot import ROBOT_COLUMNS, ROBOT_SIGNAL_COLUMNS
 from pipeline.params import load_params
 from pipeline.stages.ingest import run_ingest
 from pipeline.stages.metrics import run_metrics
@@ -29,8 +30,12 @@ def test_a_failing_subject_fails_its_gates_everywhere(tmp_path):
     strides = pd.read_parquet(real / "strides.parquet")
     slow = strides.assign(gait_speed_mps=strides["gait_speed_mps"] * 0.7, **extra)
     slow.to_parquet(policy / "strides.parquet")
-    for name in ("cycles", "robot"):  # robot: the real one, empty
-        pd.read_parquet(real / f"{name}.parquet").assign(**extra).to_parquet(policy / f"{name}.parquet")
+    pd.read_parquet(real / "cycles.parquet").assign(**extra).to_parquet(policy / "cycles.parquet")
+    # a few following samples per condition, so that paper_table1 (compliance) has rows too
+    robot = pd.DataFrame([{"subject": "camargo", "source": "sim", "condition": c, "trial": "t1", "time_s": t,
+                           **dict.fromkeys(ROBOT_SIGNAL_COLUMNS, 0.01), "fall": False, "locked": False}
+                          for c in sorted(set(strides["condition"])) for t in (0.0, 0.01)])
+    robot.assign(**extra)[[*ROBOT_COLUMNS, "scenario", "phase"]].to_parquet(policy / "robot.parquet")
 
     folder = run_metrics("camargo", params, processed, metrics)
     q = pd.read_parquet(folder / "quality.parquet").set_index("check")
@@ -41,8 +46,9 @@ def test_a_failing_subject_fails_its_gates_everywhere(tmp_path):
 
     db = tmp_path / "results.duckdb"
     store_results(db, [load_results("camargo", metrics)], StoreParams())
-    table2 = query(db, "SELECT * FROM paper_table2 WHERE subject = 'camargo'")
-    assert not table2.empty and set(table2["quality"]) == {"fail"}
+    for view in ("paper_table1", "paper_table2", "paper_table3"):  # each row carries the worst status
+        rows = query(db, f"SELECT * FROM {view} WHERE subject = 'camargo'")
+        assert not rows.empty and set(rows["quality"]) == {"fail"}, view
     latest = query(db, "SELECT * FROM quality_latest")
     assert len(latest) == len(q) and "fail" in set(latest["status"])
 
