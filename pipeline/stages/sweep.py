@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import ray
+from ray.exceptions import RayTaskError
 
 from metrics.fall_intervention import FallRuleParams, event_metrics
 from metrics.gait_symmetry import symmetry_row
@@ -152,6 +153,16 @@ def job_row(worker: Worker, job: SweepJob, exclude_locked: bool,
     return {c: row[c] for c in SWEEP_COLUMNS}
 
 
+def error_text(exc: BaseException) -> str:
+    """`Type: first line of the message` of a failed job, as the summary reports it. An exception the
+    job raised comes wrapped in a `RayTaskError` whose text starts with the task's name and pid, not
+    the error: it is unwrapped to the job's own exception."""
+    if isinstance(exc, RayTaskError) and exc.cause is not None:
+        exc = exc.cause
+    message = next(iter(str(exc).splitlines()), "")
+    return f"{type(exc).__name__}: {message[:300]}"
+
+
 @ray.remote(num_cpus=1)
 def _run_remote(setup: BatchSetup, job: SweepJob, exclude_locked: bool,
                 fall_rule: FallRuleParams | None = None) -> dict:
@@ -187,8 +198,7 @@ def run_sweep(params: Params, root: Path = paths.SWEEPS_ROOT, policy_root: Path 
             except Exception as exc:  # retried already: report it, finish the rest
                 failed.append({"job_key": job.key, "subject": job.subject, "variant": job.variant,
                                "condition": job.condition, "scenario": job.scenario, "event": job.event_name,
-                               "seed": job.seed,
-                               "error": f"{type(exc).__name__}: {str(exc).splitlines()[0][:300]}"})
+                               "seed": job.seed, "error": error_text(exc)})
             if on_result is not None:
                 on_result(job)
     keys = {j.key for j in jobs}
@@ -204,4 +214,4 @@ def run_sweep(params: Params, root: Path = paths.SWEEPS_ROOT, policy_root: Path 
     return summary
 
 
-__all__ = ["SweepJob", "job_row", "run_sweep", "study_params", "sweep_jobs"]
+__all__ = ["SweepJob", "error_text", "job_row", "run_sweep", "study_params", "sweep_jobs"]

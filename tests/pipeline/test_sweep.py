@@ -1,6 +1,8 @@
 """Sweeps on Ray: a two-node local cluster (`ray start --head` plus a worker node, reached through
 RAY_ADDRESS) runs a small study; its worker node is killed after the first finished job, and the
-study still completes, every job's row stored exactly once; a rerun resumes (runs nothing)."""
+study still completes, every job's row stored exactly once; a rerun resumes (runs nothing). A job
+that raises (a plug-in controller that fails) is attempted twice, then reported with its error
+while the rest of the study completes."""
 
 from __future__ import annotations
 
@@ -21,17 +23,23 @@ from pipeline.paths import POLICIES_ROOT
 from pipeline.stages.sweep import rollout_params_hash, run_sweep, sweep_jobs
 from pipeline.store import StoreParams, query, store_results
 from sim.rollout.cluster import RAY_ADDRESS, local_head
+from tests.pipeline.failing_controller import ATTEMPTS_ENV, MESSAGE
 
 REPO = Path(__file__).resolve().parents[2]
 RAY = Path(sys.executable).with_name("ray")
+FAILING = "tests.pipeline.failing_controller:Failing"  # a plug-in controller by import path that raises
 
 pytestmark = pytest.mark.skipif(not (POLICIES_ROOT / "camargo" / "policy.zip").is_file(),
                                 reason="camargo's committed policy is missing")
 
 
-def small_study(study: str = "killed_worker", seeds: int = 3):
+def small_study(study: str = "killed_worker", seeds: int = 3, conditions: tuple[str, ...] = ("free", "pid")):
+    """params.yaml with a small study: camargo, a 3 s steady walk, `conditions` x `seeds`; a condition
+    `failing` is the plug-in controller `FAILING`."""
     doc = load_params().document()
-    doc["sweep"].update(study=study, subjects=["camargo"], conditions=["free", "pid"], scenarios=["steady"],
+    if "failing" in conditions:
+        doc["robot"]["controllers"]["failing"] = {"class": FAILING, "gains": {}}
+    doc["sweep"].update(study=study, subjects=["camargo"], conditions=list(conditions), scenarios=["steady"],
                         seeds=seeds)
     doc["scenarios"]["commands"]["steady"] = [{"walk_s": 3.0, "speed": 1.0}]
     return parse_params(doc)
@@ -105,6 +113,39 @@ def test_sweep_completes_after_its_worker_node_is_killed(cluster, tmp_path):
 
     again = run_sweep(params, root=sweeps, progress=False)  # resumes: nothing left to run, no Ray needed
     assert again["ran"] == 0 and again["resumed"] == 6
+
+
+def test_a_job_that_raises_is_retried_once_then_reported_while_the_rest_completes(tmp_path):
+    """`python -m pipeline sweep` on a local Ray: the job whose plug-in controller raises runs twice
+    (once, then `ray.max_retries` = 1 retry), is reported in summary.json and on stderr with its error,
+    and the other jobs finish, each stored once."""
+    params = small_study("failed_job", seeds=1, conditions=("free", "failing", "pid"))
+    doc = params.document()
+    doc["ray"]["num_cpus"] = 1
+    params = parse_params(doc)
+    assert params.ray.max_retries == 1
+    jobs, _ = sweep_jobs(params)
+    ok = sorted(j.key for j in jobs if j.condition != "failing")
+    params_file = tmp_path / "params.yaml"
+    params_file.write_text(yaml.safe_dump(params.document(), sort_keys=False))
+    attempts = tmp_path / "attempts.txt"
+    env = {k: v for k, v in os.environ.items() if k != RAY_ADDRESS} | {
+        "OMP_NUM_THREADS": "1", "RAY_USAGE_STATS_ENABLED": "0", ATTEMPTS_ENV: str(attempts)}
+    sweeps = tmp_path / "sweeps"
+    cmd = [sys.executable, "-m", "pipeline", "--params", str(params_file), "sweep", "--root", str(sweeps)]
+    run = subprocess.run(cmd, env=env, cwd=REPO, capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, run.stderr
+
+    assert len(attempts.read_text().splitlines()) == 2  # tried once, retried once
+    summary = json.loads((sweeps / "failed_job" / "summary.json").read_text())
+    assert (summary["jobs"], summary["ran"], summary["resumed"]) == (3, 2, 0), summary
+    [failed] = summary["failed"]
+    assert failed["condition"] == "failing" and failed["seed"] == 0, failed
+    assert failed["error"] == f"RuntimeError: {MESSAGE}", failed
+    assert f"failing steady none seed 0: RuntimeError: {MESSAGE}" in run.stderr
+    results = pd.read_parquet(sweeps / "failed_job" / "results.parquet")
+    assert sorted(results["job_key"]) == ok  # every other job, once
+    assert sorted(p.stem for p in (sweeps / "failed_job" / "jobs").glob("*.parquet")) == ok
 
 
 def test_job_keys_name_what_shapes_a_rollout():
