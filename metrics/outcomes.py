@@ -22,8 +22,25 @@ ROW_COLUMNS = ["mean_abs_ex_cm", "mean_abs_ey_cm", "force_rms_n", "fell", "gait_
                "n_strides", "n_samples"]
 
 
-def run_row(robot: pd.DataFrame, strides: pd.DataFrame, fell: bool, exclude_locked: bool = True) -> dict:
-    """Headline numbers of one rollout: its robot table (empty when walking free) and strides."""
+def walk_window(spans: list[tuple[str, float, float]]) -> tuple[float, float]:
+    """(start, end) s of a scenario's walk itself, from its commanded phase spans
+    (`sim.rollout.scenarios.CommandProfile.spans`): after the quiet standing it starts with and before
+    the one it ends with, as Table I's compliance is taken (`metrics.sampling`); open where it
+    neither starts nor ends standing."""
+    start = spans[0][2] if spans and spans[0][0] == "standing" else -np.inf
+    end = spans[-1][1] if len(spans) > 1 and spans[-1][0] == "standing" else np.inf
+    return float(start), float(end)
+
+
+def run_row(robot: pd.DataFrame, strides: pd.DataFrame, fell: bool, exclude_locked: bool = True,
+            window_s: tuple[float, float] = (-np.inf, np.inf)) -> dict:
+    """Headline numbers of one rollout: its robot table (empty when walking free) and strides, both
+    within `window_s` (robot samples by time, strides by their end; default: all)."""
+    lo, hi = window_s
+    if not robot.empty:
+        robot = robot[(robot["time_s"] >= lo) & (robot["time_s"] <= hi)]
+    if not strides.empty:
+        strides = strides[(strides["t_start_s"] >= lo) & (strides["t_end_s"] <= hi)]
     kept = strides[strides["kept"].astype(bool)] if not strides.empty else strides
     out = {"mean_abs_ex_cm": np.nan, "mean_abs_ey_cm": np.nan, "force_rms_n": np.nan, "fell": bool(fell),
            "gait_speed_mps": float(kept["gait_speed_mps"].mean()) if len(kept) else np.nan,
@@ -63,4 +80,4 @@ def objective(rows: pd.DataFrame, free_speed_mps: float, w: ObjectiveWeights = O
     return float(costs(rows, free_speed_mps, w).mean())
 
 
-__all__ = ["ROW_COLUMNS", "ObjectiveWeights", "costs", "objective", "run_row"]
+__all__ = ["ROW_COLUMNS", "ObjectiveWeights", "costs", "objective", "run_row", "walk_window"]

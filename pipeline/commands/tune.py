@@ -32,7 +32,7 @@ import pandas as pd
 import ray
 from tqdm import tqdm
 
-from metrics.outcomes import ObjectiveWeights, costs, objective, run_row
+from metrics.outcomes import ObjectiveWeights, costs, objective, run_row, walk_window
 from metrics.phases import mean_ci95
 from pipeline import paths
 from pipeline.params import Params, ParamsError
@@ -113,10 +113,19 @@ def trial_worker(base: BatchSetup, setup: BatchSetup) -> Worker:
 
 
 def rollout_row(base: BatchSetup, setup: BatchSetup, job: RolloutJob, exclude_locked: bool) -> dict:
-    """`metrics.outcomes.run_row` of one job, with the job's trial id and seed."""
-    o = trial_worker(base, setup).run(job)
-    row = run_row(o.robot, o.tables.get("strides", pd.DataFrame()), o.fell, exclude_locked)
-    return {"trial": job.trial, "scenario": job.human.scenario, "seed": job.seed, **row}
+    """`metrics.outcomes.run_row` of one job over the walk itself (`walk_window` of its scenario's
+    commands), with the job's trial id and seed. A fall, or the arm's lock on one, counts when it
+    happens before the walk's final quiet standing; one after it (`late_fall`) is counted apart and
+    not scored: there the policy human topples whatever the controller (README, "Per-subject
+    controller tuning"), so scoring it would score the human, not the gains."""
+    o = trial_worker(base, setup).run(job, keep_result=True)
+    commands = getattr(o.human.driver, "commands", None)
+    window = walk_window(commands.spans()) if commands is not None else (-np.inf, np.inf)
+    fall_s = min((t for t in (o.human_fall_s, o.robot_fall_s) if t is not None), default=None)
+    late = o.stable and fall_s is not None and fall_s > window[1]
+    strides = o.tables.get("strides", pd.DataFrame())
+    row = run_row(o.robot, strides, o.fell and not late, exclude_locked, window)
+    return {"trial": job.trial, "scenario": job.human.scenario, "seed": job.seed, **row, "late_fall": late}
 
 
 @ray.remote(num_cpus=1)
@@ -150,6 +159,7 @@ def heldout_summary(rows: pd.DataFrame, free_speed_mps: float, w: ObjectiveWeigh
     mean, half = mean_ci95(each)
     return {"mean": float(mean), "ci95": float(half) if len(each) > 1 else None,
             "falls": int(rows["fell"].astype(bool).sum()),
+            "late_falls": int(rows["late_fall"].astype(bool).sum()),
             "costs": each.tolist()}
 
 
@@ -265,6 +275,7 @@ def run_tune(subject: str, controller: str, params: Params, variant: str = HEALT
            "search_best_objective": best[METRIC], **search_falls(history, len(ctx.jobs)),
            "generic_mean": gen["mean"], "generic_ci95": _finite(gen["ci95"]), "generic_falls": gen["falls"],
            "tuned_mean": tun["mean"], "tuned_ci95": _finite(tun["ci95"]), "tuned_falls": tun["falls"],
+           "generic_late_falls": gen["late_falls"], "tuned_late_falls": tun["late_falls"],
            "n_heldout": len(heldout), "scenarios": list(t.scenarios), "seeds": list(t.seeds),
            "heldout_seeds": list(t.heldout_seeds), "search_space": {g: list(b) for g, b in space.items()},
            "free_speed_mps": speed, "history": history,
