@@ -9,8 +9,10 @@ controller: the first trial is the controller's generic gains (params `robot.con
 to the search box), the rest come from the sampler seeded with `tune.seed`. The best trial's gains
 and the generic ones then run on `tune.heldout_seeds` x `tune.scenarios`; each rollout's cost is
 the objective of that one rollout, reported as mean and Student-t 95 % CI half-width across
-rollouts, with the falls. The result goes to `data/tuning/<subject>/<variant>/<controller>.json`
-(committed; the store's `tuned_gains` table and `tuning_comparison` view read it).
+rollouts, with the falls, and the tuned minus generic cost of each held-back walk (paired: the same
+scenario and seed) as mean and 95 % CI half-width. The result goes to
+`data/tuning/<subject>/<variant>/<controller>.json` (committed; the store's `tuned_gains` table and
+`tuning_comparison` view read it).
 
 Each Ray process opens the subject's world once (`sim.rollout.cluster.cached_worker`, keyed by the
 setup with its generic gains) and swaps in each trial's gains (`trial_worker`).
@@ -270,12 +272,14 @@ def run_tune(subject: str, controller: str, params: Params, variant: str = HEALT
     rows = parallel_rows(base, [(base, j) for j in heldout] + [(tuned_setup, j) for j in heldout], exclude,
                          f"held-back {subject} {controller}", progress)
     gen, tun = (heldout_summary(rows.iloc[k * len(heldout):(k + 1) * len(heldout)], speed, w) for k in (0, 1))
+    diff_mean, diff_half = mean_ci95(np.subtract(tun["costs"], gen["costs"]))  # the same walks, paired
     doc = {"subject": subject, "variant": variant, "controller": controller, "method": t.method,
            "n_trials": n_trials, "seed": t.seed, "generic_gains": generic, "tuned_gains": tuned,
            "search_best_objective": best[METRIC], **search_falls(history, len(ctx.jobs)),
            "generic_mean": gen["mean"], "generic_ci95": _finite(gen["ci95"]), "generic_falls": gen["falls"],
            "tuned_mean": tun["mean"], "tuned_ci95": _finite(tun["ci95"]), "tuned_falls": tun["falls"],
            "generic_late_falls": gen["late_falls"], "tuned_late_falls": tun["late_falls"],
+           "paired_difference_mean": _finite(diff_mean), "paired_difference_ci95": _finite(diff_half),
            "n_heldout": len(heldout), "scenarios": list(t.scenarios), "seeds": list(t.seeds),
            "heldout_seeds": list(t.heldout_seeds), "search_space": {g: list(b) for g, b in space.items()},
            "free_speed_mps": speed, "history": history,

@@ -1,10 +1,10 @@
 """The closed loop discriminates: with the same steerable policy human, a sluggish PID follows worse
 than the tuned one and the human's walking changes beyond seed noise, or the human falls (issue 11;
 the sluggish gains are the ones that drove the harness to 690 N RMS in the sanity check quoted
-there). The comparison needs the human to walk with the tuned PID: in `steady` (already walking) it
-does; in the paper's protocol `walk_10m` camargo's committed policy falls after its stop, and in
-some seeds while starting (seed 2 of 3: at 4.8-5.4 s, free and with either controller), so that case
-is an expected failure until it walks the protocol (issue 11 stays open)."""
+there). The comparison needs the human to walk with the tuned PID, in `steady` (already walking) and
+in the paper's protocol `walk_10m`. Only the walk itself counts (`metrics.outcomes.walk_window`): in
+walk_10m's final quiet standing camargo's policy human topples whatever the controller and the arm
+locks on it (README, "Scenarios and the steerable human"), which says nothing about the gains."""
 
 from __future__ import annotations
 
@@ -13,9 +13,12 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from metrics.outcomes import walk_window
 from metrics.scenario_checks import stride_speed
 from pipeline.stages.simulate import policy_setup, scenario_jobs
-from sim.rollout.batch import run_batch
+from sim.learn.train import load_body
+from sim.rollout.batch import RolloutOutcome, run_batch
+from sim.rollout.scenarios import command_profile
 
 SLUGGISH_GAINS = {"kp_x": 1.0, "ki_x": 0.5}
 WALKS = 3
@@ -26,29 +29,38 @@ def _mean_se(x: list[float]) -> tuple[float, float]:
     return float(a.mean()), float(a.std(ddof=1) / np.sqrt(len(a)))
 
 
-@pytest.mark.parametrize("scenario", [
-    "steady",
-    pytest.param("walk_10m", marks=pytest.mark.xfail(
-        reason="the committed policy falls in walk_10m: after its stop, and starting in some seeds "
-               "(issue 11 open)", strict=False)),
-])
+def _fell_walking(o: RolloutOutcome, walk_end_s: float) -> bool:
+    """The human fell, or the arm locked on a fall, before the walk's final standing (or the
+    simulation went unstable)."""
+    falls = [t for t in (o.human_fall_s, o.robot_fall_s) if t is not None]
+    return not o.stable or (bool(falls) and min(falls) <= walk_end_s)
+
+
+@pytest.mark.parametrize("scenario", ["steady", "walk_10m"])
 def test_sluggish_pid_is_told_apart_from_the_tuned_one(params, camargo_model, policies_root, scenario):
     setup = policy_setup("camargo", params, camargo_model.parents[1], policies_root)
+    src = setup.drivers
+    cycle = load_body(src.policy_dir)[1]
+    commands = command_profile(scenario, list(src.scenarios[scenario]), src.env.variant.preferred_speed(
+        cycle.speed_mps), src.sample_rate_hz, src.profile)
+    start_s, end_s = walk_window(commands.spans())
     pid = setup.controllers["pid"]
     sluggish = {**pid, "gains": {**pid["gains"], **SLUGGISH_GAINS}}
     setup = replace(setup, controllers={**setup.controllers, "sluggish": sluggish})
     outcomes = run_batch(setup, scenario_jobs(params, ("pid", "sluggish"), WALKS, (scenario,)), 1, "", False)
     by = {c: [o for o in outcomes if o.job.condition == c] for c in ("pid", "sluggish")}
-    assert not any(o.fell for o in by["pid"]), "the human must walk with the tuned PID to compare"
-    walking = {c: [o.robot[o.robot["time_s"] > 2.0] for o in runs] for c, runs in by.items()}  # not standing
+    assert not any(_fell_walking(o, end_s) for o in by["pid"]), "the human must walk with the tuned PID"
+    lo = max(start_s, 2.0)  # the walk itself, never the first 2 s (the robot's start)
+    walking = {c: [o.robot[(o.robot["time_s"] > lo) & (o.robot["time_s"] <= end_s)] for o in runs]
+               for c, runs in by.items()}
     e_x = {c: [float(np.abs(r["e_x_m"]).mean() * 100) for r in rs] for c, rs in walking.items()}
     assert min(e_x["sluggish"]) > max(e_x["pid"]), e_x
 
-    falls = sum(o.fell for o in by["sluggish"])
+    falls = sum(_fell_walking(o, end_s) for o in by["sluggish"])
     stride_s = 1.0
     speed = {c: [float(np.median(stride_speed(o.pelvis_xy, o.sample_rate_hz, stride_s)[
-        int(4.0 * o.sample_rate_hz):int(8.0 * o.sample_rate_hz)])) for o in runs if not o.fell]
-        for c, runs in by.items()}
+        int(4.0 * o.sample_rate_hz):int(8.0 * o.sample_rate_hz)])) for o in runs
+        if not _fell_walking(o, end_s)] for c, runs in by.items()}
     changed = False
     if len(speed["sluggish"]) >= 2 and len(speed["pid"]) >= 2:
         (m_s, se_s), (m_t, se_t) = _mean_se(speed["sluggish"]), _mean_se(speed["pid"])
