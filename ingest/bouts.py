@@ -50,8 +50,9 @@ def pelvis_path(pelvis: np.ndarray, facing: np.ndarray, rate_hz: float, smooth_h
     """Pelvis path from the pelvis centre and its facing vector ((n, 3) each, canonical frame)."""
     xy = _bridged(pelvis[:, :2].copy())
     face = _bridged(facing[:, :2].copy())
-    if len(xy) > 9:
-        xy, face = lowpass(xy, rate_hz, smooth_hz), lowpass(face, rate_hz, smooth_hz)
+    if len(xy) > 9:  # in one call: each channel is filtered on its own
+        both = lowpass(np.column_stack([xy, face]), rate_hz, smooth_hz)
+        xy, face = both[:, :2], both[:, 2:]
     vel = np.gradient(xy, 1.0 / rate_hz, axis=0)
     speed = np.linalg.norm(vel, axis=1)
     heading = np.unwrap(np.arctan2(vel[:, 1], vel[:, 0]))

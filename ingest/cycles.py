@@ -21,10 +21,11 @@ def normalise_cycles(strides: pd.DataFrame, time_s: np.ndarray, angles: dict[str
                      n_points: int = 101) -> pd.DataFrame:
     """Long table (side, stride, pct, joint, angle_deg) of the kept strides."""
     pct = np.linspace(0.0, 100.0, n_points)
-    kept = strides.loc[strides["kept"].to_numpy(bool)]
+    kept = strides["kept"].to_numpy(bool)
+    # the kept strides' rows as Python values, column by column (selecting and iterating rows costs more)
+    columns = (strides[c].to_numpy()[kept].tolist() for c in ("side", "stride", "t_start_s", "t_end_s"))
     cycles = []  # (side, stride, joint, angle_deg over the cycle)
-    for side, stride, t0, t1 in kept[["side", "stride", "t_start_s", "t_end_s"]].itertuples(
-            index=False, name=None):
+    for side, stride, t0, t1 in zip(*columns, strict=True):
         t = np.linspace(t0, t1, n_points)
         for joint in CYCLE_JOINTS:
             values = angles.get(angle_name(joint, side))

@@ -19,7 +19,7 @@ from ingest.cycles import normalise_cycles
 from ingest.errors import IngestError
 from ingest.events import EventParams, detect_events, force_plate_events, kinematic_events
 from ingest.filtering import lowpass
-from ingest.gaps import fill_rigid, fill_short
+from ingest.gaps import fill_rigid, fill_short_all
 from ingest.kinematics import marker_angles
 from ingest.phases import PhaseParams, motion_phases
 from ingest.robot import ROBOT_COLUMNS
@@ -97,12 +97,14 @@ def clean_markers(trial: Trial, markerset: dict[str, str], p: IngestParams) -> T
 
 
 def _filtered(signals: dict[str, np.ndarray], rate_hz: float, p: IngestParams) -> dict[str, np.ndarray]:
-    """Gap-fill (`fill_short`, only the signals with a gap) and low-pass many signals at once: the
+    """Gap-fill (`fill_short_all`, only the signals with a gap) and low-pass many signals at once: the
     gap-free ones (after filling) in one call, while a helper thread filters the others one by one
     (`ingest.concurrency`). Each channel is filtered on its own whatever it is stacked with."""
-    signals = {n: x if np.isfinite(x).all() else fill_short(x, rate_hz, p.max_gap_s)
-               for n, x in signals.items()}
     gapped = [n for n, x in signals.items() if not np.isfinite(x).all()]
+    if gapped:  # the signals of a dict (markers, or angles) share one shape
+        filled = fill_short_all([signals[n] for n in gapped], rate_hz, p.max_gap_s)
+        signals = signals | dict(zip(gapped, filled, strict=True))
+    gapped = [n for n in gapped if not np.isfinite(signals[n]).all()]  # gaps too long to fill
     complete = [n for n in signals if n not in gapped]
     rest = helper_pool().submit(lambda: {n: lowpass(signals[n], rate_hz, p.cutoff_hz, p.filter_order)
                                          for n in gapped}) if gapped else None

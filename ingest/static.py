@@ -40,7 +40,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from ingest.canonical import _check_body_scale, canonical_angles, resolve_up_axis, up_to_z
+from ingest.canonical import _check_body_scale, canonical_angles, resolve_up_axis, up_to_z, zero_gaps
 from ingest.errors import IngestError, SubjectError
 from ingest.filtering import finite_runs
 from ingest.kinematics import hip_joint_centres
@@ -332,7 +332,7 @@ def _walking_frames(paths: list[Path], subject: Subject) -> tuple[np.ndarray, li
     tables = []
     for path in paths:
         table = read_markers(path)
-        xyz = np.where((table.xyz_m == 0.0).all(axis=2, keepdims=True), np.nan, table.xyz_m)
+        xyz = zero_gaps(table.xyz_m)
         up, _ = resolve_up_axis(xyz, table.names, subject.markerset, subject.format, str(path))
         xyz = up_to_z(xyz, up)
         markers = with_derived({n: xyz[:, j] for j, n in enumerate(table.names)}, subject.markerset)

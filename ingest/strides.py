@@ -18,7 +18,7 @@ import numpy as np
 import pandas as pd
 
 from ingest.bouts import Bout, PelvisPath
-from ingest.events import side_times
+from ingest.events import times_by_side
 from ingest.filtering import finite_frames
 from ingest.spatiotemporal import stride_measures
 from ingest.trial import SIDES
@@ -57,10 +57,10 @@ def segment_strides(events: pd.DataFrame, time_s: np.ndarray, heel: dict[str, np
     for m in (*heel.values(), *toe.values()):
         seen &= finite_frames(m)
     rows, bout = [], []
+    times = times_by_side(events, [(s, e) for s in SIDES for e in ("heel_strike", "toe_off")])
     for side in SIDES:
         other = SIDES[1 - SIDES.index(side)]
-        hs, to, contra = (side_times(events, s, e) for s, e in
-                          ((side, "heel_strike"), (side, "toe_off"), (other, "heel_strike")))
+        hs, to, contra = times[side, "heel_strike"], times[side, "toe_off"], times[other, "heel_strike"]
         frames, at_strike = _indices(time_s, hs), _interp(time_s, heel[side], hs)
         contra_at = _interp(time_s, heel[other], contra)
         first_contra = np.searchsorted(contra, hs, side="right")  # the first contralateral strike after each

@@ -127,10 +127,12 @@ def read_trc(path: str | Path) -> MarkerTable:
     rows = data
     if len(rows) < n_frames:
         raise IngestError(path, f"truncated: header declares {n_frames} frames, file holds {len(rows)}")
-    time = data[:, 1]
+    time = data[:, 1].copy()  # not a view: it would hold the whole table for the trial's lifetime
     if np.isnan(time).any():
         raise IngestError(path, "Time column has empty cells")
-    xyz = data[:, 2:].reshape(len(rows), n_markers, 3) * UNIT_TO_M[unit]
+    xyz = data[:, 2:].reshape(len(rows), n_markers, 3)  # a view: metres need no copy
+    if UNIT_TO_M[unit] != 1.0:
+        xyz = xyz * UNIT_TO_M[unit]
     return MarkerTable(path, rate, time, names, xyz, unit)
 
 

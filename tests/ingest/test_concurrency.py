@@ -10,7 +10,7 @@ import scipy.signal
 
 from ingest.canonical import load_trial
 from ingest.concurrency import helper_pool
-from ingest.filtering import SPLIT_MIN_CHANNELS, butter_coefficients, lowpass
+from ingest.filtering import CHUNK_CHANNELS, butter_coefficients, lowpass
 from ingest.manifest import Manifest
 from ingest.process import process_trial
 from ingest.subject import load_subject
@@ -18,7 +18,7 @@ from ingest.subject import load_subject
 
 def test_split_filter_gives_the_bytes_of_one_call():
     rng = np.random.default_rng(3)
-    for shape in [(500, SPLIT_MIN_CHANNELS), (3067, 28, 3), (400, SPLIT_MIN_CHANNELS - 1)]:
+    for shape in [(500, CHUNK_CHANNELS + 1), (3067, 28, 3), (400, CHUNK_CHANNELS)]:
         x = rng.normal(size=shape).cumsum(axis=0)
         b, a = butter_coefficients(4, 12.0, 200.0)
         assert np.array_equal(lowpass(x, 200.0, 12.0, 4), scipy.signal.filtfilt(b, a, x, axis=0))
@@ -28,7 +28,7 @@ def test_a_helper_task_filters_a_wide_array_without_waiting_on_the_pool():
     """Both helper threads filter wide arrays at once: were they to split their work onto the pool,
     each would wait for a thread the other holds."""
     pool = helper_pool()
-    x = np.random.default_rng(4).normal(size=(2000, 4 * SPLIT_MIN_CHANNELS)).cumsum(axis=0)
+    x = np.random.default_rng(4).normal(size=(2000, 4 * CHUNK_CHANNELS)).cumsum(axis=0)
     b, a = butter_coefficients(4, 12.0, 200.0)
     futures = [pool.submit(lowpass, x, 200.0, 12.0, 4) for _ in range(2)]
     for f in futures:
