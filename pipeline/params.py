@@ -92,6 +92,7 @@ class ReportParams:
     event_scenarios: dict[str, str] = field(default_factory=lambda: {"start": "walk_10m", "turn": "turn_90",
                                                                      "stop": "walk_10m"})
     caught_drop_m: float = 0.22  # fall intervention: robot.fall.drop_m + fall_intervention.caught_margin_m
+    detection_window_s: float = 1.5  # fall intervention: a lock this soon after the onset detects it
     paper_scenario: str = "walk_10m"  # the scenario the paper tables and findings come from (scenarios.paper)
 
 
@@ -952,12 +953,13 @@ class Params(Schema):
                                       variant=self.variant(variant)))
 
     def report_params(self) -> ReportParams:
-        """`report`, with the fall-intervention caught threshold (`FallInterventionSchema.rule`) and
-        the paper's scenario (`scenarios.paper`)."""
+        """`report`, with the fall-intervention caught threshold and detection window
+        (`FallInterventionSchema.rule`) and the paper's scenario (`scenarios.paper`)."""
         from dataclasses import replace
 
         rule = self.fall_intervention.rule(self.robot.fall.drop_m)
         return replace(self.report.build(), caught_drop_m=rule.caught_drop_m,
+                       detection_window_s=rule.detection_window_s,
                        paper_scenario=self.scenarios.paper.scenario)
 
     def variant(self, name: str) -> Variant:

@@ -115,6 +115,13 @@ QUALITY_DDL = ('run_id BIGINT NOT NULL, subject VARCHAR NOT NULL, stage VARCHAR,
 # standing repeats itself in every seed); the fall time tells apart walks that fell before a stride
 WALK_SUMMARY = "(gait_speed_mps, stride_length_m, stride_time_cv_pct, n_strides, fell, human_fall_s, walk_s)"
 LINKED = ("spm_curves", "spm_clusters")  # rows that belong to an SPM test's group via test_id
+# The scripted balance-loss rollouts (ev) and, per variant, scenario, event and seed, whether the
+# unsupported person fell walking free after the onset (unsupported.falls_free): the confirmation
+# that `fall_intervention` counts against and `falls_not_caught` lists from.
+EVENTS_FREE = ("WITH ev AS (SELECT * FROM sweep_rollouts WHERE coalesce(event, 'none') <> 'none'), "
+               "unsupported AS (SELECT subject, variant, scenario, event, seed, "
+               "human_fall_s IS NOT NULL AS falls_free FROM ev "
+               "WHERE condition = 'free' AND NOT before_onset) ")
 
 
 class StoreError(GaitloopError):
@@ -272,13 +279,9 @@ def _views() -> list[str]:
         # every rollout of the studies' current jobs once (a job in two studies is the same rollout)
         "CREATE OR REPLACE VIEW sweep_rollouts AS SELECT DISTINCT ON (job_key) r.* EXCLUDE (study, run_id) "
         "FROM sweep_results r JOIN sweep_current c USING (study, job_key) ORDER BY job_key, study",
-        # balance loss x controller x variant: was it caught? (metrics.fall_intervention); the same
-        # variant, scenario, event and seed walking free says whether the unsupported person falls
-        "CREATE OR REPLACE VIEW fall_intervention AS WITH ev AS (SELECT * FROM sweep_rollouts "
-        "WHERE coalesce(event, 'none') <> 'none'), "
-        "unsupported AS (SELECT subject, variant, scenario, event, seed, "
-        "human_fall_s IS NOT NULL AS falls_free FROM ev WHERE condition = 'free' AND NOT before_onset) "
-        "SELECT e.subject, e.variant, e.event, e.condition, count(*) AS rollouts, "
+        # balance loss x controller x variant: was it caught? (metrics.fall_intervention)
+        "CREATE OR REPLACE VIEW fall_intervention AS " + EVENTS_FREE
+        + "SELECT e.subject, e.variant, e.event, e.condition, count(*) AS rollouts, "
         "count(*) FILTER (WHERE e.before_onset) AS fell_before_onset, "
         "count(*) FILTER (WHERE NOT e.before_onset) AS events, "
         "count(*) FILTER (WHERE NOT e.before_onset AND u.falls_free) AS events_falling_free, "
@@ -293,6 +296,19 @@ def _views() -> list[str]:
         "max(e.max_harness_force_n) FILTER (WHERE NOT e.before_onset) AS peak_harness_force_n "
         "FROM ev e LEFT JOIN unsupported u USING (subject, variant, scenario, event, seed) "
         "GROUP BY ALL ORDER BY e.subject, e.variant, e.event, e.condition",
+        # every event the unsupported person fell after (falls_free) that a controller did not catch,
+        # with why (the first that applies): no event (the human fell, or the arm locked, before the
+        # onset), the simulation went unstable (`fell` without a fall or lock time, sim.rollout.batch),
+        # no lock within the detection window, or the pelvis already past the caught drop at the lock
+        "CREATE OR REPLACE VIEW falls_not_caught AS " + EVENTS_FREE + "SELECT e.subject, e.variant, "
+        "e.event, e.condition, e.scenario, e.seed, e.onset_s, e.human_fall_s, e.robot_fall_s, e.latency_s, "
+        "e.pelvis_drop_at_lock_m, CASE WHEN e.before_onset AND e.human_fall_s < e.onset_s "
+        "THEN 'fell_before_onset' WHEN e.before_onset THEN 'locked_before_onset' "
+        "WHEN e.fell AND e.human_fall_s IS NULL AND e.robot_fall_s IS NULL THEN 'unstable' "
+        "WHEN NOT coalesce(e.detected, FALSE) THEN 'not_detected' ELSE 'dropped' END AS reason "
+        "FROM ev e JOIN unsupported u USING (subject, variant, scenario, event, seed) "
+        "WHERE e.condition <> 'free' AND u.falls_free AND NOT coalesce(e.caught, FALSE) "
+        "ORDER BY e.subject, e.variant, e.event, e.condition, e.scenario, e.seed",
         # locks of the arm in normal walking with the robot, over every study, scenario and variant
         "CREATE OR REPLACE VIEW false_alarms AS SELECT subject, variant, condition, count(*) AS rollouts, "
         "sum(walk_s) / 3600.0 AS walking_h, count(*) FILTER (WHERE robot_fall_s IS NOT NULL) AS alarms, "

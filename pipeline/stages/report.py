@@ -211,6 +211,8 @@ QUERIES = {
     "tuning": "SELECT * FROM tuning_comparison",
     "quality": 'SELECT * FROM quality_latest ORDER BY subject, stage, "check"',
     "fall": "SELECT * FROM fall_intervention ORDER BY subject, variant, event, condition",
+    "not_caught": "SELECT * FROM falls_not_caught "
+                  "ORDER BY subject, variant, event, condition, scenario, seed",
     "false_alarms": "SELECT * FROM false_alarms ORDER BY subject, variant, condition",
     "cohort_gait": "SELECT * FROM cohort_gait ORDER BY subject, variant, scenario",
     "cohort_controllers": "SELECT * FROM cohort_controllers ORDER BY subject, variant, scenario, condition",
@@ -538,8 +540,9 @@ def subject_report(subject: str, data: dict[str, pd.DataFrame], reports: Path = 
     lines += tuning_lines(_of(data["tuning"], subject), "tuning" in figures)
     lines += cohort_lines(_of(data["cohort_gait"], subject), _of(data["cohort_controllers"], subject),
                           clinical, "cohort" in figures)
-    lines += fall_lines(_of(data["fall"], subject), _of(data["false_alarms"], subject),
-                        "fall_intervention" in figures, p.caught_drop_m)
+    lines += fall_lines(_of(data["fall"], subject), _of(data["not_caught"], subject),
+                        _of(data["false_alarms"], subject), "fall_intervention" in figures, p.caught_drop_m,
+                        p.detection_window_s)
     path = folder / "report.md"
     with replacing(path) as (temp,):
         temp.write_text("\n".join(lines))
@@ -734,6 +737,35 @@ def fall_rows(fall: pd.DataFrame) -> tuple[list[str], list[list[str]]]:
     return header, rows
 
 
+def _not_caught_reason(r, caught_drop_m: float, window_s: float) -> str:
+    """Why one event of `falls_not_caught` was not caught, in words, with its times and drop."""
+    if r.reason == "fell_before_onset":
+        return f"no event: the human fell at {r.human_fall_s:.2f} s, before the onset at {r.onset_s:.2f} s"
+    if r.reason == "locked_before_onset":
+        return f"no event: the arm locked at {r.robot_fall_s:.2f} s, before the onset at {r.onset_s:.2f} s"
+    if r.reason == "unstable":
+        return "the simulation went unstable"
+    if r.reason == "dropped":
+        return (f"detected, but the pelvis had dropped {r.pelvis_drop_at_lock_m:.3f} m at the lock "
+                f"(> {caught_drop_m:.2f} m)")
+    if _num(r.robot_fall_s, 2) != "–":
+        return f"not detected: the arm locked {r.latency_s:.2f} s after the onset (window {window_s:.2f} s)"
+    fell = "did not fall" if _num(r.human_fall_s, 2) == "–" else \
+        f"fell {r.human_fall_s - r.onset_s:.2f} s after the onset"
+    return f"not detected: the arm never locked; the human {fell}"
+
+
+def not_caught_rows(missed: pd.DataFrame, caught_drop_m: float,
+                    window_s: float) -> tuple[list[str], list[list[str]]]:
+    """One row per event of `falls_not_caught` (fell walking free, not caught with this controller)."""
+    header = ["Variant", "Event", "Controller", "Scenario", "Seed", "Why not caught"]
+    rows = [[r.variant, r.event, r.condition, r.scenario, _num(r.seed, 0),
+             _not_caught_reason(r, caught_drop_m, window_s)]
+            for r in _in_order(missed, "variant", "event", "condition", "scenario", "seed")
+            .itertuples(index=False)]
+    return header, rows
+
+
 def false_alarm_rows(alarms: pd.DataFrame) -> tuple[list[str], list[list[str]]]:
     """One row per variant and controller of `false_alarms`."""
     header = ["Variant", "Controller", "Rollouts", "Walking (h)", "Arm locks", "False alarms",
@@ -744,9 +776,12 @@ def false_alarm_rows(alarms: pd.DataFrame) -> tuple[list[str], list[list[str]]]:
     return header, rows
 
 
-def fall_lines(fall: pd.DataFrame, alarms: pd.DataFrame, figure: bool, caught_drop_m: float) -> list[str]:
+def fall_lines(fall: pd.DataFrame, missed: pd.DataFrame, alarms: pd.DataFrame, figure: bool,
+               caught_drop_m: float, window_s: float) -> list[str]:
     """The "Fall intervention" section: how each controller met the scripted balance losses of each
-    variant (`fall_intervention`), and how often it locked the arm in normal walking (`false_alarms`)."""
+    variant (`fall_intervention`), each fall it did not catch and why (`falls_not_caught`; the issue
+    asks for every one to be caught or shown), and how often it locked the arm in normal walking
+    (`false_alarms`)."""
     lines = ["## Fall intervention", ""]
     if fall.empty and alarms.empty:
         return lines + [NO_FALLS, ""]
@@ -769,12 +804,26 @@ def fall_lines(fall: pd.DataFrame, alarms: pd.DataFrame, figure: bool, caught_dr
               "`fall_intervention.caught_margin_m`). Peak harness force: the largest harness force from the "
               "onset on, max over the rollouts (mean of their peaks).", "",
               md_table(*fall_rows(fall)),
+              "### Falls not caught", "", *_not_caught_lines(fall, missed, caught_drop_m, window_s),
               "### False alarms", "",
               "Normal walking with the robot (no scripted event; every study and scenario): Arm locks: "
               "rollouts whose arm locked; a lock that no fall of the human follows within params "
               "`fall_intervention.confirm_s` is a false alarm. Walking (h): walking time before any lock, "
               "summed; false alarms per hour of it.", "", md_table(*false_alarm_rows(alarms))]
     return lines + (_image("fall_intervention") if figure else [])
+
+
+def _not_caught_lines(fall: pd.DataFrame, missed: pd.DataFrame, caught_drop_m: float,
+                      window_s: float) -> list[str]:
+    """The "Falls not caught" table, or one line saying every fall was caught."""
+    if missed.empty:
+        n = int(fall.loc[fall["condition"] != "free", "events_falling_free"].sum()) if not fall.empty else 0
+        return [f"Every event that fell walking free was caught: {n} of {n} rollouts with a controller.", ""]
+    return ["Every rollout with a controller whose event the same seed walking free fell after, and that "
+            "it did not catch, with why: no event (the human fell, or the arm locked, before the onset: "
+            "not counted in \"Caught, of falls free\" above), the simulation went unstable, not detected "
+            f"within the {window_s:.2f} s window, or detected with the pelvis already more than "
+            f"{caught_drop_m:.2f} m down.", "", md_table(*not_caught_rows(missed, caught_drop_m, window_s))]
 
 
 def _spm_lines(tests: pd.DataFrame, clusters: pd.DataFrame) -> list[str]:

@@ -12,7 +12,7 @@ from metrics.fall_intervention import FallRuleParams, event_metrics
 from pipeline.params import parse_params
 from pipeline.stages.simulate import policy_setup
 from pipeline.stages.sweep import run_sweep
-from pipeline.store import query, store_results
+from pipeline.store import SWEEP_COLUMNS, query, store_results
 from sim.body.balance_loss import BalanceLoss, body_geoms
 from sim.learn.policy_human import PolicyWalk
 from sim.learn.walk_env import HUMAN_ACTUATORS
@@ -173,3 +173,48 @@ def test_fall_intervention_study_is_stored_and_summarised(tmp_path, params, poli
     assert query(db, "SELECT count(*) AS n FROM sweep_results")["n"].iloc[0] == 8
     assert query(db, "SELECT count(*) AS n FROM sweep_rollouts")["n"].iloc[0] == 4
     assert query(db, "SELECT events FROM fall_intervention WHERE condition = 'pid'")["events"].iloc[0] == 1
+
+
+def _rollout(condition: str, seed: int, robot_fall_s: float | None, human_fall_s: float | None,
+             fell: bool | None = None) -> dict:
+    """One trip rollout of the store (`SWEEP_COLUMNS`, event columns from `event_metrics`): onset at
+    5 s, after which the pelvis drops 0.3 m/s; `fell` defaults to a fall or a lock."""
+    t = np.arange(0, 10, 0.01)
+    z = 0.95 - 0.3 * np.clip(t - 5.0, 0.0, None)
+    row = dict.fromkeys(SWEEP_COLUMNS, np.nan)
+    row.update(study="fi", job_key=f"{condition}-{seed}", subject="s1", variant="weak", condition=condition,
+               gains_hash="g", scenario="steady", seed=seed, params_hash="p", n_strides=0, n_samples=0,
+               fell=fell if fell is not None else robot_fall_s is not None or human_fall_s is not None,
+               wall_s=1.0)
+    row.update(event_metrics("trip", 5.0, t, z, pd.DataFrame(), robot_fall_s, human_fall_s,
+                             FallRuleParams(caught_drop_m=0.22)))
+    return row
+
+
+def test_falls_not_caught_lists_each_uncaught_fall_with_its_reason(tmp_path):
+    """`falls_not_caught`: the pid rollouts whose seed fell walking free after the onset and that pid
+    did not catch, each with the first reason that applies; a caught one, one whose free walk did not
+    fall and one whose free walk fell before the onset (no confirmation) are not listed."""
+    free = [_rollout("free", seed, None, 6.5) for seed in range(7)]
+    free += [_rollout("free", 7, None, None), _rollout("free", 8, None, 4.0)]
+    pid = [_rollout("pid", 0, 6.0, 6.5),               # locked in the window, pelvis 0.30 m down
+           _rollout("pid", 1, 7.0, 7.5),               # locked 2 s after the onset: window 1.5 s
+           _rollout("pid", 2, None, None),             # never locked, did not fall
+           _rollout("pid", 3, 4.2, 4.0),               # fell before the onset
+           _rollout("pid", 4, 4.5, None),              # arm locked before the onset
+           _rollout("pid", 5, None, None, fell=True),  # unstable: fell without a fall or lock time
+           _rollout("pid", 6, 5.3, 6.0),               # caught: 0.09 m down at the lock
+           _rollout("pid", 7, None, None),             # free walk did not fall
+           _rollout("pid", 8, None, None)]             # free walk fell before the onset
+    db = tmp_path / "results.duckdb"
+    store_results(db, [], sweeps=[pd.DataFrame(free + pid, columns=SWEEP_COLUMNS)])
+    missed = query(db, "SELECT * FROM falls_not_caught ORDER BY seed")
+    assert dict(zip(missed["seed"], missed["reason"], strict=True)) == {
+        0: "dropped", 1: "not_detected", 2: "not_detected", 3: "fell_before_onset",
+        4: "locked_before_onset", 5: "unstable"}
+    assert set(missed["condition"]) == {"pid"} and set(missed["event"]) == {"trip"}
+    assert missed.loc[0, "pelvis_drop_at_lock_m"] == pytest.approx(0.3, abs=1e-3)
+    assert missed.loc[1, "latency_s"] == pytest.approx(2.0)
+    fi = query(db, "SELECT * FROM fall_intervention WHERE condition = 'pid'").iloc[0]
+    # the same confirmation as the counts: 5 events fell free (seeds 0-2, 5, 6), one of them caught
+    assert fi["events_falling_free"] == 5 and fi["caught_rate_falling"] == pytest.approx(1 / 5)

@@ -1,7 +1,7 @@
 """The report's "Virtual cohort" and "Fall intervention" sections and their figures, from small
 frames shaped like the store's views (`cohort_gait`, `cohort_controllers`, `fall_intervention`,
-`false_alarms` of pipeline/store.py), and the published clinical ranges they are read beside
-(data/paper/clinical_ranges.yaml). The whole path from a store is in test_report.py."""
+`falls_not_caught`, `false_alarms` of pipeline/store.py), and the published clinical ranges they are
+read beside (data/paper/clinical_ranges.yaml). The whole path from a store is in test_report.py."""
 
 import math
 
@@ -25,6 +25,7 @@ from pipeline.stages.report import (
 
 NAN = math.nan
 CAUGHT_DROP_M = 0.22
+WINDOW_S = 1.5
 GAIT = ["subject", "variant", "scenario", "walks", "distinct_walks", "falls", "gait_speed_mps",
         "gait_speed_sd", "stride_length_m", "stance_ratio_lr", "swing_ratio_lr", "stride_time_cv_pct",
         "strides"]
@@ -34,6 +35,8 @@ FALL = ["subject", "variant", "event", "condition", "rollouts", "fell_before_ons
         "events_falling_free", "human_falls", "detection_rate", "detection_rate_falling",
         "caught_rate_falling", "latency_s", "pelvis_drop_at_lock_m", "worst_drop_at_lock_m",
         "max_harness_force_n", "peak_harness_force_n"]
+NOT_CAUGHT = ["subject", "variant", "event", "condition", "scenario", "seed", "onset_s", "human_fall_s",
+              "robot_fall_s", "latency_s", "pelvis_drop_at_lock_m", "reason"]
 ALARMS = ["subject", "variant", "condition", "rollouts", "walking_h", "alarms", "false_alarms",
           "false_alarms_per_h"]
 
@@ -72,6 +75,20 @@ def fall_frame() -> pd.DataFrame:
         ["s1", "healthy", "push", "pid", 4, 0, 4, 2, 1, 0.5, 0.5, 0.5, 0.6, 0.02, 0.03, 700.0, 800.0],
         ["s1", "weak", "trip", "pid", 2, 0, 2, 0, 2, 0.0, NAN, NAN, NAN, NAN, NAN, 300.0, 310.0],
     ], columns=FALL)
+
+
+def not_caught_frame() -> pd.DataFrame:
+    """One uncaught fall per reason (listed out of order): healthy's trip caught too low with adaptive
+    and its push never detected with pid (as in `fall_frame`), then with adaptive a push locked too late,
+    one before its onset, one the human fell before, and one unstable."""
+    return pd.DataFrame([
+        ["s1", "healthy", "push", "adaptive", "walk_10m", 0, 3.0, 4.1, 5.2, 2.2, 0.06, "not_detected"],
+        ["s1", "healthy", "push", "adaptive", "steady", 2, 3.0, NAN, 2.5, NAN, NAN, "locked_before_onset"],
+        ["s1", "healthy", "push", "adaptive", "steady", 3, 3.0, NAN, NAN, NAN, NAN, "unstable"],
+        ["s1", "healthy", "push", "adaptive", "steady", 1, 3.0, 2.1, 2.05, NAN, NAN, "fell_before_onset"],
+        ["s1", "healthy", "push", "pid", "steady", 1, 3.0, 3.9, NAN, NAN, NAN, "not_detected"],
+        ["s1", "healthy", "trip", "adaptive", "steady", 2, 3.0, 3.9, 3.25, 0.25, 0.25, "dropped"],
+    ], columns=NOT_CAUGHT)
 
 
 def alarms_frame() -> pd.DataFrame:
@@ -168,7 +185,8 @@ def test_cohort_section_without_rows_says_how_to_get_them():
 
 
 def test_fall_section_prints_each_variant_event_and_controller():
-    text = "\n".join(fall_lines(fall_frame(), alarms_frame(), True, CAUGHT_DROP_M))
+    text = "\n".join(fall_lines(fall_frame(), not_caught_frame(), alarms_frame(), True, CAUGHT_DROP_M,
+                                 WINDOW_S))
     assert text.startswith("## Fall intervention")
     rows = [line for line in text.splitlines() if line.startswith(("| healthy |", "| weak |"))]
     assert rows[:4] == [  # robot rows only, events in their usual order, pid before adaptive
@@ -177,7 +195,7 @@ def test_fall_section_prints_each_variant_event_and_controller():
         "| healthy | push | pid | 4 | 0 | 2/4 | 1/4 | 2/4 | 0.60 | 0.020 (0.030) | 1/2 | 800 (700) |",
         "| weak | trip | pid | 2 | 0 | – | 2/2 | 0/2 | – | – | – | 310 (300) |",  # no free walks
     ]
-    assert rows[4:] == ["| healthy | pid | 8 | 0.020 | 1 | 1 | 50.00 |",
+    assert rows[10:] == ["| healthy | pid | 8 | 0.020 | 1 | 1 | 50.00 |",
                         "| healthy | adaptive | 8 | 0.021 | 0 | 0 | 0.00 |",
                         "| weak | pid | 2 | 0.000 | 0 | 0 | – |"]
     assert f"at most {CAUGHT_DROP_M:.2f} m down" in text
@@ -187,10 +205,39 @@ def test_fall_section_prints_each_variant_event_and_controller():
 
 
 def test_fall_section_without_rows():
-    assert fall_lines(fall_frame().iloc[0:0], alarms_frame().iloc[0:0], False, CAUGHT_DROP_M) == [
-        "## Fall intervention", "", NO_FALLS, ""]
-    alarms_only = "\n".join(fall_lines(fall_frame().iloc[0:0], alarms_frame(), False, CAUGHT_DROP_M))
+    none = not_caught_frame().iloc[0:0]
+    assert fall_lines(fall_frame().iloc[0:0], none, alarms_frame().iloc[0:0], False, CAUGHT_DROP_M,
+                      WINDOW_S) == ["## Fall intervention", "", NO_FALLS, ""]
+    alarms_only = "\n".join(fall_lines(fall_frame().iloc[0:0], none, alarms_frame(), False, CAUGHT_DROP_M,
+                                       WINDOW_S))
     assert "_No rows._" in alarms_only and "| healthy | pid | 8 | 0.020 | 1 | 1 | 50.00 |" in alarms_only
+
+
+def test_falls_not_caught_are_listed_with_why_or_said_to_be_none():
+    """Each uncaught fall of `falls_not_caught` in its own row, in the usual order (variant, event,
+    controller, scenario, seed), its reason in words with its numbers; none: one line."""
+    text = "\n".join(fall_lines(fall_frame(), not_caught_frame(), alarms_frame(), False, CAUGHT_DROP_M,
+                                 WINDOW_S))
+    section = text[text.index("### Falls not caught"):text.index("### False alarms")]
+    assert [line for line in section.splitlines() if line.startswith("| healthy |")] == [
+        "| healthy | trip | adaptive | steady | 2 | detected, but the pelvis had dropped 0.250 m at the lock "
+        "(> 0.22 m) |",
+        "| healthy | push | pid | steady | 1 | not detected: the arm never locked; the human fell 0.90 s "
+        "after the onset |",
+        "| healthy | push | adaptive | steady | 1 | no event: the human fell at 2.10 s, before the onset at "
+        "3.00 s |",
+        "| healthy | push | adaptive | steady | 2 | no event: the arm locked at 2.50 s, before the onset at "
+        "3.00 s |",
+        "| healthy | push | adaptive | steady | 3 | the simulation went unstable |",
+        "| healthy | push | adaptive | walk_10m | 0 | not detected: the arm locked 2.20 s after the onset "
+        "(window 1.50 s) |",
+    ]
+    caught = "\n".join(fall_lines(fall_frame(), not_caught_frame().iloc[0:0], alarms_frame(), False,
+                                   CAUGHT_DROP_M, WINDOW_S))
+    section = caught[caught.index("### Falls not caught"):caught.index("### False alarms")]
+    assert section.splitlines()[2] == ("Every event that fell walking free was caught: 9 of 9 rollouts "
+                                       "with a controller.")
+    assert "| Why not caught |" not in section
 
 
 def test_cohort_figures_are_listed_only_with_robot_rows():
