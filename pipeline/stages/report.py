@@ -603,8 +603,10 @@ def tuning_lines(tuning: pd.DataFrame, figure: bool) -> list[str]:
              _cost(r.tuned_mean, r.tuned_ci95, r.tuned_falls, r.n_heldout), _gains(r.tuned_gains)]
             for r in tuning.sort_values(["controller", "variant"]).itertuples(index=False)]
     lines += ["Objective (metrics/outcomes.py, lower is better): |e_x| + |e_y| (m) + harness force RMS and "
-              "gait-speed change versus walking free, weighted, + a penalty per fall; on held-back walks "
-              "the search never saw (mean ± 95 % CI across rollouts). **no signal**: every search rollout "
+              "gait-speed change versus walking free, weighted, + a penalty per fall, over the walk itself "
+              "(a fall or arm lock in a scenario's final standing is not scored); on held-back walks "
+              "the search never saw (mean ± 95 % CI across rollouts). Each variant's tuned gain values "
+              "stand beside the healthy twin's. **no signal**: every search rollout "
               "fell, so every trial scored the same and the tuned gains are the first trial's, the generic "
               "ones; that row compares nothing.", "",
               md_table(["Controller", "Variant", "Search", "Search rollouts fallen", "Generic gains",
