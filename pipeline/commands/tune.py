@@ -123,8 +123,7 @@ def rollout_row(base: BatchSetup, setup: BatchSetup, job: RolloutJob, exclude_lo
     o = trial_worker(base, setup).run(job, keep_result=True)
     commands = getattr(o.human.driver, "commands", None)
     window = walk_window(commands.spans()) if commands is not None else (-np.inf, np.inf)
-    fall_s = min((t for t in (o.human_fall_s, o.robot_fall_s) if t is not None), default=None)
-    late = o.stable and fall_s is not None and fall_s > window[1]
+    late = o.stable and o.first_fall_s is not None and o.first_fall_s > window[1]
     strides = o.tables.get("strides", pd.DataFrame())
     row = run_row(o.robot, strides, o.fell and not late, exclude_locked, window)
     return {"trial": job.trial, "scenario": job.human.scenario, "seed": job.seed, **row, "late_fall": late}

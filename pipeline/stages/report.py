@@ -750,9 +750,9 @@ def _not_caught_reason(r, caught_drop_m: float, window_s: float) -> str:
     if r.reason == "dropped":
         return (f"detected, but the pelvis had dropped {r.pelvis_drop_at_lock_m:.3f} m at the lock "
                 f"(> {caught_drop_m:.2f} m)")
-    if _num(r.robot_fall_s, 2) != "–":
+    if pd.notna(r.robot_fall_s):
         return f"not detected: the arm locked {r.latency_s:.2f} s after the onset (window {window_s:.2f} s)"
-    fell = "did not fall" if _num(r.human_fall_s, 2) == "–" else \
+    fell = "did not fall" if pd.isna(r.human_fall_s) else \
         f"fell {r.human_fall_s - r.onset_s:.2f} s after the onset"
     return f"not detected: the arm never locked; the human {fell}"
 

@@ -113,6 +113,11 @@ class RolloutOutcome:
         """The human fell, the robot detected a fall, or the simulation went unstable."""
         return self.human_fall_s is not None or self.robot_fall_s is not None or not self.stable
 
+    @property
+    def first_fall_s(self) -> float | None:
+        """When the human fell or the robot detected a fall, whichever came first (None: neither)."""
+        return min((t for t in (self.human_fall_s, self.robot_fall_s) if t is not None), default=None)
+
 
 class Worker:
     """One process's open world: runs jobs one after the other."""

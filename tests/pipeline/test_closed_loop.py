@@ -15,10 +15,9 @@ import pytest
 
 from metrics.outcomes import walk_window
 from metrics.scenario_checks import stride_speed
-from pipeline.stages.simulate import policy_setup, scenario_jobs
+from pipeline.stages.simulate import policy_setup, scenario_jobs, scenario_profiles
 from sim.learn.train import load_body
 from sim.rollout.batch import RolloutOutcome, run_batch
-from sim.rollout.scenarios import command_profile
 
 SLUGGISH_GAINS = {"kp_x": 1.0, "ki_x": 0.5}
 WALKS = 3
@@ -32,8 +31,7 @@ def _mean_se(x: list[float]) -> tuple[float, float]:
 def _fell_walking(o: RolloutOutcome, walk_end_s: float) -> bool:
     """The human fell, or the arm locked on a fall, before the walk's final standing (or the
     simulation went unstable)."""
-    falls = [t for t in (o.human_fall_s, o.robot_fall_s) if t is not None]
-    return not o.stable or (bool(falls) and min(falls) <= walk_end_s)
+    return not o.stable or (o.first_fall_s is not None and o.first_fall_s <= walk_end_s)
 
 
 @pytest.mark.parametrize("scenario", ["steady", "walk_10m"])
@@ -41,9 +39,8 @@ def test_sluggish_pid_is_told_apart_from_the_tuned_one(params, camargo_model, po
     setup = policy_setup("camargo", params, camargo_model.parents[1], policies_root)
     src = setup.drivers
     cycle = load_body(src.policy_dir)[1]
-    commands = command_profile(scenario, list(src.scenarios[scenario]), src.env.variant.preferred_speed(
-        cycle.speed_mps), src.sample_rate_hz, src.profile)
-    start_s, end_s = walk_window(commands.spans())
+    commands = scenario_profiles(params, src.env.variant.preferred_speed(cycle.speed_mps), src.sample_rate_hz)
+    start_s, end_s = walk_window(commands[scenario].spans())
     pid = setup.controllers["pid"]
     sluggish = {**pid, "gains": {**pid["gains"], **SLUGGISH_GAINS}}
     setup = replace(setup, controllers={**setup.controllers, "sluggish": sluggish})
