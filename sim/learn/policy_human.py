@@ -193,12 +193,15 @@ def check_policy_io(folder: str, n_obs: int, n_act: int) -> None:
 @dataclass(frozen=True)
 class ActorMlp:
     """The trained policy's deterministic action as plain numpy: observation normalisation
-    (VecNormalize: (obs - mean) / sqrt(var + eps), clipped), the ReLU MLP and the action layer. The
-    same numbers as stable-baselines3's `predict(deterministic=True)` without its per-call tensor
-    and preprocessing overhead, which cost more than the physics between two policy steps."""
+    (VecNormalize, in float64 as stable-baselines3 does it: (obs - mean) / sqrt(var + eps), clipped),
+    then the ReLU MLP and the action layer in float32, the precision the policy was trained and is
+    run in by torch. The numbers of stable-baselines3's `predict(deterministic=True)` up to float32
+    summation order, without its per-call tensor and preprocessing overhead, which cost more than
+    the physics between two policy steps; float32 halves the weights a policy step reloads after
+    the physics has evicted them from the cache."""
 
-    weights: tuple[np.ndarray, ...]
-    biases: tuple[np.ndarray, ...]
+    weights: tuple[np.ndarray, ...]  # float32
+    biases: tuple[np.ndarray, ...]   # float32
     obs_mean: np.ndarray
     obs_scale: np.ndarray  # 1 / sqrt(var + eps)
     clip_obs: float
@@ -212,17 +215,18 @@ class ActorMlp:
         n = model.observation_space.shape[0]
         mean = norm.obs_rms.mean if norm is not None else np.zeros(n)
         scale = 1.0 / np.sqrt(norm.obs_rms.var + norm.epsilon) if norm is not None else np.ones(n)
-        return cls(tuple(layer.weight.detach().numpy().astype(float) for layer in layers),
-                   tuple(layer.bias.detach().numpy().astype(float) for layer in layers),
+        return cls(tuple(np.ascontiguousarray(layer.weight.detach().numpy(), np.float32) for layer in layers),
+                   tuple(np.ascontiguousarray(layer.bias.detach().numpy(), np.float32) for layer in layers),
                    np.asarray(mean, float), np.asarray(scale, float),
                    float(norm.clip_obs) if norm is not None else np.inf)
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
-        # in place on the one float64 array each product makes: the same operations as
+        # in place on the one array each product makes: the same operations as
         # clip((obs - mean) x scale), relu(w h + b) and clip(w h + b, -1, 1), fewer temporaries
         h = np.subtract(obs, self.obs_mean)
         h *= self.obs_scale
         np.minimum(np.maximum(h, -self.clip_obs, out=h), self.clip_obs, out=h)
+        h = h.astype(np.float32)
         for w, b in zip(self.weights[:-1], self.biases[:-1], strict=True):
             h = w @ h
             h += b

@@ -32,6 +32,7 @@ MuJoCo's arrays; the physics runs `n_substeps` steps in one `mj_step` call.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
@@ -251,7 +252,7 @@ def _heading(xmat_row: np.ndarray) -> tuple[float, float]:
 
 def _yaw_cs(c: float, s: float) -> tuple[float, float]:
     """(c, s) normalised to the unit circle (the yaw's cosine and sine from two matrix entries)."""
-    norm = float(np.hypot(c, s)) + 1e-9
+    norm = math.hypot(c, s) + 1e-9
     return c / norm, s / norm
 
 
@@ -523,7 +524,7 @@ def observe(data: mujoco.MjData, idx: BodyIndex, amp: np.ndarray, gait: GaitStat
     """The policy observation (module docstring) into `out` (OBS_SIZE,), from the current AMP
     features `amp` of the state in `data` and the command in `gait`."""
     c, s = _heading(data.xmat[idx.pelvis])
-    ch, sh = np.cos(gait.heading), np.sin(gait.heading)
+    ch, sh = math.cos(gait.heading), math.sin(gait.heading)
     out[0:7] = amp[0:7]
     out[7], out[8] = s * ch - c * sh, c * ch + s * sh  # yaw relative to the commanded heading
     out[9:15] = amp[7:13]
@@ -531,7 +532,8 @@ def observe(data: mujoco.MjData, idx: BodyIndex, amp: np.ndarray, gait: GaitStat
     out[15:15 + 2 * nu] = amp[13:13 + 2 * nu]
     out[15 + nu:15 + 2 * nu] *= 0.1  # joint velocities to O(1)
     out[57:63] = amp[-6:]
-    out[63], out[64] = np.sin(2 * np.pi * gait.phase), np.cos(2 * np.pi * gait.phase)
+    angle = 2 * math.pi * gait.phase  # math on Python floats: numpy's per-call cost is the larger
+    out[63], out[64] = math.sin(angle), math.cos(angle)
     out[65] = gait.speed
     out[66:72] = wrench * 0.01
     out[72], out[73] = gait.a, gait.yaw_rate

@@ -15,7 +15,7 @@ from gymnasium.utils.env_checker import check_env
 
 from sim.body.human_params import joint_kind
 from sim.learn.amp import AMP, style_reward
-from sim.learn.policy_human import PolicyHuman
+from sim.learn.policy_human import ActorMlp, PolicyHuman
 from sim.learn.train import load_body, load_policy, train
 from sim.learn.walk_env import AMP_SIZE, OBS_SIZE, make_walk_env
 from sim.motion.reference import load_reference
@@ -149,6 +149,27 @@ def test_committed_policy_walks_through_the_rollout_engine(setup, policies_root,
     assert result.human_qpos.shape == (301, env.model.nq)
     speed = (result.human_qpos[-1, 0] - result.human_qpos[0, 0]) / 3.0
     assert speed == pytest.approx(cycle.speed_mps, rel=0.15)
+
+
+def test_numpy_actor_gives_the_trained_policys_actions(setup, policies_root):
+    """`ActorMlp` (the rollouts' forward pass) returns stable-baselines3's deterministic action for
+    the same observation, normaliser included, up to float32 summation order."""
+    _, tp, _, _ = setup
+    model, norm = load_policy(policies_root / "camargo")
+    actor = ActorMlp.from_sb3(model, norm)
+    body, cycle = load_body(policies_root / "camargo")
+    env = make_walk_env(body, cycle, tp.env)
+    obs, _ = env.reset(seed=0)
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        expected = model.predict(norm.normalize_obs(obs), deterministic=True)[0]
+        action = actor(obs)
+        assert action.dtype == np.float32
+        np.testing.assert_allclose(action, expected, atol=2e-6)
+        obs, *_ = env.step(expected + rng.normal(0.0, 0.05, expected.shape))
+    far = obs * 0 + 1e6  # clipped by the normaliser, then clipped actions
+    np.testing.assert_allclose(actor(far), model.predict(norm.normalize_obs(far), deterministic=True)[0],
+                               atol=2e-6)
 
 
 def test_training_can_start_from_another_subjects_policy(tmp_path, setup, camargo_model):
