@@ -38,6 +38,7 @@ class QualityParams:
 
     marker_rms_m: Limits = field(default_factory=lambda: Limits(0.02, 0.04))
     asymmetry_pct: Limits = field(default_factory=lambda: Limits(5.0, 10.0))
+    knee_alignment_deg: Limits = field(default_factory=lambda: Limits(5.0, 10.0))
     ik_angle_rms_deg: Limits = field(default_factory=lambda: Limits(5.0, 10.0))
     edge_window_s: float = 0.05
     edge_strike_share: Limits = field(default_factory=lambda: Limits(0.2, 0.5))
@@ -118,6 +119,22 @@ def segment_asymmetry_pct(lengths_m: Mapping[str, float]) -> tuple[float, str]:
     return best, name
 
 
+def knee_alignment_check(subject: str, valgus_deg: Mapping[str, float] | None,
+                         p: QualityParams) -> QualityCheck:
+    """The scaled legs' frontal alignment in the static pose (`model.json` static_knee_valgus_deg,
+    `sim.body.scaling.knee_valgus_deg`), graded on the side furthest from straight: knee centres
+    estimated too far in or out (a generic width ratio, a mislabelled marker) show here first."""
+    sides = {s: float(v) for s, v in (valgus_deg or {}).items() if not _missing(v)}
+    if not sides:
+        return check(subject, "scale", "knee_alignment_deg", None, p.knee_alignment_deg,
+                     "no static_knee_valgus_deg in model.json")
+    side = max(sides, key=lambda s: abs(sides[s]))
+    kind = "valgus" if sides[side] >= 0 else "varus"
+    return check(subject, "scale", "knee_alignment_deg", abs(sides[side]), p.knee_alignment_deg,
+                 f"hip-knee-ankle in the static, largest: {kind} {abs(sides[side]):.1f} deg ({side}); "
+                 "healthy adults 1.3 +- 2 deg varus")
+
+
 def scale_checks(subject: str, model: Mapping | None, reference: Mapping | None,
                  p: QualityParams) -> list[QualityCheck]:
     """Left/right asymmetry of the scaled model (`model.json` segment_lengths_m) and the retarget's
@@ -129,6 +146,7 @@ def scale_checks(subject: str, model: Mapping | None, reference: Mapping | None,
         pct, seg = segment_asymmetry_pct(model.get("segment_lengths_m", {}))
         out.append(check(subject, "scale", "segment_asymmetry_pct", pct, p.asymmetry_pct,
                          f"largest: {seg}" if seg else "no left/right segment pairs"))
+        out.append(knee_alignment_check(subject, model.get("static_knee_valgus_deg"), p))
     if reference is None:
         out.append(check(subject, "reference", "retarget_marker_rms_m", None, p.marker_rms_m,
                          "no reference.json"))

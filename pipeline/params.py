@@ -263,6 +263,7 @@ class QualitySchema(Schema):
 
     marker_rms_m: Pair
     asymmetry_pct: Pair
+    knee_alignment_deg: Pair
     ik_angle_rms_deg: Pair
     edge_window_s: Annotated[float, Field(gt=0.0)]
     edge_strike_share: Pair

@@ -25,14 +25,15 @@ thread time for the walk's own steps), not the same steps, and a ratio that char
 contacts to the loop's Python. Measured here under load (3 runs): `ratio_to_mj_step` 0.64-0.70 with
 the replayed inputs, 0.56-0.60 with the fixed controls.
 
-Where a 10 s walk's loop time goes (thread CPU time, 2-core machine shared with training): physics
-~150 ms (the replayed steps ~140 ms, the same steps inside the loop ~10 ms more: caches). The
-Python: 334 policy steps ~30 ms (the forward pass, plain numpy `sim.learn.policy_human.ActorMlp`,
-~20 us hot, its 0.6 MB of float64 weights reloaded after the physics; features ~15 us; the steered
-reference ~6 us, one lookup in a packed table; the servo targets ~3 us), 1000 controller ticks and
-the warm start's 500 ~12 ms, sensors, drive and recording ~6 ms. Batching the forward pass across
-rollouts run in lockstep would save a few ms a walk at most, and a matrix product of a batch rounds
-differently from one vector's (1-2 ulp), so trajectories would not stay bit-identical; not done.
+Where a 10 s walk's loop time goes (2-core machine, the other core training; measured 2026-11-26):
+loop ~125 ms against ~100 ms of replayed physics. The Python: 334 policy steps ~15 ms (the forward
+pass, plain numpy `sim.learn.policy_human.ActorMlp` in float32, ~11 us hot and ~14 us after the
+physics has evicted its 0.3 MB of weights (float64 took ~15 / ~17 us); AMP features ~4 us,
+observation ~3 us, the steered reference ~6 us, one lookup in a packed table; the servo targets
+~2 us), the adaptive controller's 1000 ticks and its warm start's 500 ~7 ms, sensors, drive and
+recording the rest. Batching the forward pass across rollouts run in lockstep would save a few ms a
+walk at most, and a matrix product of a batch rounds differently from one vector's (1-2 ulp), so
+trajectories would not stay bit-identical; not done.
 """
 
 from __future__ import annotations

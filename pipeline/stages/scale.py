@@ -22,7 +22,7 @@ from pipeline.paths import PROCESSED_ROOT, REPORTS_ROOT, human_xml, model_dir, r
 from pipeline.stages.outputs import json_text, replacing
 from sim.body.human import build_human, model_checks
 from sim.body.render import render_model_png
-from sim.body.scaling import scale_subject
+from sim.body.scaling import knee_valgus_deg, scale_subject
 from sim.errors import SimulationError
 
 
@@ -52,6 +52,7 @@ def run_scale(subject_id: str, params: Params, root: Path = PROCESSED_ROOT,
         "static_hinge_angles_deg": _rounded({k: np.degrees(v) for k, v in body.static_angles_rad.items()}, 2),
         "neutral": body.neutral,  # joint zeros (human.neutral after any fallback)
         "static_ik_deg": _rounded(body.static_ik_deg, 2),  # the static IK the zeros are calibrated to
+        "static_knee_valgus_deg": {s: round(knee_valgus_deg(body.joint_centres, s), 2) for s in ("l", "r")},
         "markers": len(body.marker_bodies),
         "checks": checks,
     }

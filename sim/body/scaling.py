@@ -44,6 +44,8 @@ the model's own joints (keyframe `static`).
 
 from __future__ import annotations
 
+import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -389,6 +391,18 @@ def _contact_points(jc: dict[str, np.ndarray], s: str, toe_med: np.ndarray | Non
     pts = np.array(pts)
     pts[:, 2] = radius_m
     return pts
+
+
+def knee_valgus_deg(joint_centres: Mapping[str, np.ndarray], side: str) -> float:
+    """Frontal-plane angle at the knee between thigh (hip -> knee) and shank (knee -> ankle) of `side`
+    ('l' or 'r') in the static frame (y left, z up), degrees: + valgus (knee medial of the hip-ankle
+    line), - varus. The model keeps it as a lateral offset of the ankle in the shank (the knee is a
+    hinge), so the zero pose stands with the feet that much apart. Healthy adults: mechanical axis
+    1.3 +- 2 deg varus (Moreland, Bassett & Hanker 1987, J Bone Joint Surg Am 69:745)."""
+    hip, knee, ankle = (np.asarray(joint_centres[f"{j}_{side}"], float) for j in ("hip", "knee", "ankle"))
+    thigh, shank = knee - hip, ankle - knee
+    turn = math.atan2(shank[1], -shank[2]) - math.atan2(thigh[1], -thigh[2])  # + toward the left
+    return math.degrees(turn if side == "l" else -turn)
 
 
 def segment_masses(table: Table, mass_kg: float) -> dict[str, float]:

@@ -220,7 +220,9 @@ def train(model_path: str | Path, cycle: ReferenceCycle, p: TrainParams, out_dir
         else:
             venv = VecNormalize.load(str(start_dir / NORM_FILE), venv)
             venv.training = True
-            model = PPO.load(str(start_dir / POLICY_FILE), env=venv, device="cpu")
+            # the run's own PPO settings, not the saved ones (PPO.load restores those)
+            model = PPO.load(str(start_dir / POLICY_FILE), env=venv, device="cpu",
+                             custom_objects=ppo_settings(p))
         if not prior:
             model.num_timesteps = 0
     else:
@@ -328,12 +330,19 @@ def train_on_ray(model_path: str | Path, cycle: ReferenceCycle, p: TrainParams, 
     return rec
 
 
+def ppo_settings(p: TrainParams) -> dict[str, float | int]:
+    """PPO's optimisation settings from the params: a fresh run gets them, and so does a run that
+    starts from or resumes a saved policy (`PPO.load` would otherwise keep the saved ones, so a
+    fine-tune could not change its learning rate or horizon)."""
+    return {"n_steps": p.n_steps, "batch_size": p.batch_size, "n_epochs": p.n_epochs,
+            "learning_rate": p.learning_rate, "gamma": p.gamma, "gae_lambda": p.gae_lambda,
+            "clip_range": p.clip_range, "ent_coef": p.ent_coef, "max_grad_norm": p.max_grad_norm,
+            "target_kl": p.target_kl}
+
+
 def new_ppo(venv: VecNormalize, p: TrainParams) -> PPO:
     """A fresh PPO with the params' settings on `venv`."""
-    return PPO("MlpPolicy", venv, n_steps=p.n_steps, batch_size=p.batch_size, n_epochs=p.n_epochs,
-               learning_rate=p.learning_rate, gamma=p.gamma, gae_lambda=p.gae_lambda, clip_range=p.clip_range,
-               ent_coef=p.ent_coef, max_grad_norm=p.max_grad_norm, target_kl=p.target_kl, seed=p.seed,
-               device="cpu", verbose=0,
+    return PPO("MlpPolicy", venv, **ppo_settings(p), seed=p.seed, device="cpu", verbose=0,
                policy_kwargs={"net_arch": {"pi": list(p.net_arch), "vf": list(p.net_arch)},
                               "activation_fn": torch.nn.ReLU, "log_std_init": p.log_std_init})
 

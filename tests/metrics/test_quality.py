@@ -4,6 +4,7 @@ import math
 
 import numpy as np
 import pandas as pd
+import pytest
 
 from metrics.quality import (
     QUALITY_COLUMNS,
@@ -12,6 +13,7 @@ from metrics.quality import (
     edge_strike_share,
     grade,
     ingest_checks,
+    knee_alignment_check,
     missing_sides,
     non_steady_share,
     quality_table,
@@ -22,6 +24,7 @@ from metrics.quality import (
     uncovered_samples,
     worst,
 )
+from sim.body.scaling import knee_valgus_deg
 
 P = QualityParams()
 
@@ -41,6 +44,25 @@ def test_grade_and_worst():
     assert grade(1, 2, 2, higher_is_worse=False) == "fail" and grade(2, 2, 2, higher_is_worse=False) == "ok"
     assert worst(["ok", "warn", "ok"]) == "warn" and worst(["warn", "fail"]) == "fail"
     assert worst(["ok"]) == "ok" and worst([]) == "unknown"
+
+
+def test_knee_alignment_is_the_frontal_angle_between_thigh_and_shank():
+    """Straight legs read 0; a knee 2 cm medial of the hip-ankle line reads valgus on either side
+    (mirrored), lateral reads varus; the gate grades the side furthest from straight."""
+    straight = {"hip_l": [0, 0.09, 0.9], "knee_l": [0, 0.09, 0.5], "ankle_l": [0, 0.09, 0.1]}
+    assert knee_valgus_deg({k: np.array(v) for k, v in straight.items()}, "l") == pytest.approx(0.0, abs=1e-9)
+    jc = {"hip_l": [0, 0.09, 0.9], "knee_l": [0, 0.07, 0.5], "ankle_l": [0, 0.09, 0.1],
+          "hip_r": [0, -0.09, 0.9], "knee_r": [0, -0.07, 0.5], "ankle_r": [0, -0.09, 0.1]}
+    jc = {k: np.array(v, float) for k, v in jc.items()}
+    expected = 2 * np.degrees(np.arctan2(0.02, 0.4))
+    assert knee_valgus_deg(jc, "l") == pytest.approx(expected)
+    assert knee_valgus_deg(jc, "r") == pytest.approx(expected)
+    jc["knee_r"] = np.array([0, -0.11, 0.5])
+    assert knee_valgus_deg(jc, "r") == pytest.approx(-expected)  # varus
+    row = knee_alignment_check("s", {"l": 3.0, "r": -11.0}, P)
+    assert (row.status, row.value) == ("fail", 11.0) and "varus 11.0 deg (r)" in row.note
+    assert knee_alignment_check("s", {"l": 6.0, "r": 1.0}, P).status == "warn"
+    assert knee_alignment_check("s", None, P).status == "warn"  # an older model.json without it
 
 
 def test_scale_checks_grade_marker_rms_and_asymmetry():

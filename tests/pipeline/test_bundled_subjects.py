@@ -249,6 +249,7 @@ def test_falisse2019_marker_rms_is_flagged_by_its_quality_gate(falisse_model, pa
     assert rows["retarget_marker_rms_m"].status == "warn"
     assert rows["segment_asymmetry_pct"].status == "ok"
     assert rows["ik_angle_rms_deg"].status == "warn"  # no dataset IK to compare with
+    assert rows["knee_alignment_deg"].status == "ok" and rows["knee_alignment_deg"].value < 3.0  # 2.3 deg
 
 
 KGC6 = "kgc6_DM_jam-resources/models/knee_tka/grand_challenge/DM/experimental_data/motion_analysis/"
@@ -355,8 +356,10 @@ def test_kgc6_scales_from_its_walks_and_its_markers_fit(kgc6_model, params):
     """static none from the derived knees and ankles: thigh 0.402 / 0.400 m, shank 0.447 / 0.450 m
     (0.23 and 0.26 x the estimated height; the shanks may be up to 2.5 cm long, kgc6_clusters.yaml),
     left/right within 1 %; the retarget fits every marker to 1.0 cm RMS (it was 12 cm while the
-    files' (0, 0, 0) gaps were read as positions), so every gate of scale and reference but the missing
-    dataset IK is ok."""
+    files' (0, 0, 0) gaps were read as positions), so every gate of scale and reference but two is ok:
+    the missing dataset IK warns, and the knee alignment fails: the knee centres, a generic width ratio
+    medial of the lateral markers, lie 7.5 cm apart against hips 19.7 cm apart, 11.1-11.2 deg of valgus
+    (healthy adults: 1.3 +- 2 deg varus), so the model's zero pose stands with its ankles ~35 cm apart."""
     model, reference = kgc6_model
     lengths, h = model["segment_lengths_m"], model["height_m"]
     for seg, lo, hi in (("thigh", 0.22, 0.25), ("shank", 0.25, 0.27)):
@@ -366,6 +369,8 @@ def test_kgc6_scales_from_its_walks_and_its_markers_fit(kgc6_model, params):
     rows = {c.check: c for c in scale_checks("kgc6", model, reference, params.quality.build())}
     assert reference["marker_rms_m"] < 0.015 and rows["retarget_marker_rms_m"].status == "ok"
     assert rows["segment_asymmetry_pct"].status == "ok" and rows["ik_angle_rms_deg"].status == "warn"
+    assert rows["knee_alignment_deg"].status == "fail" and 10.0 < rows["knee_alignment_deg"].value < 12.5
+    assert "valgus" in rows["knee_alignment_deg"].note
 
 
 def test_a_subject_without_a_policy_simulates_empty_policy_tables(tmp_path):

@@ -34,7 +34,7 @@ from pipeline.stages.transfer import (
     usable_policy,
 )
 from pipeline.store import StoreParams, query, store_results
-from sim.learn.train import BODY_FILE, CYCLE_FILE, NORM_FILE, POLICY_FILE, PROGRESS_FILE
+from sim.learn.train import BODY_FILE, CYCLE_FILE, NORM_FILE, POLICY_FILE, PROGRESS_FILE, policy_env
 from sim.learn.transfer import BodyFeatures, FeatureWeights, feature_distance, nearest_policy
 
 REPO = Path(__file__).resolve().parents[2]
@@ -81,6 +81,18 @@ def test_transfer_stage_depends_on_every_committed_policy(params):
     stage = yaml.safe_load((REPO / "dvc.yaml").read_text())["stages"]["transfer"]
     assert stage["foreach"] == "${transfer.subjects}"
     assert {f"data/policies/{s}" for s in params.train.subjects} <= set(stage["do"]["deps"])
+
+
+@pytest.mark.parametrize("subject", ["camargo", "opencap4"])
+def test_fine_tunes_train_under_the_law_their_source_learned(params, policies_root, subject):
+    """Transfers and cohort variants fine-tune a committed policy under params' `train` steering law
+    (`sim.learn.train.train` records it in the new policy's steering.json, and its rollouts read it
+    back); a law other than the one the source was trained under changes the reference under the
+    policy's feet (with the law of before, lenhart2015's transfer from opencap4 fell in steady walking)."""
+    env = params.train_params().env
+    source = policy_env(policies_root / subject, env)
+    fields = ("stride_speed_exponent", "full_gait_fraction", "min_cadence", "turn_lean")
+    assert {f: getattr(source.commands, f) for f in fields} == {f: getattr(env.commands, f) for f in fields}
 
 
 def test_params_schema_accepts_the_transfer_section(params):

@@ -189,6 +189,13 @@ def test_training_can_start_from_another_subjects_policy(tmp_path, setup, camarg
     wa, wb = (m.policy.mlp_extractor.policy_net[0].weight.detach().numpy() for m in (a, b))
     assert np.abs(wb - wa).mean() < 0.05 * np.abs(wa).mean()  # a few updates away from a
     assert norm_b.obs_rms.count > norm_a.obs_rms.count  # the observation statistics carried over
+    assert (b.learning_rate, b.gamma) == (p.learning_rate, p.gamma)
+    # a fine-tune runs with its own PPO settings, not the ones saved with its start
+    tuned = replace(p, learning_rate=p.learning_rate / 4, gamma=0.9, n_epochs=2)
+    train(xml, cycle, tuned, tmp_path / "d", n_envs=2, threads=1, total_steps=256, progress=False,
+          init_from=tmp_path / "a")
+    d, _ = load_policy(tmp_path / "d")
+    assert (d.learning_rate, d.gamma, d.n_epochs) == (p.learning_rate / 4, 0.9, 2)
     with pytest.raises(FileNotFoundError, match="no policy to start from"):
         train(xml, cycle, p, tmp_path / "c", n_envs=2, threads=1, total_steps=256, progress=False,
               init_from=tmp_path / "missing")
