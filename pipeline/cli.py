@@ -178,7 +178,8 @@ def cmd_evaluate_policy(args: argparse.Namespace) -> int:
 
     root = args.policy_root or POLICIES_ROOT  # another policy's SPM figure goes beside it, not into reports/
     doc = evaluate_policy(args.subject, load_params(args.params), policy_root=root,
-                          reports=args.policy_root or REPORTS_ROOT, progress=not args.json)
+                          reports=args.policy_root or REPORTS_ROOT, progress=not args.json,
+                          variant=args.variant)
     if args.out:
         write_json(args.out, doc)
     print(json_text(doc), end="")
@@ -463,6 +464,8 @@ def build_parser() -> argparse.ArgumentParser:
     evaluate.add_argument("--out", type=Path, help="also write the JSON here")
     evaluate.add_argument("--policy-root", type=Path, help="policies folder holding <subject>/ "
                           "(default: data/policies; e.g. data/candidates/stop_gamma098)")
+    evaluate.add_argument("--variant", default="healthy", help="a cohort variant's policy (params cohort; "
+                          "default: healthy, the subject's own)")
     evaluate.set_defaults(func=cmd_evaluate_policy)
 
     render = commands.add_parser("render", help="mp4 of one replay or scenario rollout (offscreen MuJoCo)")

@@ -5,7 +5,11 @@ controller of `rollout.conditions`, free walking with a lateral pelvis push, and
 (params `scenarios`) free and with each controller. The checks and their thresholds are
 `metrics.policy_checks` with `evaluate_policy.checks` and `metrics.scenario_checks` with
 `evaluate_policy.scenario_checks` of params.yaml; the SPM figure goes to
-`reports/<subject>/policy_spm.png`.
+`reports/<subject>/policy_spm.png`. `variant`: a cohort variant's fine-tuned policy on its body
+(params `cohort`), walking at its own preferred speed; its gait, SPM and steady-speed checks still
+compare with the subject's recording, so for a variant built to walk differently they measure how
+far it is from its healthy twin, and its falls and scenario timing are what it is judged on
+(figure `policy_spm_<variant>.png`).
 """
 
 from __future__ import annotations
@@ -36,6 +40,7 @@ from pipeline import paths
 from pipeline.params import Params
 from pipeline.stages.outputs import write_figure
 from pipeline.stages.simulate import policy_job, policy_setup, scenario_jobs, scenario_profiles
+from sim.body.variant import HEALTHY
 from sim.learn.policy_human import PolicyWalk
 from sim.learn.train import BODY_FILE, load_body
 from sim.motion.reference import load_reference
@@ -47,7 +52,7 @@ SPM_JOINTS = ("hip_flexion", "knee_flexion")
 
 def evaluate_policy(subject: str, params: Params, root: Path = paths.PROCESSED_ROOT,
                     policy_root: Path = paths.POLICIES_ROOT, reports: Path = paths.REPORTS_ROOT,
-                    progress: bool = True) -> dict:
+                    progress: bool = True, variant: str = HEALTHY) -> dict:
     ev, checks = params.evaluate_policy.build(), params.evaluate_policy.checks.build()
     start = time.perf_counter()
     seeds = range(ev.n_seeds)
@@ -59,7 +64,7 @@ def evaluate_policy(subject: str, params: Params, root: Path = paths.PROCESSED_R
                                               ev.push_duration_s), tag="push") for s in seeds]
     sc = params.evaluate_policy.scenario_checks.build()
     scenario_runs = scenario_jobs(params, ("free", *controllers), sc.seeds)
-    setup = policy_setup(subject, params, root, policy_root)
+    setup = policy_setup(subject, params, root, policy_root, variant)
     outcomes = run_batch(setup, jobs + scenario_runs, params.rollout.workers, f"policy rollouts {subject}",
                          progress)
     outcomes, scenario_outcomes = outcomes[:len(jobs)], outcomes[len(jobs):]
@@ -77,7 +82,7 @@ def evaluate_policy(subject: str, params: Params, root: Path = paths.PROCESSED_R
     sim_kept = free["strides"][free["strides"]["kept"]] if not free["strides"].empty else free["strides"]
     sim_cycles = free["cycles"]
     n_free_ok = sum(not o.fell for o in groups["free"])
-    doc: dict = {"subject": subject, "human_mode": "policy"}
+    doc: dict = {"subject": subject, "variant": variant, "human_mode": "policy"}
     doc["free"] = {"rollouts": len(groups["free"]), "no_fall": n_free_ok,
                    "pass_no_fall": enough(n_free_ok, len(groups["free"]), checks.free_no_fall_fraction),
                    "distance_m": [round(o.distance_m, 2) for o in groups["free"]],
@@ -90,10 +95,11 @@ def evaluate_policy(subject: str, params: Params, root: Path = paths.PROCESSED_R
                   "robot_fall_detections": sum(o.robot_fall_s is not None for o in groups[c])}
     robot = batch_tables([o for c in controllers for o in groups[c]])["robot"]
     doc["compliance"] = compliance_headline(robot, params.metrics.exclude_locked)
-    _, cycle = load_body(paths.policy_dir(policy_root, subject))
+    _, cycle = load_body(paths.policy_dir(policy_root, subject, variant))
     own_start = own_start_s(subject, params)
     real_speed = float(real_kept["gait_speed_mps"].mean())
-    doc["scenarios"] = scenario_report(scenario_outcomes, scenario_profiles(params, cycle.speed_mps,
+    speed = params.variant(variant).preferred_speed(cycle.speed_mps)
+    doc["scenarios"] = scenario_report(scenario_outcomes, scenario_profiles(params, speed,
                                                                              setup.drivers.sample_rate_hz),
                                        cycle.period_s, own_start, real_speed, sc)
     recovered = sum(not o.fell for o in pushed)
@@ -101,7 +107,7 @@ def evaluate_policy(subject: str, params: Params, root: Path = paths.PROCESSED_R
                    "walk_s": push_s, "rollouts": len(pushed), "recovered": recovered,
                    "pass": enough(recovered, len(pushed), checks.push_recovered_fraction)}
     xml, npz = paths.human_xml(root, subject), paths.reference_npz(root, subject)
-    policy_body = paths.policy_dir(policy_root, subject) / BODY_FILE
+    policy_body = paths.policy_dir(policy_root, subject, variant) / BODY_FILE
     in_model = reference_cycles(mujoco.MjModel.from_xml_path(str(policy_body)), load_reference(npz), subject,
                                 load_subject(subject).markerset, params.ingest.build())
     spm, shown = {}, {}
@@ -121,7 +127,8 @@ def evaluate_policy(subject: str, params: Params, root: Path = paths.PROCESSED_R
                            f"pass: no cluster longer than "
                            f"{checks.max_spm_cluster_pct:.0f} % of the cycle")
     doc["spm"] = spm
-    png = paths.report_dir(reports, subject) / "policy_spm.png"
+    png = paths.report_dir(reports, subject) / ("policy_spm.png" if variant == HEALTHY
+                                                 else f"policy_spm_{variant}.png")
     write_figure(policy_spm_figure(shown, spm, subject), png, params.report.dpi)
     doc["policy_body_is_current_model"] = policy_body.read_bytes() == xml.read_bytes()
     doc["figure"] = paths.repo_relative(png)

@@ -46,10 +46,10 @@ class CommandSampling:
     standing_start_probability: float = 0.5   # else the episode starts walking at a random phase
     speed_range: tuple[float, float] = (0.6, 1.3)
     walk_s_range: tuple[float, float] = (1.5, 4.0)
-    stand_s_range: tuple[float, float] = (0.5, 2.0)
+    stand_s_range: tuple[float, float] = (0.5, 5.0)  # a start need not follow a stop soon
     turn_deg_range: tuple[float, float] = (30.0, 180.0)
-    event_probabilities: tuple[float, float, float] = (0.35, 0.35, 0.3)  # turn, speed change, stop
-    full_gait_fraction: float = 0.5            # gait amplitude reaches 1 at this x the cycle's speed
+    event_probabilities: tuple[float, float, float] = (0.25, 0.25, 0.5)  # turn, speed change, stop
+    full_gait_fraction: float = 1.0            # gait amplitude reaches 1 at this x the cycle's speed
     stride_speed_exponent: float | None = 0.42  # stride ~ speed^this below it (None: the legacy law)
     start_s_range: tuple[float, float] = (1.7, 4.0)  # gentler starts, stops and turns than the
     stop_s_range: tuple[float, float] = (1.4, 3.0)   # scenarios' too, so the policy meets easier
@@ -58,7 +58,8 @@ class CommandSampling:
     # speed, so the last ~0.3 s of a stop (and the first of a start) blend the gait amplitude from
     # ~0.3-0.4 to 0 while the phase moves ~3 % of a cycle: the reference slides the stance foot on
     # the floor instead of stepping. With a floor, steps keep coming and shorten with the speed.
-    min_cadence: float | None = None
+    # 0.744: the law's cadence at 0.6 x the cycle's speed, the slowest trained.
+    min_cadence: float | None = 0.744
     # Lean into turns (None: off): the feet reference moves toward the outside of a turn by this x
     # the lateral offset of an inverted pendulum taking the turn's centripetal acceleration
     # (`turn_lean_offset`). The cycle is straight walking; without it the reference asks for the

@@ -105,11 +105,16 @@ def test_a_policy_keeps_the_speed_law_it_was_trained_under(tmp_path, params):
 
 
 def test_gait_follows_the_commanded_speed(env):
+    """Half the cycle's speed: the phase advances at the law's cadence (with the params' law, strides
+    shorten as speed^0.42 below the cycle's speed and the cadence floor 0.744 holds here), stride x
+    cadence is the speed, and the root velocity reference halves."""
     env.gait.start(0.2, env.ref.speed_mps, 0.0, 0.0)
     env.gait.advance(0.01, 0.5 * env.ref.speed_mps, 0.3, 0.0)
-    assert env.gait.phase == pytest.approx(0.205)  # half the speed: half the phase advance (stride kept)
+    a, rate = speed_law(0.5, *env.gait.law)
+    assert a * rate == pytest.approx(0.5) and 0.5 < rate < 1.0
+    assert env.gait.phase == pytest.approx(0.2 + 0.01 * rate)
     assert env.gait.reference[5][0] == pytest.approx(
-        0.5 * np.interp(0.205, np.arange(env.ref.n) / env.ref.n, env.ref.root_vel[:, 0]), rel=0.02)
+        0.5 * np.interp(env.gait.phase, np.arange(env.ref.n) / env.ref.n, env.ref.root_vel[:, 0]), rel=0.02)
 
 
 def test_blend_keeps_unit_quaternions_and_its_ends(env):
