@@ -40,6 +40,7 @@ from pipeline import paths
 from pipeline.params import Params, ParamsError
 from pipeline.stages.outputs import write_json
 from pipeline.stages.simulate import policy_setup, scenario_jobs
+from pipeline.stages.sweep import policy_digest
 from sim.body.variant import HEALTHY
 from sim.errors import SimulationError
 from sim.rollout.batch import BatchSetup, RolloutJob, Worker
@@ -282,6 +283,7 @@ def run_tune(subject: str, controller: str, params: Params, variant: str = HEALT
            "n_heldout": len(heldout), "scenarios": list(t.scenarios), "seeds": list(t.seeds),
            "heldout_seeds": list(t.heldout_seeds), "search_space": {g: list(b) for g, b in space.items()},
            "free_speed_mps": speed, "history": history,
+           "policy_sha256_16": policy_digest(paths.policy_dir(paths.POLICIES_ROOT, subject, variant)),
            "heldout_costs": {"generic": gen["costs"], "tuned": tun["costs"],
                              "trials": [j.trial for j in heldout]},
            "wall_s": round(time.perf_counter() - t0, 1)}

@@ -96,6 +96,11 @@ def rollout_params_hash(params: Params) -> str:
     return hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
 
+def policy_digest(folder: Path) -> str:
+    """sha256 (16 hex) of the policy file in `folder`: which policy a result came from."""
+    return hashlib.sha256((folder / "policy.zip").read_bytes()).hexdigest()[:16]
+
+
 def study_params(params: Params, study: str | None = None) -> SweepSchema:
     """The study named `study`: params `sweep` (default) or `fall_intervention`."""
     if study is None or study == params.sweep.study:
@@ -124,7 +129,7 @@ def sweep_jobs(params: Params, policy_root: Path = paths.POLICIES_ROOT,
                 notes.append(f"{subject}/{variant}: no fine-tuned policy in {folder} "
                              f"(`python -m pipeline train {subject} --variant {variant}`)")
                 continue
-            policy = hashlib.sha256((folder / "policy.zip").read_bytes()).hexdigest()[:16]
+            policy = policy_digest(folder)
             for condition in sw.conditions:
                 gains = {} if condition == "free" else dict(controllers[condition].get("gains", {}))
                 jobs += [SweepJob(sw.study, subject, variant, condition, gains, scenario, seed, digest, event,

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 from pathlib import Path
@@ -52,6 +53,9 @@ def test_tune_writes_a_bounded_result(tiny: Params, tmp_path: Path) -> None:
         assert math.isfinite(doc[key])
     assert doc["generic_ci95"] is None and doc["tuned_ci95"] is None  # one held-back rollout: no CI
     assert doc["generic_falls"] in (0, 1) and doc["tuned_falls"] in (0, 1)
+    # which policy the gains were tuned on: a tuning of an earlier policy can be told apart
+    policy = paths.policy_dir(paths.POLICIES_ROOT, "camargo") / "policy.zip"
+    assert doc["policy_sha256_16"] == hashlib.sha256(policy.read_bytes()).hexdigest()[:16]
 
 
 def test_controller_without_search_space(tiny: Params, tmp_path: Path) -> None:
