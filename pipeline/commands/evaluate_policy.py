@@ -42,7 +42,7 @@ from pipeline.stages.outputs import write_figure
 from pipeline.stages.simulate import policy_job, policy_setup, scenario_jobs, scenario_profiles
 from sim.body.variant import HEALTHY
 from sim.learn.policy_human import PolicyWalk
-from sim.learn.train import BODY_FILE, load_body
+from sim.learn.train import load_body
 from sim.motion.reference import load_reference
 from sim.rollout.batch import RolloutOutcome, batch_tables, reference_cycles, run_batch
 from sim.rollout.scenarios import CommandProfile
@@ -95,7 +95,7 @@ def evaluate_policy(subject: str, params: Params, root: Path = paths.PROCESSED_R
                   "robot_fall_detections": sum(o.robot_fall_s is not None for o in groups[c])}
     robot = batch_tables([o for c in controllers for o in groups[c]])["robot"]
     doc["compliance"] = compliance_headline(robot, params.metrics.exclude_locked)
-    _, cycle = load_body(paths.policy_dir(policy_root, subject, variant))
+    policy_body, cycle = load_body(paths.policy_dir(policy_root, subject, variant))
     own_start = own_start_s(subject, params)
     real_speed = float(real_kept["gait_speed_mps"].mean())
     speed = params.variant(variant).preferred_speed(cycle.speed_mps)
@@ -107,7 +107,6 @@ def evaluate_policy(subject: str, params: Params, root: Path = paths.PROCESSED_R
                    "walk_s": push_s, "rollouts": len(pushed), "recovered": recovered,
                    "pass": enough(recovered, len(pushed), checks.push_recovered_fraction)}
     xml, npz = paths.human_xml(root, subject), paths.reference_npz(root, subject)
-    policy_body = paths.policy_dir(policy_root, subject, variant) / BODY_FILE
     in_model = reference_cycles(mujoco.MjModel.from_xml_path(str(policy_body)), load_reference(npz), subject,
                                 load_subject(subject).markerset, params.ingest.build())
     spm, shown = {}, {}
