@@ -798,6 +798,8 @@ class VariantSchema(Schema):
     speed_scale: Annotated[float, Field(gt=0.0)] = 1.0
     speed_mps: Annotated[float, Field(gt=0.0)] | None = None
     action_noise: Annotated[float, Field(ge=0.0)] = 0.0
+    swing_time_ratio: dict[Literal["left", "right"], Annotated[float, Field(ge=1.0, le=2.0)]] = {}
+    fine_tune_steps: Annotated[int, Field(ge=1)] | None = None  # this variant's budget (cohort's unless set)
 
 
 class CohortSchema(Schema):
@@ -970,7 +972,12 @@ class Params(Schema):
         if name not in self.cohort.variants:
             raise ParamsError(self.path, f"cohort.variants: no variant {name!r} "
                                          f"({', '.join([HEALTHY, *self.cohort.variants])})")
-        return variant_from_dict(name, self.cohort.variants[name].model_dump())
+        return variant_from_dict(name, self.cohort.variants[name].model_dump(exclude={"fine_tune_steps"}))
+
+    def fine_tune_steps(self, variant: str) -> int:
+        """Env steps of cohort `variant`'s fine-tuning: its own budget, else `cohort.fine_tune_steps`."""
+        self.variant(variant)
+        return self.cohort.variants[variant].fine_tune_steps or self.cohort.fine_tune_steps
 
     def batch_setup(self, subject: str, markerset: dict[str, str], human_xml: str | Path,
                     drivers: DriverSource, process: bool = True) -> BatchSetup:

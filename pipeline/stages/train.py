@@ -35,15 +35,16 @@ def run_train(subject: str, params: Params, *, n_envs: int | None, threads: int 
     `on_ray`: as one Ray job (`sim.learn.train.train_on_ray`: locally, or on a node of the
     `RAY_ADDRESS` cluster) of as many CPUs as it uses (its environment processes, else its threads).
     `variant`: fine-tune cohort variant `variant` from the subject's own policy (params `cohort`:
-    its body and goals, `fine_tune_steps` unless `steps`) into `data/policies/<subject>/cohort/<variant>`."""
+    its body and goals, its `fine_tune_steps` unless `steps`; the body and speed ramp in over
+    `curriculum_fraction` x `cohort.fine_tune_steps`) into `data/policies/<subject>/cohort/<variant>`."""
     p = params.train_params(variant)
     start = None
     if variant != HEALTHY:
         if init_from is not None:
             raise SimulationError(f"train {subject} --variant {variant}",
                                   "a variant starts from the subject's own policy: drop --init-from")
-        init_from, steps = subject, steps or params.cohort.fine_tune_steps
-        curriculum = int(params.cohort.curriculum_fraction * steps)
+        init_from, steps = subject, steps or params.fine_tune_steps(variant)
+        curriculum = int(params.cohort.curriculum_fraction * params.cohort.fine_tune_steps)
     else:
         curriculum = 0
     if init_from is not None and not resume:

@@ -7,7 +7,10 @@ A variant changes three things, each measured by the same ingest code afterwards
 - the preferred speed: `speed_mps` (absolute) or `speed_scale` (x the subject's own);
 - `action_noise`: the std of Gaussian noise added to the policy's actions (in its [-1, 1] units,
   x `action_scale_rad` in joint targets) every policy step, so steps vary from one to the next
-  (``unsteady``); seeded by the rollout's seed.
+  (``unsteady``); seeded by the rollout's seed;
+- `swing_time_ratio`: (side, ratio): the imitation reference is the subject's cycle time-warped so
+  that this side's swing lasts `ratio` x the other's (`sim.motion.reference.with_longer_swing`):
+  the paretic leg's longer swing of hemiparetic gait (Patterson et al. 2010, Gait Posture 31:241).
 The healthy twin is the variant with nothing changed. Training a variant (fine-tuning from the
 subject's own policy) and rolling it out use the same `Variant`, so the policy learns the body it
 is evaluated on.
@@ -29,6 +32,7 @@ class Variant:
     speed_scale: float = 1.0
     speed_mps: float | None = None
     action_noise: float = 0.0
+    swing_time_ratio: tuple[str, float] | None = None  # (side, this side's swing / the other's)
 
     def torque_factor(self, motor: str) -> float:
         """The product of every factor whose key matches `motor` (1 when none does)."""
@@ -54,5 +58,9 @@ def variant_from_dict(name: str, d: dict) -> Variant:
     """A variant from its params entry (`cohort.variants.<name>`)."""
     scale = tuple((str(k), float(v)) for k, v in (d.get("torque_scale") or {}).items())
     speed = d.get("speed_mps")
+    swing = d.get("swing_time_ratio") or {}
+    if len(swing) > 1:
+        raise ValueError(f"variant {name}: swing_time_ratio names one side, got {sorted(swing)}")
     return Variant(name, scale, float(d.get("speed_scale", 1.0)), None if speed is None else float(speed),
-                   float(d.get("action_noise", 0.0)))
+                   float(d.get("action_noise", 0.0)),
+                   next(((str(k), float(v)) for k, v in swing.items()), None))

@@ -28,6 +28,7 @@ from dataclasses import dataclass, field, fields, replace
 from functools import partial
 from pathlib import Path
 
+import mujoco
 import numpy as np
 import ray
 import torch
@@ -35,9 +36,10 @@ from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor, VecNormalize
 
+from sim.body.variant import Variant
 from sim.learn.amp import AMP, AMPCallback, AMPParams
 from sim.learn.walk_env import AMP_SIZE, LEGACY_OBS_SIZE, OBS_SIZE, WalkEnv, WalkEnvParams, make_walk_env
-from sim.motion.reference import ReferenceCycle
+from sim.motion.reference import ReferenceCycle, with_longer_swing
 from sim.rollout.cluster import connect
 
 POLICY_FILE, NORM_FILE, AMP_FILE, PROGRESS_FILE = "policy.zip", "vecnormalize.pkl", "amp.pt", "progress.json"
@@ -194,6 +196,15 @@ class MetricsLog:
             self.live.end()
 
 
+def variant_cycle(model_path: str | Path, cycle: ReferenceCycle, variant: Variant) -> ReferenceCycle:
+    """The reference cycle a cohort variant imitates: the subject's, with the variant's longer swing
+    on one side when it has one (`Variant.swing_time_ratio`); saved beside its policy (`save_body`)."""
+    if variant.swing_time_ratio is None:
+        return cycle
+    side, ratio = variant.swing_time_ratio
+    return with_longer_swing(mujoco.MjModel.from_xml_path(str(model_path)), cycle, side, ratio)
+
+
 def train(model_path: str | Path, cycle: ReferenceCycle, p: TrainParams, out_dir: str | Path, *,
           n_envs: int | None = None, threads: int | None = None, total_steps: int | None = None,
           resume: bool = False, max_wall_s: float | None = None, subprocess: bool | None = None,
@@ -204,6 +215,7 @@ def train(model_path: str | Path, cycle: ReferenceCycle, p: TrainParams, out_dir
     `curriculum_steps`: ramp a cohort variant's body and speed in over this many steps (`_Curriculum`)."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    cycle = variant_cycle(model_path, cycle, p.env.variant)
     n_envs = n_envs or p.n_envs
     torch.set_num_threads(threads or p.threads)
     total = total_steps or p.total_steps
@@ -437,4 +449,4 @@ def load_policy(out_dir: str | Path) -> tuple[PPO, VecNormalize | None]:
 
 __all__ = ["AMP_FILE", "BODY_FILE", "CYCLE_FILE", "NORM_FILE", "POLICY_FILE", "PROGRESS_FILE",
            "STEERING_FILE", "TrainParams", "load_body", "load_policy", "make_vec_env", "new_ppo",
-           "policy_env", "save_body", "train", "widen_policy"]
+           "policy_env", "save_body", "train", "variant_cycle", "widen_policy"]

@@ -247,6 +247,61 @@ def floor_aligned(model: mujoco.MjModel, cycle: ReferenceCycle) -> ReferenceCycl
     return replace(cycle, qpos=qpos, floor_shift_m=cycle.floor_shift_m + shift)
 
 
+def foot_forward_m(model: mujoco.MjModel, qpos: np.ndarray, side: str) -> np.ndarray:
+    """World x (m, the walking direction of a cycle) of `side`'s foot body for each configuration."""
+    body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f"foot_{side[0]}")
+    if body < 0:
+        raise SimulationError("reference", f"the model has no body foot_{side[0]}")
+    data = mujoco.MjData(model)
+    out = np.empty(len(qpos))
+    for k, q in enumerate(qpos):
+        data.qpos[:] = q
+        mujoco.mj_kinematics(model, data)
+        out[k] = data.xpos[body, 0]
+    return out
+
+
+def swing_mask(cycle: ReferenceCycle, foot_x_m: np.ndarray) -> np.ndarray:
+    """Samples of the cycle in which the foot at forward positions `foot_x_m` swings: it moves
+    forward faster than the walking speed (a stance foot stands still, a swinging one moves at
+    about twice the speed); central differences over the periodic cycle (the next stride starts
+    `stride_length_m` ahead)."""
+    n = len(foot_x_m)
+    x = np.r_[foot_x_m[-1] - cycle.stride_length_m, foot_x_m, foot_x_m[0] + cycle.stride_length_m]
+    velocity = (x[2:] - x[:-2]) / (2.0 * cycle.period_s / n)
+    return velocity > cycle.speed_mps
+
+
+def with_longer_swing(model: mujoco.MjModel, cycle: ReferenceCycle, side: str,
+                      ratio: float) -> ReferenceCycle:
+    """The cycle time-warped so that `side`'s swing lasts `ratio` x the other foot's, period, stride
+    and speed unchanged: the whole body plays slower by f1 = s + (1 - s) / ratio while that foot
+    swings (share s of the cycle, `swing_mask`) and faster by ratio f1 otherwise, so that
+    s / f1 + (1 - s) / (ratio f1) = 1. Configurations are interpolated at the warped phase
+    (quaternions renormalised), velocities scaled by the local rate (the chain rule)."""
+    n = len(cycle.phase)
+    swing = swing_mask(cycle, foot_forward_m(model, cycle.qpos, side))
+    s = float(swing.mean())
+    slow = s + (1.0 - s) / ratio
+    rate = np.where(swing, slow, ratio * slow)       # old phase per new phase, sample k to k + 1
+    new_at_old = np.r_[0.0, np.cumsum(1.0 / rate)]    # new phase of old samples 0..N (x N)
+    new_at_old *= n / new_at_old[-1]
+    old = np.interp(np.arange(n), new_at_old, np.arange(n + 1.0))  # old (fractional) sample per new one
+    k = np.minimum(old.astype(int), n - 1)
+    f = (old - k)[:, None]
+    q0 = np.array([cycle.qpos_at(int(i)) for i in k])
+    q1 = np.array([cycle.qpos_at(int(i) + 1) for i in k])
+    qpos = (1.0 - f) * q0 + f * q1
+    quaternion_at = {int(mujoco.mjtJoint.mjJNT_FREE): 3, int(mujoco.mjtJoint.mjJNT_BALL): 0}
+    for j in range(model.njnt):
+        if int(model.jnt_type[j]) in quaternion_at:
+            a = int(model.jnt_qposadr[j]) + quaternion_at[int(model.jnt_type[j])]
+            qpos[:, a:a + 4] /= np.linalg.norm(qpos[:, a:a + 4], axis=1, keepdims=True)
+    v0, v1 = cycle.qvel[k], cycle.qvel[(k + 1) % n]
+    qvel = ((1.0 - f) * v0 + f * v1) * rate[k][:, None]
+    return replace(cycle, qpos=qpos, qvel=qvel)
+
+
 def left_right_shift(model: mujoco.MjModel, cycle: ReferenceCycle,
                      joints: tuple[str, ...] = ("hip_flexion", "knee_flexion", "ankle_dorsiflexion"),
                      ) -> dict[str, dict[str, float]]:

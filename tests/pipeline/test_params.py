@@ -209,3 +209,21 @@ def test_a_scenario_segment_of_two_kinds_is_refused_with_its_key_path(tmp_path):
     doc["scenarios"]["commands"]["walk_10m"][1] = {"walk_m": 10.0}
     with pytest.raises(ParamsError, match="missing scenario.*turn_90"):
         parse_params(doc, tmp_path / "params.yaml")
+
+
+def test_a_variant_may_have_its_own_budget_and_one_longer_swing(tmp_path, params):
+    """`cohort.variants.<v>.fine_tune_steps` overrides the cohort's budget for that variant only;
+    `swing_time_ratio` names one side and a ratio of at least 1."""
+    document = doc()
+    variants = document["cohort"]["variants"]
+    variants["weak"] = {"torque_scale": {"all": 0.6}, "fine_tune_steps": 123}
+    variants["slow"] = {"speed_mps": 0.6}
+    loaded = load_params(write(tmp_path, document))
+    assert loaded.fine_tune_steps("weak") == 123
+    assert loaded.fine_tune_steps("slow") == document["cohort"]["fine_tune_steps"]
+    assert loaded.variant("weak").torque_factor("hip_l") == pytest.approx(0.6)
+    side, ratio = params.variant("hemiparetic_left").swing_time_ratio
+    assert side == "left" and ratio > 1.0
+    variants["slow"] = {"swing_time_ratio": {"left": 0.8}}
+    with pytest.raises(ParamsError, match=r"cohort\.variants\.slow\.swing_time_ratio\.left"):
+        load_params(write(tmp_path, document))

@@ -253,3 +253,51 @@ def test_training_runs_as_a_ray_job_and_resumes(tmp_path, setup, camargo_model):
     assert json.loads((tmp_path / "progress.json").read_text())["steps"] == rec["steps"]
     again = train_on_ray(xml, cycle, p, tmp_path, cpus=1, n_envs=2, threads=1, total_steps=512, resume=True)
     assert again["steps"] >= 512 and len(again["runs"]) == 2
+
+
+def test_longer_swing_warps_the_cycle_without_changing_stride_or_speed(setup, camargo_model):
+    """A hemiparetic variant's reference (`with_longer_swing`): the named foot swings longer than
+    the other by about the ratio asked, while period, stride and mean speed stay the subject's, and
+    the velocities stay the derivative of the warped positions (the chain rule)."""
+    from sim.motion.reference import foot_forward_m, swing_mask, with_longer_swing
+
+    _, _, _, cycle = setup
+    model = mujoco.MjModel.from_xml_path(str(camargo_model / "human.xml"))
+    warped = with_longer_swing(model, cycle, "left", 1.25)
+
+    def shares(c):
+        return [float(swing_mask(c, foot_forward_m(model, c.qpos, s)).mean()) for s in ("left", "right")]
+
+    (l0, r0), (l1, r1) = shares(cycle), shares(warped)
+    assert abs(l0 / r0 - 1.0) < 0.05                 # the subject walks symmetrically
+    assert l1 / r1 > 1.12 and l1 > l0 and r1 < r0    # the left swing got longer, the right shorter
+    assert warped.period_s == cycle.period_s and warped.stride_length_m == cycle.stride_length_m
+    assert np.mean(warped.qvel[:, 0]) == pytest.approx(np.mean(cycle.qvel[:, 0]), rel=0.02)
+    n = len(cycle.phase)
+    knee = model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, "knee_l")]
+    knee_v = model.jnt_dofadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, "knee_l")]
+    diff = (np.roll(warped.qpos[:, knee], -1) - np.roll(warped.qpos[:, knee], 1)) / (2 * cycle.period_s / n)
+    assert np.corrcoef(diff, warped.qvel[:, knee_v])[0, 1] > 0.95
+    quats = warped.qpos[:, 3:7]
+    assert np.allclose(np.linalg.norm(quats, axis=1), 1.0)
+
+
+def test_a_hemiparetic_variant_trains_on_and_keeps_its_asymmetric_cycle(tmp_path, setup, camargo_model,
+                                                                       params):
+    """Training a variant with `swing_time_ratio` imitates the warped cycle and saves it beside the
+    policy, so its rollouts (which load the policy's own cycle) walk the same reference; a resume
+    warps the subject's cycle again to the same one."""
+    from sim.motion.reference import foot_forward_m, swing_mask
+
+    _, _, _, cycle = setup
+    tp = params.train_params("hemiparetic_right")
+    p = replace(tp, n_steps=128, batch_size=256, n_epochs=1, net_arch=(32, 32),
+                amp=replace(tp.amp, hidden=(32, 32)))
+    xml = camargo_model / "human.xml"
+    train(xml, cycle, p, tmp_path, n_envs=2, threads=1, total_steps=256, progress=False)
+    _, saved = load_body(tmp_path)
+    model = mujoco.MjModel.from_xml_path(str(xml))
+    left, right = (swing_mask(saved, foot_forward_m(model, saved.qpos, s)).mean() for s in ("left", "right"))
+    assert right / left > 1.2
+    train(xml, cycle, p, tmp_path, n_envs=2, threads=1, total_steps=512, resume=True, progress=False)
+    np.testing.assert_array_equal(load_body(tmp_path)[1].qpos, saved.qpos)
