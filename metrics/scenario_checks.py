@@ -5,12 +5,14 @@ the pelvis speed averaged over one stride (the intra-stride surge cancels), the 
 command to 90 % of the walk's steady speed (its own, as for a recording: a walk slower than its
 command fails the steady-speed check, not this one), from the stop command to standing (below 0.1 m/s, the
 standing threshold of `ingest.phases`), whether it stands still at the end, and the time to reach
-each newly commanded speed within a tolerance. `evaluate-policy` applies them with the thresholds
-of `evaluate_policy.scenario_checks`.
+each newly commanded speed within a tolerance, and how far the walking direction turned between the
+first and the last steady phase. `evaluate-policy` applies them with the thresholds of
+`evaluate_policy.scenario_checks`.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -105,5 +107,26 @@ def speed_changes(time_s: np.ndarray, speed: np.ndarray, command_time_s: np.ndar
     return out
 
 
-__all__ = ["ScenarioChecks", "first_time", "phase_start", "speed_changes", "standing_at_end", "start_time_s",
-           "stop_time_s", "stride_speed"]
+def path_turn_deg(xy: np.ndarray, time_s: np.ndarray, command_time_s: np.ndarray,
+                  command_phase: np.ndarray, min_travel_m: float = 0.5) -> float | None:
+    """How far the walk turned (deg, + left, in (-180, 180]): the direction of the pelvis displacement
+    over the last commanded steady phase minus that over the first (None: fewer than two steady
+    phases, or one with less than `min_travel_m` of travel, as in a walk that fell)."""
+    steady = command_phase == "steady"
+    starts = np.flatnonzero(steady & ~np.r_[False, steady[:-1]])
+    ends = np.flatnonzero(steady & ~np.r_[steady[1:], False])
+    if len(starts) < 2:
+        return None
+    directions = []
+    for a, b in ((starts[0], ends[0]), (starts[-1], ends[-1])):
+        i, j = np.searchsorted(time_s, [command_time_s[a], command_time_s[b]])
+        d = xy[min(j, len(xy) - 1)] - xy[min(i, len(xy) - 1)]
+        if math.hypot(d[0], d[1]) < min_travel_m:
+            return None
+        directions.append(math.atan2(d[1], d[0]))
+    turn = math.degrees(directions[1] - directions[0])
+    return turn - 360.0 * math.ceil((turn - 180.0) / 360.0)
+
+
+__all__ = ["ScenarioChecks", "first_time", "path_turn_deg", "phase_start", "speed_changes", "standing_at_end",
+           "start_time_s", "stop_time_s", "stride_speed"]

@@ -567,6 +567,7 @@ class CommandsSchema(Schema):
     turn_lean: Annotated[float, Field(gt=0.0, le=2.0)] | None
     turn_lean_time_constant_s: Annotated[float, Field(gt=0.0)]
     max_lean_tan: Annotated[float, Field(gt=0.0, le=1.0)]
+    heading_lead_deg: Annotated[float, Field(gt=0.0, le=180.0)] | None
     start_s_range: Pair
     stop_s_range: Pair
     turn_rate_deg_s_range: Pair

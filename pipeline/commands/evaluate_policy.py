@@ -30,6 +30,7 @@ from metrics.plots import policy_spm_figure
 from metrics.policy_checks import curves, enough, gait_check, spm_check
 from metrics.scenario_checks import (
     ScenarioChecks,
+    path_turn_deg,
     speed_changes,
     standing_at_end,
     start_time_s,
@@ -191,7 +192,7 @@ def scenario_report(outcomes: list[RolloutOutcome], profiles: dict[str, CommandP
                      # rollout in every seed (the seed sets only the start phase, which standing resets)
                      "distinct_walks": len({o.pelvis_xy.round(6).tobytes() for o in runs})}
         checks[f"{name}_{cond}_no_fall"] = enough(len(runs) - falls, len(runs), sc.no_fall_fraction)
-        starts, stops, steady, ends, changes = [], [], [], [], []
+        starts, stops, steady, ends, changes, turns = [], [], [], [], [], []
         for o in runs:
             if o.human_fall_s is not None:
                 continue
@@ -205,6 +206,7 @@ def scenario_report(outcomes: list[RolloutOutcome], profiles: dict[str, CommandP
             ends.append(standing_at_end(t, v, sc.end_standing_s, sc.standing_mps))
             changes.append(speed_changes(t, v, prof.time_s, prof.speed_mps, prof.phase,
                                          sc.speed_change_tolerance_pct / 100))
+            turns.append(path_turn_deg(o.pelvis_xy, t, prof.time_s, prof.phase))
         row["steady_speed_mps"] = [round(x, 3) for x in steady]
         if name == "walk_10m" or "start" in prof.phase:
             row["start_s"] = [None if x is None else round(x, 2) for x in starts]
@@ -212,6 +214,10 @@ def scenario_report(outcomes: list[RolloutOutcome], profiles: dict[str, CommandP
             row["standing_at_end"] = ends
         if name == "speed_change":
             row["speed_changes"] = changes
+        if "turn" in prof.phase:  # the walking direction's change, against the commanded turn
+            turned = prof.heading_rad[-1] - prof.heading_rad[0]
+            row["commanded_turn_deg"] = round(float(np.degrees(turned)), 1)
+            row["turned_deg"] = [None if x is None else round(x, 1) for x in turns]
         out[f"{name} {cond}"] = row
         if cond != "free":
             continue

@@ -42,6 +42,7 @@ from sim.learn.walk_env import (
     amp_features,
     observe,
     pd_servo_spec,
+    pelvis_yaw,
     servo_ranges,
     start_pose,
 )
@@ -165,7 +166,7 @@ class PolicyHuman(HumanDriver):
             action = np.minimum(np.maximum(action, -1.0), 1.0)  # np.clip's numbers, without its wrapper
             if self.noise_rows is not None:
                 action = action + self.noise_rows[k // self.every]
-            self.gait.advance(self.step_phase, *self._command(k + self.every))
+            self.gait.advance(self.step_phase, *self._command(k + self.every), pelvis_yaw(data, idx))
             data.ctrl[idx.act] = self.gait.targets(action, self.p, self.lo, self.hi)
         if self.event_run is not None:
             self.event_run.apply(model, data, float(self.times[k]))

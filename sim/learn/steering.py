@@ -16,6 +16,9 @@ and the cadence takes the rest, so a walk slows and stops in short, quick steps.
 start. Policies trained before this law (`stride_speed_exponent` None: `a` a smoothstep of the
 speed, the cadence alone following it, so slow walking asked for long, slow strides) keep their own.
 
+The heading steered toward stays within `heading_lead_deg` of where the pelvis faces
+(`lead_heading`), so a turn faster than the body turns is followed at the body's own rate.
+
 In a turn the feet may lean the body inward (`turn_lean`, off unless set): the cycle is straight
 walking, so without it the reference keeps the straight walk's foot placement while the turn needs
 the ground force pointing to its centre.
@@ -30,6 +33,7 @@ only its cycle.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import mujoco
@@ -67,6 +71,10 @@ class CommandSampling:
     turn_lean: float | None = None
     turn_lean_time_constant_s: float = 0.3  # the lean builds and fades over about a step
     max_lean_tan: float = 0.35               # tan of the largest lean taken (~19 deg)
+    # Steering lead (None: off): the heading the human steers toward is held within this many degrees
+    # of where its pelvis faces (`lead_heading`), so a turn commanded faster than the body turns is
+    # followed at the body's own rate (a pursuit "carrot") instead of asking for a sidestep.
+    heading_lead_deg: float | None = 20.0
 
 
 def sample_commands(rng: np.random.Generator, speed_mps: float, duration_s: float, rate_hz: float,
@@ -108,6 +116,12 @@ def command_at(speed_mps: np.ndarray, heading_rad: np.ndarray, k: int, ahead: in
     j = min(k + ahead, last)
     rate = (heading_rad[j] - heading_rad[k]) / dt_s if j > k else 0.0
     return float(speed_mps[k]), float(heading_rad[k]), float(rate)
+
+
+def lead_heading(heading_rad: float, facing_rad: float, lead_rad: float) -> float:
+    """The commanded heading moved to within `lead_rad` of the pelvis heading `facing_rad`."""
+    error = (heading_rad - facing_rad + math.pi) % (2.0 * math.pi) - math.pi  # wrapped to [-pi, pi)
+    return facing_rad + min(max(error, -lead_rad), lead_rad)
 
 
 def speed_law(speed_ratio: float, full_gait_fraction: float, stride_speed_exponent: float | None,
@@ -245,5 +259,5 @@ class SteeredReference:
                 speed_ratio * row[-2:])
 
 
-__all__ = ["CommandSampling", "SteeredReference", "blend_qpos", "command_at", "level_speed_ratio",
-           "sample_commands", "speed_law", "standing_pose", "turn_lean_offset"]
+__all__ = ["CommandSampling", "SteeredReference", "blend_qpos", "command_at", "lead_heading",
+           "level_speed_ratio", "sample_commands", "speed_law", "standing_pose", "turn_lean_offset"]

@@ -267,6 +267,8 @@ def train(model_path: str | Path, cycle: ReferenceCycle, p: TrainParams, out_dir
             law["min_cadence"] = c.min_cadence
         if c.turn_lean is not None:
             law |= {"turn_lean": c.turn_lean, **{k: getattr(c, k) for k in LEAN_LAW}}
+        if c.heading_lead_deg is not None:
+            law["heading_lead_deg"] = c.heading_lead_deg
         (out / STEERING_FILE).write_text(json.dumps(law) + "\n")
         model.save(str(out / POLICY_FILE))
         venv.save(str(out / NORM_FILE))
@@ -430,14 +432,17 @@ def policy_env(out_dir: str | Path, env: WalkEnvParams) -> WalkEnvParams:
     """`env` under the speed law the policy in `out_dir` was trained with (`STEERING_FILE`); a policy
     from before the law was recorded has none and keeps the legacy law (exponent None); one from
     before `full_gait_fraction` was recorded keeps the params' value; one without `min_cadence` was
-    trained without a cadence floor, one without `turn_lean` without leaning into turns."""
+    trained without a cadence floor, one without `turn_lean` without leaning into turns. The steering
+    lead (`heading_lead_deg`) is how the simulated person follows a turn: a policy that recorded one
+    keeps it, any other walks with the params' lead."""
     f = Path(out_dir) / STEERING_FILE
     law = json.loads(f.read_text()) if f.exists() else {}
     fraction = law.get("full_gait_fraction") or env.commands.full_gait_fraction
+    lead = law.get("heading_lead_deg", env.commands.heading_lead_deg)
     return replace(env, commands=replace(env.commands, stride_speed_exponent=law.get("stride_speed_exponent"),
                                          full_gait_fraction=fraction, min_cadence=law.get("min_cadence"),
                                          **{k: law.get(k, getattr(env.commands, k)) for k in LEAN_LAW},
-                                         turn_lean=law.get("turn_lean")))
+                                         turn_lean=law.get("turn_lean"), heading_lead_deg=lead))
 
 
 def load_policy(out_dir: str | Path) -> tuple[PPO, VecNormalize | None]:

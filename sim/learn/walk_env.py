@@ -48,6 +48,7 @@ from sim.learn.steering import (
     SteeredReference,
     blend_qpos,
     command_at,
+    lead_heading,
     level_speed_ratio,
     sample_commands,
     speed_law,
@@ -245,6 +246,12 @@ class BodyIndex:
         self.nq = 7 + sum(4 if model.jnt_type[jj] == ball else 1 for jj in set(human_joints))
 
 
+def pelvis_yaw(data: mujoco.MjData, idx: BodyIndex) -> float:
+    """The pelvis heading (rad, world yaw of its forward axis)."""
+    xmat = data.xmat[idx.pelvis]
+    return math.atan2(float(xmat[3]), float(xmat[0]))
+
+
 def _heading(xmat_row: np.ndarray) -> tuple[float, float]:
     """(cos, sin) of the pelvis yaw from its rotation matrix (row-major 9)."""
     return _yaw_cs(float(xmat_row[0]), float(xmat_row[3]))
@@ -388,7 +395,7 @@ class WalkEnv(gym.Env):
 
     def step(self, action):
         d = self.data
-        self.gait.advance(self.step_phase, *self._command(self.steps + 1))
+        self.gait.advance(self.step_phase, *self._command(self.steps + 1), pelvis_yaw(d, self.idx))
         if self.p.variant.action_noise:
             noise = self.np_random.normal(0.0, self.p.variant.action_noise, self.model.nu)
             action = np.asarray(action) + noise
@@ -447,6 +454,7 @@ class GaitState:
         self.ref = ref
         self.law = (commands.full_gait_fraction, commands.stride_speed_exponent, commands.min_cadence)
         self.turn_lean = commands.turn_lean
+        self.lead_rad = None if commands.heading_lead_deg is None else math.radians(commands.heading_lead_deg)
         self.lean_law = (commands.turn_lean_time_constant_s, commands.max_lean_tan)
         self.lean_m = 0.0  # the feet's current lateral lean offset (`_look_up`)
         self.phase = self.speed = self.heading = self.yaw_rate = self.a = self.rate = self.speed_ratio = 0.0
@@ -464,9 +472,14 @@ class GaitState:
         self.lean_m = 0.0
         self._look_up(None)
 
-    def advance(self, step_phase: float, speed: float, heading: float, yaw_rate: float) -> None:
+    def advance(self, step_phase: float, speed: float, heading: float, yaw_rate: float,
+                facing: float) -> None:
         """One policy step: the phase moves by `step_phase` x the commanded speed ratio; while
-        standing it waits at the cycle's start phase (the reference is the standing pose then)."""
+        standing it waits at the cycle's start phase (the reference is the standing pose then).
+        `facing`: the pelvis heading (rad), which the steered heading stays within the lead of when
+        `CommandSampling.heading_lead_deg` is set."""
+        if self.lead_rad is not None:
+            heading = lead_heading(heading, facing, self.lead_rad)
         self._set(speed, heading, yaw_rate)
         phase = (self.phase + step_phase * self.rate) % 1.0
         self.phase = self.ref.start_phase if self.a == 0.0 else phase
@@ -552,4 +565,4 @@ def make_walk_env(model_path: str | Path, cycle: ReferenceCycle, p: WalkEnvParam
 __all__ = ["AMP_LEVELS", "AMP_SIZE", "HUMAN_ACTUATORS", "LEGACY_OBS_SIZE", "OBS_SIZE", "BodyIndex",
            "GaitState",
            "ReferenceTable", "WalkEnv", "WalkEnvParams", "amp_features", "feet_in_heading", "make_walk_env",
-           "observe", "pd_servo_spec", "servo_ranges", "start_pose"]
+           "observe", "pd_servo_spec", "pelvis_yaw", "servo_ranges", "start_pose"]

@@ -9,7 +9,14 @@ import pytest
 
 from metrics.phases import mean_ci95, phase_table
 from metrics.sampling import paper_strides, repeated_walks, restrict_cycles
-from metrics.scenario_checks import speed_changes, standing_at_end, start_time_s, stop_time_s, stride_speed
+from metrics.scenario_checks import (
+    path_turn_deg,
+    speed_changes,
+    standing_at_end,
+    start_time_s,
+    stop_time_s,
+    stride_speed,
+)
 
 RATE = 100.0
 
@@ -54,6 +61,25 @@ def test_speed_change_times_and_a_change_never_reached():
     assert out[0]["reached_after_s"] == pytest.approx((1.0 - 0.77) / 0.3, abs=0.02)  # 1.0 -> 0.7 in 1 s
     capped = np.minimum(v, 1.0)  # never speeds up to 1.2
     assert speed_changes(t, capped, t, v, ph, 0.1)[1]["reached_after_s"] is None
+
+
+def test_path_turn_is_the_change_of_walking_direction_between_steady_phases():
+    """A walk that turns left by 90 deg (and one that turns around) between its steady phases; one
+    that turned only half as far; and a walk that stopped moving (fell) before its last steady phase."""
+    t = np.arange(0.0, 9.0, 1 / RATE)
+    ph = np.where(t < 3.0, "steady", np.where(t < 5.0, "turn", "steady"))
+
+    def path(turn_deg: float) -> np.ndarray:
+        heading = np.radians(turn_deg) * np.clip((t - 3.0) / 2.0, 0.0, 1.0)
+        return np.column_stack([np.cumsum(np.cos(heading)), np.cumsum(np.sin(heading))]) * 1.2 / RATE
+
+    assert path_turn_deg(path(90.0), t, t, ph) == pytest.approx(90.0, abs=0.5)
+    assert path_turn_deg(path(-45.0), t, t, ph) == pytest.approx(-45.0, abs=0.5)
+    assert abs(path_turn_deg(path(180.0), t, t, ph)) == pytest.approx(180.0, abs=0.5)
+    stopped = path(90.0)
+    stopped[t >= 4.0] = stopped[int(4.0 * RATE)]
+    assert path_turn_deg(stopped, t, t, ph) is None
+    assert path_turn_deg(path(90.0), t, t, np.full(len(t), "steady")) is None
 
 
 def test_stride_speed_cancels_the_intra_stride_surge():

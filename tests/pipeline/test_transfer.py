@@ -91,7 +91,7 @@ def test_fine_tunes_train_under_the_law_their_source_learned(params, policies_ro
     policy's feet (with the law of before, lenhart2015's transfer from opencap4 fell in steady walking)."""
     env = params.train_params().env
     source = policy_env(policies_root / subject, env)
-    fields = ("stride_speed_exponent", "full_gait_fraction", "min_cadence", "turn_lean")
+    fields = ("stride_speed_exponent", "full_gait_fraction", "min_cadence", "turn_lean", "heading_lead_deg")
     assert {f: getattr(source.commands, f) for f in fields} == {f: getattr(env.commands, f) for f in fields}
 
 

@@ -10,7 +10,14 @@ import numpy as np
 import pytest
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
-from sim.learn.steering import blend_qpos, level_speed_ratio, sample_commands, speed_law, turn_lean_offset
+from sim.learn.steering import (
+    blend_qpos,
+    lead_heading,
+    level_speed_ratio,
+    sample_commands,
+    speed_law,
+    turn_lean_offset,
+)
 from sim.learn.train import (
     STEERING_FILE,
     STEERING_STATS,
@@ -109,7 +116,7 @@ def test_gait_follows_the_commanded_speed(env):
     shorten as speed^0.42 below the cycle's speed and the cadence floor 0.744 holds here), stride x
     cadence is the speed, and the root velocity reference halves."""
     env.gait.start(0.2, env.ref.speed_mps, 0.0, 0.0)
-    env.gait.advance(0.01, 0.5 * env.ref.speed_mps, 0.3, 0.0)
+    env.gait.advance(0.01, 0.5 * env.ref.speed_mps, 0.3, 0.0, 0.3)
     a, rate = speed_law(0.5, *env.gait.law)
     assert a * rate == pytest.approx(0.5) and 0.5 < rate < 1.0
     assert env.gait.phase == pytest.approx(0.2 + 0.01 * rate)
@@ -142,14 +149,14 @@ def test_feet_lean_into_a_turn_and_back(env):
     assert np.array_equal(lean.reference[3], plain.reference[3])  # straight: no lean
     for _ in range(60):  # 1.8 s of turning: the lean settles
         for g in (plain, lean):
-            g.advance(env.step_phase, v, 0.0, w)
+            g.advance(env.step_phase, v, 0.0, w, 0.0)
     shift = lean.reference[3] - plain.reference[3]
     target = turn_lean_offset(lean.reference[4], v, w, 1.0, 0.35)
     assert shift[1] == shift[4]  # both feet sideways, alike, by the lean of the pelvis height (which
     assert shift[1] == pytest.approx(target, rel=0.05)  # moves over the cycle; the lean lags it)
     assert np.array_equal(shift[[0, 2, 3, 5]], np.zeros(4))
     for g in (plain, lean):
-        g.advance(env.step_phase, v, 0.0, 0.0)
+        g.advance(env.step_phase, v, 0.0, 0.0, 0.0)
     assert abs(lean.lean_m) < abs(target)  # the turn is over: the lean fades over ~0.3 s, not at once
     assert abs(lean.lean_m) > 0.5 * abs(target)
 
@@ -163,6 +170,31 @@ def test_a_policy_keeps_the_turn_lean_it_was_trained_with(tmp_path, params):
                                           '"turn_lean_time_constant_s": 0.5, "max_lean_tan": 0.2}')
     c = policy_env(tmp_path, env).commands
     assert (c.turn_lean, c.turn_lean_time_constant_s, c.max_lean_tan) == (0.8, 0.5, 0.2)
+
+
+def test_a_steering_lead_holds_the_heading_near_the_pelvis_heading(env, tmp_path, params):
+    """`heading_lead_deg`: the steered heading stays within the lead of where the pelvis faces (across
+    the +-180 deg seam too), is the command itself when nearer, and is recorded with the policy."""
+    lead = np.radians(20.0)
+    assert lead_heading(np.radians(90.0), 0.0, lead) == pytest.approx(lead)
+    assert lead_heading(np.radians(-90.0), 0.0, lead) == pytest.approx(-lead)
+    assert lead_heading(np.radians(10.0), 0.0, lead) == pytest.approx(np.radians(10.0))
+    assert lead_heading(np.radians(-170.0), np.radians(170.0), lead) == pytest.approx(np.radians(190.0))
+    plain = GaitState(env.ref, replace(env.p.commands, heading_lead_deg=None))
+    led = GaitState(env.ref, replace(env.p.commands, heading_lead_deg=20.0))
+    v = env.ref.speed_mps
+    for g in (plain, led):
+        g.start(0.3, v, 0.0, 0.0)
+        g.advance(env.step_phase, v, np.pi / 2, 0.0, 0.1)
+    assert plain.heading == pytest.approx(np.pi / 2)  # off: the command as given
+    assert led.heading == pytest.approx(0.1 + lead)
+    assert np.array_equal(led.reference[0], plain.reference[0])  # the pose reference is unchanged
+    (tmp_path / STEERING_FILE).write_text('{"stride_speed_exponent": 0.42}')
+    base = params.train_params().env
+    with_lead = replace(base, commands=replace(base.commands, heading_lead_deg=25.0))
+    assert policy_env(tmp_path, with_lead).commands.heading_lead_deg == 25.0  # none recorded: the params'
+    (tmp_path / STEERING_FILE).write_text('{"stride_speed_exponent": 0.42, "heading_lead_deg": 15.0}')
+    assert policy_env(tmp_path, with_lead).commands.heading_lead_deg == 15.0  # recorded: its own
 
 
 def test_widened_policy_acts_like_the_straight_walker(params, camargo_model, cycle):
