@@ -181,24 +181,6 @@ def standing_pose(model: mujoco.MjModel, foot_bodies: np.ndarray) -> np.ndarray:
     return q
 
 
-def blend_qpos(model: mujoco.MjModel, q0: np.ndarray, q1: np.ndarray, a: float) -> np.ndarray:
-    """(1 - a) q0 + a q1 joint by joint: positions and hinges linearly, quaternions (free-joint
-    orientation, ball joints) by normalised linear interpolation on the short arc."""
-    if a in (0.0, 1.0):
-        return (q1 if a == 1.0 else q0).copy()
-    out = (1 - a) * q0 + a * q1
-    free, ball = int(mujoco.mjtJoint.mjJNT_FREE), int(mujoco.mjtJoint.mjJNT_BALL)
-    for j in range(model.njnt):
-        kind, adr = int(model.jnt_type[j]), int(model.jnt_qposadr[j])
-        if kind in (free, ball):
-            s = adr + 3 if kind == free else adr
-            p, r = q0[s:s + 4], q1[s:s + 4]
-            r = r if p @ r >= 0 else -r
-            quat = (1 - a) * p + a * r
-            out[s:s + 4] = quat / np.linalg.norm(quat)
-    return out
-
-
 def _subtree(model: mujoco.MjModel, roots: np.ndarray) -> np.ndarray:
     ids = set(int(r) for r in roots)
     for b in range(model.nbody):
@@ -259,5 +241,5 @@ class SteeredReference:
                 speed_ratio * row[-2:])
 
 
-__all__ = ["CommandSampling", "SteeredReference", "blend_qpos", "command_at", "lead_heading",
+__all__ = ["CommandSampling", "SteeredReference", "command_at", "lead_heading",
            "level_speed_ratio", "sample_commands", "speed_law", "standing_pose", "turn_lean_offset"]

@@ -46,7 +46,6 @@ from sim.errors import SimulationError
 from sim.learn.steering import (
     CommandSampling,
     SteeredReference,
-    blend_qpos,
     command_at,
     lead_heading,
     level_speed_ratio,
@@ -55,7 +54,7 @@ from sim.learn.steering import (
     standing_pose,
     turn_lean_offset,
 )
-from sim.motion.reference import ReferenceCycle
+from sim.motion.reference import ReferenceCycle, blend_qpos
 from sim.rollout.scenarios import CommandProfile, ProfileParams
 
 SIDE_SUFFIXES = ("l", "r")  # the model's side suffixes (foot_l, foot_r)

@@ -247,6 +247,24 @@ def floor_aligned(model: mujoco.MjModel, cycle: ReferenceCycle) -> ReferenceCycl
     return replace(cycle, qpos=qpos, floor_shift_m=cycle.floor_shift_m + shift)
 
 
+def blend_qpos(model: mujoco.MjModel, q0: np.ndarray, q1: np.ndarray, a: float) -> np.ndarray:
+    """(1 - a) q0 + a q1 joint by joint: positions and hinges linearly, quaternions (free-joint
+    orientation, ball joints) by normalised linear interpolation on the short arc."""
+    if a in (0.0, 1.0):
+        return (q1 if a == 1.0 else q0).copy()
+    out = (1 - a) * q0 + a * q1
+    free, ball = int(mujoco.mjtJoint.mjJNT_FREE), int(mujoco.mjtJoint.mjJNT_BALL)
+    for j in range(model.njnt):
+        kind, adr = int(model.jnt_type[j]), int(model.jnt_qposadr[j])
+        if kind in (free, ball):
+            s = adr + 3 if kind == free else adr
+            p, r = q0[s:s + 4], q1[s:s + 4]
+            r = r if p @ r >= 0 else -r
+            quat = (1 - a) * p + a * r
+            out[s:s + 4] = quat / np.linalg.norm(quat)
+    return out
+
+
 def foot_forward_m(model: mujoco.MjModel, qpos: np.ndarray, side: str) -> np.ndarray:
     """World x (m, the walking direction of a cycle) of `side`'s foot body for each configuration."""
     body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f"foot_{side[0]}")
@@ -278,7 +296,7 @@ def with_longer_swing(model: mujoco.MjModel, cycle: ReferenceCycle, side: str,
     and speed unchanged: the whole body plays slower by f1 = s + (1 - s) / ratio while that foot
     swings (share s of the cycle, `swing_mask`) and faster by ratio f1 otherwise, so that
     s / f1 + (1 - s) / (ratio f1) = 1. Configurations are interpolated at the warped phase
-    (quaternions renormalised), velocities scaled by the local rate (the chain rule)."""
+    (`blend_qpos`), velocities scaled by the local rate (the chain rule)."""
     n = len(cycle.phase)
     swing = swing_mask(cycle, foot_forward_m(model, cycle.qpos, side))
     s = float(swing.mean())
@@ -288,17 +306,11 @@ def with_longer_swing(model: mujoco.MjModel, cycle: ReferenceCycle, side: str,
     new_at_old *= n / new_at_old[-1]
     old = np.interp(np.arange(n), new_at_old, np.arange(n + 1.0))  # old (fractional) sample per new one
     k = np.minimum(old.astype(int), n - 1)
-    f = (old - k)[:, None]
-    q0 = np.array([cycle.qpos_at(int(i)) for i in k])
-    q1 = np.array([cycle.qpos_at(int(i) + 1) for i in k])
-    qpos = (1.0 - f) * q0 + f * q1
-    quaternion_at = {int(mujoco.mjtJoint.mjJNT_FREE): 3, int(mujoco.mjtJoint.mjJNT_BALL): 0}
-    for j in range(model.njnt):
-        if int(model.jnt_type[j]) in quaternion_at:
-            a = int(model.jnt_qposadr[j]) + quaternion_at[int(model.jnt_type[j])]
-            qpos[:, a:a + 4] /= np.linalg.norm(qpos[:, a:a + 4], axis=1, keepdims=True)
+    f = old - k
+    qpos = np.array([blend_qpos(model, cycle.qpos_at(int(i)), cycle.qpos_at(int(i) + 1), float(a))
+                     for i, a in zip(k, f, strict=True)])
     v0, v1 = cycle.qvel[k], cycle.qvel[(k + 1) % n]
-    qvel = ((1.0 - f) * v0 + f * v1) * rate[k][:, None]
+    qvel = ((1.0 - f[:, None]) * v0 + f[:, None] * v1) * rate[k][:, None]
     return replace(cycle, qpos=qpos, qvel=qvel)
 
 

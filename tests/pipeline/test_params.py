@@ -227,3 +227,6 @@ def test_a_variant_may_have_its_own_budget_and_one_longer_swing(tmp_path, params
     variants["slow"] = {"swing_time_ratio": {"left": 0.8}}
     with pytest.raises(ParamsError, match=r"cohort\.variants\.slow\.swing_time_ratio\.left"):
         load_params(write(tmp_path, document))
+    variants["slow"] = {"swing_time_ratio": {"left": 1.2, "right": 1.2}}
+    with pytest.raises(ParamsError, match=r"cohort\.variants\.slow\.swing_time_ratio: .*at most 1 item"):
+        load_params(write(tmp_path, document))

@@ -11,7 +11,6 @@ import pytest
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
 from sim.learn.steering import (
-    blend_qpos,
     lead_heading,
     level_speed_ratio,
     sample_commands,
@@ -28,7 +27,7 @@ from sim.learn.train import (
     widen_policy,
 )
 from sim.learn.walk_env import LEGACY_OBS_SIZE, OBS_SIZE, GaitState, make_walk_env
-from sim.motion.reference import load_reference
+from sim.motion.reference import blend_qpos, load_reference
 from sim.rollout.scenarios import PHASES, command_profile
 
 
