@@ -554,6 +554,11 @@ class ImitationSchema(Schema):
     root_velocity: float
 
 
+class HarnessTwistSchema(Schema):
+    probability: Annotated[float, Field(ge=0.0, le=1.0)]
+    lag_s: Pair
+
+
 class CommandsSchema(Schema):
     standing_start_probability: Annotated[float, Field(ge=0.0, le=1.0)]
     speed_range: Pair
@@ -592,6 +597,7 @@ class EnvSchema(Schema):
     push_interval_s: Pair
     push_probability: float
     heading_scale: float
+    harness_twist: HarnessTwistSchema
     commands: CommandsSchema
 
 
@@ -954,8 +960,11 @@ class Params(Schema):
         from dataclasses import replace
 
         p = self.train.build()
+        h = self.robot.harness
+        twist = replace(p.env.harness_twist, stiffness_nm_per_rad=h.stiffness[5],
+                        damping_nms_per_rad=h.damping[5], range_rad=h.range[5])
         return replace(p, env=replace(p.env, profile=self.scenarios.profile.build(),
-                                      variant=self.variant(variant)))
+                                      variant=self.variant(variant), harness_twist=twist))
 
     def report_params(self) -> ReportParams:
         """`report`, with the fall-intervention caught threshold and detection window

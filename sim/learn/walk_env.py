@@ -26,8 +26,9 @@ features in `info["amp"]`.
 
 Reference-state initialisation (quiet standing, or walking at a random phase), early termination
 when the pelvis drops or the trunk tilts, and random horizontal pushes on the pelvis (magnitude,
-duration and interval in params) for robustness. Everything in a step is preallocated numpy on
-MuJoCo's arrays; the physics runs `n_substeps` steps in one `mj_step` call.
+duration and interval in params) for robustness, and optionally the follow-me robot's harness
+twist (sim/learn/harness_twist.py). Everything in a step is preallocated numpy on MuJoCo's arrays;
+the physics runs `n_substeps` steps in one `mj_step` call.
 """
 
 from __future__ import annotations
@@ -43,6 +44,7 @@ import numpy as np
 from sim.body.human_params import joint_kind
 from sim.body.variant import Variant
 from sim.errors import SimulationError
+from sim.learn.harness_twist import HarnessTwist, TwistParams
 from sim.learn.steering import (
     CommandSampling,
     SteeredReference,
@@ -91,6 +93,7 @@ class WalkEnvParams:
     push_interval_s: tuple[float, float] = (1.0, 3.0)
     push_probability: float = 0.5           # share of episodes with pushes
     heading_scale: float = 2.0              # task x exp(-scale (1 - cos heading error))
+    harness_twist: TwistParams = field(default_factory=TwistParams)  # the robot's harness yaw load (off)
     commands: CommandSampling = field(default_factory=CommandSampling)
     profile: ProfileParams = field(default_factory=ProfileParams)  # the scenarios' transitions
     variant: Variant = field(default_factory=Variant)  # cohort variant: torque limits, speed, noise
@@ -106,6 +109,10 @@ class WalkEnvParams:
             if k == "commands":
                 out[k] = CommandSampling(**{a: (tuple(float(x) for x in b) if isinstance(b, list | tuple)
                                                  else None if b is None else float(b)) for a, b in v.items()})
+            elif k == "harness_twist":
+                out[k] = v if isinstance(v, TwistParams) else TwistParams(
+                    **{a: (tuple(float(x) for x in b) if isinstance(b, list | tuple) else float(b))
+                       for a, b in v.items()})
             elif k == "profile":
                 out[k] = v if isinstance(v, ProfileParams) else ProfileParams(**v)
             elif isinstance(v, dict):
@@ -339,6 +346,7 @@ class WalkEnv(gym.Env):
         self.push_until = -1.0
         self.next_push = np.inf
         self.pushes = False
+        self.twist: HarnessTwist | None = None
         self.np_random, _ = gym.utils.seeding.np_random(seed)
 
     @property
@@ -366,7 +374,13 @@ class WalkEnv(gym.Env):
         self.next_push = self._draw_interval() if self.pushes else np.inf
         self.push_until = -1.0
         self.wrench[:] = 0.0
+        tw = self.p.harness_twist
+        self.twist = None  # drawn only when on, so that training without it draws as before
+        if tw.probability > 0 and bool(options.get("pushes", True)) and rng.random() < tw.probability:
+            self.twist = HarnessTwist(tw, float(rng.uniform(*tw.lag_s)))
         mujoco.mj_forward(self.model, d)
+        if self.twist is not None:
+            self.twist.reset(pelvis_yaw(d, self.idx))
         amp_features(d, self.idx, self._amp_cur)
         return self._observe(), {}
 
@@ -401,6 +415,8 @@ class WalkEnv(gym.Env):
         d.ctrl[:] = self.gait.targets(action, self.p, self.ctrl_lo, self.ctrl_hi)
         if self.pushes:
             self._push()
+        if self.twist is not None:
+            d.xfrc_applied[self.idx.pelvis, 5] = self.twist.torque(pelvis_yaw(d, self.idx), self.dt)
         self._amp_prev[:] = self._amp_cur
         mujoco.mj_step(self.model, d, nstep=self.n_sub)
         self.steps += 1

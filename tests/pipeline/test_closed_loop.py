@@ -63,3 +63,24 @@ def test_sluggish_pid_is_told_apart_from_the_tuned_one(params, camargo_model, po
         (m_s, se_s), (m_t, se_t) = _mean_se(speed["sluggish"]), _mean_se(speed["pid"])
         changed = abs(m_s - m_t) > 2 * np.hypot(se_s, se_t)
     assert falls > 0 or changed, (speed, falls)
+
+
+def test_adaptive_base_keeps_still_while_the_human_stands(params, camargo_model, policies_root):
+    """After walk_10m's stop the person stands; the adaptive controller's heading must not follow the
+    deceleration or the sway of a standing user (sim/robot/controllers/adaptive.py): before that was
+    fixed its base spun at up to 1.45 rad/s, backed up at 0.45 m/s and drove the arm to its lateral
+    stop (0.20 m, 330 N on the pelvis) behind the standing human."""
+    setup = policy_setup("camargo", params, camargo_model.parents[1], policies_root)
+    src = setup.drivers
+    cycle = load_body(src.policy_dir)[1]
+    commands = scenario_profiles(params, src.env.variant.preferred_speed(cycle.speed_mps), src.sample_rate_hz)
+    stand_s = [a for phase, a, _ in commands["walk_10m"].spans() if phase == "standing"][-1]
+    outcomes = run_batch(setup, scenario_jobs(params, ("adaptive",), 2, ("walk_10m",)), 1, "", False)
+    for o in outcomes:
+        r = o.robot[o.robot["time_s"] >= stand_s]
+        if o.first_fall_s is not None:
+            r = r[r["time_s"] < o.first_fall_s]
+        assert len(r) > 50, "the human must stand a while after the stop"
+        assert np.abs(r["base_yaw_rate_rps"]).max() < 1.0       # no spin
+        assert r["base_speed_mps"].min() > -0.25                # no backing away
+        assert np.abs(r["e_y_m"]).max() < 0.5 * params.robot.arm.range_m[1]  # the arm far from its stop

@@ -15,6 +15,7 @@ from gymnasium.utils.env_checker import check_env
 
 from sim.body.human_params import joint_kind
 from sim.learn.amp import AMP, style_reward
+from sim.learn.harness_twist import HarnessTwist, TwistParams
 from sim.learn.policy_human import ActorMlp, PolicyHuman
 from sim.learn.train import load_body, load_policy, train
 from sim.learn.walk_env import AMP_SIZE, OBS_SIZE, make_walk_env
@@ -92,6 +93,42 @@ def test_random_pushes_act_on_the_pelvis(setup, camargo_model):
         env.step(np.zeros(21))
         seen.append(np.linalg.norm(env.data.xfrc_applied[env.idx.pelvis, :2]))
     assert max(seen) == pytest.approx(100.0) and min(seen) == 0.0
+
+
+def test_harness_twist_resists_a_turn_within_the_harness_range():
+    """A pelvis turning at 1 rad/s leaves the virtual base heading behind: the torque opposes the
+    turn, the twist settles near rate x lag, never exceeds the range, and fades once the turn ends."""
+    p = TwistParams(probability=1.0, stiffness_nm_per_rad=40.0, damping_nms_per_rad=3.0, range_rad=0.7)
+    tw, dt = HarnessTwist(p, lag_s=0.4), 0.03
+    tw.reset(0.0)
+    yaw, torques = 0.0, []
+    for _ in range(100):                       # 3 s turning left at 1 rad/s
+        yaw += dt
+        torques.append(tw.torque(yaw, dt))
+    assert max(torques) < 0.0                  # resists the turn throughout
+    assert tw.twist == pytest.approx(0.4, rel=0.1) and abs(tw.twist) <= p.range_rad
+    fast = HarnessTwist(p, lag_s=5.0)
+    fast.reset(0.0)
+    for i in range(100):
+        fast.torque(3.0 * dt * (i + 1), dt)
+    assert abs(fast.twist) == pytest.approx(p.range_rad)  # the base is dragged along at the range
+    for _ in range(200):                       # the turn ends: the base heading catches up
+        last = tw.torque(yaw, dt)
+    assert abs(last) < 0.01
+
+
+def test_harness_twist_acts_on_the_pelvis_only_when_drawn(setup, camargo_model):
+    _, tp, _, cycle = setup
+    on = replace(tp.env, push_probability=0.0, harness_twist=replace(tp.env.harness_twist, probability=1.0))
+    for p, expect in ((on, True), (tp.env, False)):
+        env = make_walk_env(camargo_model / "human.xml", cycle, p, seed=4)
+        env.reset(seed=4)
+        torques = []
+        for _ in range(15):
+            env.step(np.zeros(21))
+            torques.append(env.data.xfrc_applied[env.idx.pelvis, 5])
+        assert (env.twist is not None) == expect
+        assert (max(np.abs(torques)) > 0.0) == expect
 
 
 def test_discriminator_separates_reference_from_other_motion(env, setup):

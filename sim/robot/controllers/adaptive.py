@@ -8,10 +8,15 @@ and LQR state feedback on the arm deflection (after Wang et al., IFAC 2023), fro
 - Heading: a comb filter (velocity now minus one stride ago, `comb_compensation`) takes the stride
   average's half-stride lag out of the heading and gives the heading rate. This is a disclosed
   trade-off kept on purpose: it helps a walk entering a turn, as every straight bout of a real
-  walkway ends, and costs on a constant curve.
+  walkway ends, and costs on a constant curve. Only the comb term's part across the average
+  velocity turns the heading; its part along it is a change of speed (added whole, a stopping user's
+  heading pointed backward and the base spun in place).
 - Gait-periodic feed-forward: the velocity one stride ago, `drive_tau_s` later in the stride,
   predicts the coming sway, fed forward as yaw rate (`oscillation_ff_lateral`; the forward surge is
   left out, it would take the drive's acceleration limit for millimetres of e_x).
+- Standing: below `walking_min_speed_mps` (the gain schedule's lowest speed) the heading is held
+  at its last walking value, with no heading rate and no gait feed-forward: the direction of a
+  nearly standing user's averaged velocity is sway and noise.
 - Feedback: the speed and heading rate are fed forward; LQR on ``[int e_x, e_x, v_base - v_user]``
   (base = first-order lag of `drive_tau_s`) and ``[int e_y, e_y, psi_rel, w_base]``, the lateral
   gains scheduled on the estimated speed (Riccati solutions on a speed grid, once per reset).
@@ -73,11 +78,13 @@ def _wrap(a: float) -> float:
     return (a + math.pi) % (2 * math.pi) - math.pi
 
 
+# walking_min_speed_mps: below it the user is taken as standing (the lowest speed of the gain schedule)
 OBSERVER_DEFAULTS = {"stride_init_s": 1.1, "stride_min_s": 0.6, "stride_max_s": 1.6, "stride_buffer_s": 4.0,
                      "stride_update_s": 1.0, "lag_compensation": 0.0, "heading_lag_compensation": 0.0,
                      "oscillation_ff_lateral": 1.0, "comb_compensation": 1.0,
                      "oscillation_ff_forward": 0.0,
-                     "osc_half_window_s": 0.15, "startup_window_s": 0.5}
+                     "osc_half_window_s": 0.15, "startup_window_s": 0.5,
+                     "walking_min_speed_mps": float(SPEED_GRID_MPS[0])}
 
 
 class Adaptive(Controller):
@@ -110,6 +117,7 @@ class Adaptive(Controller):
         self.osc_h = max(int(round(self.obs["osc_half_window_s"] / rb.dt_s)), 1)
         self.osc_lead = int(round(rb.drive_tau_s / rb.dt_s))
         self.osc = (0.0, 0.0)
+        self.held_heading: float | None = None
 
     def estimate_stride(self) -> float | None:
         """Stride period (s) from the autocorrelation of the buffered user velocity, or None."""
@@ -120,7 +128,7 @@ class Adaptive(Controller):
         v = np.diff(p, axis=0) / dt
         mean = v.mean(axis=0)
         speed = float(np.hypot(*mean))
-        if speed < 0.3:
+        if speed < o["walking_min_speed_mps"]:
             return None
         u = mean / speed
         t = np.arange(len(v)) - (len(v) - 1) / 2
@@ -209,8 +217,11 @@ class Adaptive(Controller):
             wx, wy = (self.xs[ja2] - self.xs[j3]) / d0, (self.ys[ja2] - self.ys[j3]) / d0
             cx = (px - self.xs[j2]) / d1 - wx
             cy = (py - self.ys[j2]) / d1 - wy
-            m_heading = math.atan2(vy + 0.5 * comb * cy, vx + 0.5 * comb * cx)
-            return speed, m_heading, _wrap(m_heading - heading) / (0.5 * n * self.robot.dt_s)
+            # only its part across the average velocity turns the heading: the part along it is a
+            # change of speed (a stopping user's would point the heading backward)
+            across = (vx * cy - vy * cx) / speed
+            turn = math.atan2(0.5 * comb * across, speed)
+            return speed, _wrap(heading + turn), turn / (0.5 * n * self.robot.dt_s)
         jb, jc = (i - half) % size, (i - half - n) % size
         tb = self.ts[jb]
         dt0 = tb - self.ts[jc]
@@ -227,6 +238,13 @@ class Adaptive(Controller):
         speed, heading, heading_rate = self.observe(s)
         self.speed_mps = speed
         yaw = s.base_pose[2]
+        if speed < self.obs["walking_min_speed_mps"]:
+            # standing or nearly: the averaged velocity's direction is sway and noise, and the gait
+            # prediction describes a stride no longer walked; hold the last walking heading
+            heading = float(yaw) if self.held_heading is None else self.held_heading
+            heading_rate, self.osc = 0.0, (0.0, 0.0)
+        else:
+            self.held_heading = heading
         psi_rel = _wrap(yaw - heading)
         ox, oy = self.osc
         c, sn = math.cos(yaw), math.sin(yaw)
