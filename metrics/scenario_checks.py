@@ -74,6 +74,19 @@ def start_time_s(time_s: np.ndarray, speed: np.ndarray, command_time_s: np.ndarr
     return None if t is None else t - t0
 
 
+def motion_onset_s(time_s: np.ndarray, speed: np.ndarray, command_time_s: np.ndarray,
+                   command_phase: np.ndarray, standing_mps: float = 0.1) -> float | None:
+    """Seconds from the start command until the pelvis leaves standing (speed at or above
+    `standing_mps`, the threshold `ingest.phases` starts a recording's start phase at; None: never).
+    A recording has no command: its start is measured from this onset, so `start_time_s` minus
+    this is the part of a simulated start comparable with a recorded one."""
+    t0 = phase_start(command_time_s, command_phase, "start")
+    if t0 is None:
+        return None
+    t = first_time(time_s, speed >= standing_mps, t0)
+    return None if t is None else t - t0
+
+
 def stop_time_s(time_s: np.ndarray, speed: np.ndarray, command_time_s: np.ndarray,
                 command_phase: np.ndarray, standing_mps: float = 0.1) -> float | None:
     """Seconds from the stop command to a pelvis speed below `standing_mps` (None: never)."""

@@ -30,6 +30,7 @@ from metrics.plots import policy_spm_figure
 from metrics.policy_checks import curves, enough, gait_check, spm_check
 from metrics.scenario_checks import (
     ScenarioChecks,
+    motion_onset_s,
     path_turn_deg,
     speed_changes,
     standing_at_end,
@@ -192,7 +193,7 @@ def scenario_report(outcomes: list[RolloutOutcome], profiles: dict[str, CommandP
                      # rollout in every seed (the seed sets only the start phase, which standing resets)
                      "distinct_walks": len({o.pelvis_xy.round(6).tobytes() for o in runs})}
         checks[f"{name}_{cond}_no_fall"] = enough(len(runs) - falls, len(runs), sc.no_fall_fraction)
-        starts, stops, steady, ends, changes, turns = [], [], [], [], [], []
+        starts, onsets, stops, steady, ends, changes, turns = [], [], [], [], [], [], []
         for o in runs:
             if o.human_fall_s is not None:
                 continue
@@ -202,6 +203,7 @@ def scenario_report(outcomes: list[RolloutOutcome], profiles: dict[str, CommandP
             steady.append(float(np.median(v[cmd])) if cmd.any() else np.nan)
             starts.append(start_time_s(t, v, prof.time_s, prof.speed_mps, prof.phase,
                                        steady_mps=steady[-1] if cmd.any() else None))
+            onsets.append(motion_onset_s(t, v, prof.time_s, prof.phase, sc.standing_mps))
             stops.append(stop_time_s(t, v, prof.time_s, prof.phase, sc.standing_mps))
             ends.append(standing_at_end(t, v, sc.end_standing_s, sc.standing_mps))
             changes.append(speed_changes(t, v, prof.time_s, prof.speed_mps, prof.phase,
@@ -210,6 +212,11 @@ def scenario_report(outcomes: list[RolloutOutcome], profiles: dict[str, CommandP
         row["steady_speed_mps"] = [round(x, 3) for x in steady]
         if name == "walk_10m" or "start" in prof.phase:
             row["start_s"] = [None if x is None else round(x, 2) for x in starts]
+            # reported, not checked: the command-to-onset delay and the start from the onset on, as a
+            # recording's start is measured (the check times from the command, as issue 11 asks)
+            row["onset_s"] = [None if x is None else round(x, 2) for x in onsets]
+            row["start_from_onset_s"] = [None if a is None or b is None else round(a - b, 2)
+                                         for a, b in zip(starts, onsets, strict=True)]
             row["stop_s"] = [None if x is None else round(x, 2) for x in stops]
             row["standing_at_end"] = ends
         if name == "speed_change":

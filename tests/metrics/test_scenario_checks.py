@@ -10,6 +10,7 @@ import pytest
 from metrics.phases import mean_ci95, phase_table
 from metrics.sampling import paper_strides, repeated_walks, restrict_cycles
 from metrics.scenario_checks import (
+    motion_onset_s,
     path_turn_deg,
     speed_changes,
     standing_at_end,
@@ -47,6 +48,10 @@ def test_start_stop_and_standing_times_on_a_known_path():
     assert start_time_s(t, slow, t, v, ph) is None
     assert start_time_s(t, slow, t, v, ph, steady_mps=float(np.median(slow[400:700]))) == pytest.approx(
         1.4, abs=0.03)
+    # leaving standing (0.1 m/s): 0.1 / 1.5 of the ramp up, plus the delay; the start from there on
+    onset = motion_onset_s(t, speed, t, ph)
+    assert onset == pytest.approx(0.5 + 0.1 / 1.5, abs=0.03)
+    assert start_time_s(t, speed, t, v, ph) - onset == pytest.approx(0.9 - 0.1 / 1.5, abs=0.03)
     # below 0.1 m/s: 1 - 0.1 / 1.5 of the ramp down, plus the delay
     assert stop_time_s(t, speed, t, ph) == pytest.approx(0.5 + 1 - 0.1 / 1.5, abs=0.03)
     assert standing_at_end(t, speed) and not standing_at_end(t[:600], speed[:600])
