@@ -474,9 +474,11 @@ def policy_check_lines(doc: dict | None) -> list[str]:
         lines += [f"Scenario walks (the subject's own start: {sc.get('own_start_s')} s; accepted start "
                   f"window {sc.get('start_window_s')} s):", ""]
         rows = [[key, str(v["walks"]), str(v["human_falls"]), str(v.get("start_s", "–")),
-                 str(v.get("stop_s", "–")), str(v.get("steady_speed_mps", "–"))]
+                 str(v.get("start_from_onset_s", "–")), str(v.get("stop_s", "–")),
+                 str(v.get("steady_speed_mps", "–"))]
                 for key, v in sc.items() if isinstance(v, dict) and "walks" in v]
-        lines += [md_table(["scenario condition", "walks", "human falls", "start (s)", "stop (s)",
+        lines += [md_table(["scenario condition", "walks", "human falls", "start (s)",
+                            "start from onset (s, as recorded starts are timed)", "stop (s)",
                             "steady speed (m/s)"], rows)]
     return lines
 

@@ -2,9 +2,9 @@
 than the tuned one and the human's walking changes beyond seed noise, or the human falls (issue 11;
 the sluggish gains are the ones that drove the harness to 690 N RMS in the sanity check quoted
 there). The comparison needs the human to walk with the tuned PID, in `steady` (already walking) and
-in the paper's protocol `walk_10m`. Only the walk itself counts (`metrics.outcomes.walk_window`): in
-walk_10m's final quiet standing camargo's policy human topples whatever the controller and the arm
-locks on it (README, "Scenarios and the steerable human"), which says nothing about the gains."""
+in the paper's protocol `walk_10m`. Only the walk itself counts (`metrics.outcomes.walk_window`):
+the quiet standing before and after it says nothing about the following gains (the adaptive
+controller's behaviour there has its own test below)."""
 
 from __future__ import annotations
 
