@@ -15,21 +15,19 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from sim.learn.steering import wrap_angle
+
 
 @dataclass(frozen=True)
 class TwistParams:
-    """`train.env.harness_twist_*` with the harness's yaw spring from `robot.harness`."""
+    """`train.env.harness_twist` (probability, lag_s) with the harness's yaw spring from
+    `robot.harness` (`Params.train_params` fills those in)."""
 
     probability: float = 0.0                  # share of training episodes with the twist (0: off)
     lag_s: tuple[float, float] = (0.2, 1.0)   # the virtual base heading's time constant, drawn per episode
     stiffness_nm_per_rad: float = 40.0
     damping_nms_per_rad: float = 3.0
     range_rad: float = 0.7
-
-
-def wrap_angle(a: float) -> float:
-    """`a` wrapped to [-pi, pi)."""
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 
 @dataclass

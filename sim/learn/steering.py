@@ -118,9 +118,14 @@ def command_at(speed_mps: np.ndarray, heading_rad: np.ndarray, k: int, ahead: in
     return float(speed_mps[k]), float(heading_rad[k]), float(rate)
 
 
+def wrap_angle(a: float) -> float:
+    """`a` (rad) wrapped to [-pi, pi)."""
+    return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+
 def lead_heading(heading_rad: float, facing_rad: float, lead_rad: float) -> float:
     """The commanded heading moved to within `lead_rad` of the pelvis heading `facing_rad`."""
-    error = (heading_rad - facing_rad + math.pi) % (2.0 * math.pi) - math.pi  # wrapped to [-pi, pi)
+    error = wrap_angle(heading_rad - facing_rad)
     return facing_rad + min(max(error, -lead_rad), lead_rad)
 
 
@@ -242,4 +247,5 @@ class SteeredReference:
 
 
 __all__ = ["CommandSampling", "SteeredReference", "command_at", "lead_heading",
-           "level_speed_ratio", "sample_commands", "speed_law", "standing_pose", "turn_lean_offset"]
+           "level_speed_ratio", "sample_commands", "speed_law", "standing_pose", "turn_lean_offset",
+           "wrap_angle"]

@@ -68,6 +68,11 @@ LEGACY_OBS_SIZE = 72  # the straight-walking policies before steering (no amplit
 AMP_SIZE = 61
 
 
+def _number(b: float | list | tuple | None) -> float | tuple[float, ...] | None:
+    """A params value as the env's dataclasses hold it: a pair as a tuple of floats, null as None."""
+    return tuple(float(x) for x in b) if isinstance(b, list | tuple) else None if b is None else float(b)
+
+
 @dataclass(frozen=True)
 class WalkEnvParams:
     """Numbers of the walking environment (params `train.env`); units in names."""
@@ -107,12 +112,10 @@ class WalkEnvParams:
         out: dict = {}
         for k, v in d.items():
             if k == "commands":
-                out[k] = CommandSampling(**{a: (tuple(float(x) for x in b) if isinstance(b, list | tuple)
-                                                 else None if b is None else float(b)) for a, b in v.items()})
+                out[k] = CommandSampling(**{a: _number(b) for a, b in v.items()})
             elif k == "harness_twist":
                 out[k] = v if isinstance(v, TwistParams) else TwistParams(
-                    **{a: (tuple(float(x) for x in b) if isinstance(b, list | tuple) else float(b))
-                       for a, b in v.items()})
+                    **{a: _number(b) for a, b in v.items()})
             elif k == "profile":
                 out[k] = v if isinstance(v, ProfileParams) else ProfileParams(**v)
             elif isinstance(v, dict):
@@ -408,7 +411,8 @@ class WalkEnv(gym.Env):
 
     def step(self, action):
         d = self.data
-        self.gait.advance(self.step_phase, *self._command(self.steps + 1), pelvis_yaw(d, self.idx))
+        facing = pelvis_yaw(d, self.idx)
+        self.gait.advance(self.step_phase, *self._command(self.steps + 1), facing)
         if self.p.variant.action_noise:
             noise = self.np_random.normal(0.0, self.p.variant.action_noise, self.model.nu)
             action = np.asarray(action) + noise
@@ -416,7 +420,7 @@ class WalkEnv(gym.Env):
         if self.pushes:
             self._push()
         if self.twist is not None:
-            d.xfrc_applied[self.idx.pelvis, 5] = self.twist.torque(pelvis_yaw(d, self.idx), self.dt)
+            d.xfrc_applied[self.idx.pelvis, 5] = self.twist.torque(facing, self.dt)
         self._amp_prev[:] = self._amp_cur
         mujoco.mj_step(self.model, d, nstep=self.n_sub)
         self.steps += 1
