@@ -805,6 +805,7 @@ class VariantSchema(Schema):
     speed_scale: Annotated[float, Field(gt=0.0)] = 1.0
     speed_mps: Annotated[float, Field(gt=0.0)] | None = None
     action_noise: Annotated[float, Field(ge=0.0)] = 0.0
+    train_action_noise: Annotated[float, Field(ge=0.0)] | None = None  # fine-tuning's (else action_noise)
     swing_time_ratio: Annotated[dict[Literal["left", "right"], Annotated[float, Field(ge=1.0, le=2.0)]],
                                 Field(max_length=1)] = {}  # one side: its swing / the other's
     fine_tune_steps: Annotated[int, Field(ge=1)] | None = None  # this variant's budget (cohort's unless set)

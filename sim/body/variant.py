@@ -33,6 +33,12 @@ class Variant:
     speed_mps: float | None = None
     action_noise: float = 0.0
     swing_time_ratio: tuple[str, float] | None = None  # (side, this side's swing / the other's)
+    train_action_noise: float | None = None  # fine-tuning's motor noise (`action_noise` unless set)
+
+    @property
+    def training_noise(self) -> float:
+        """The motor noise the variant's policy is fine-tuned under."""
+        return self.action_noise if self.train_action_noise is None else self.train_action_noise
 
     def torque_factor(self, motor: str) -> float:
         """The product of every factor whose key matches `motor` (1 when none does)."""
@@ -61,4 +67,5 @@ def variant_from_dict(name: str, d: dict) -> Variant:
     swing = d.get("swing_time_ratio") or {}  # one side at most (the params schema checks)
     return Variant(name, scale, float(d.get("speed_scale", 1.0)), None if speed is None else float(speed),
                    float(d.get("action_noise", 0.0)),
-                   next(((str(k), float(v)) for k, v in swing.items()), None))
+                   next(((str(k), float(v)) for k, v in swing.items()), None),
+                   None if d.get("train_action_noise") is None else float(d["train_action_noise"]))

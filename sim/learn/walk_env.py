@@ -413,8 +413,8 @@ class WalkEnv(gym.Env):
         d = self.data
         facing = pelvis_yaw(d, self.idx)
         self.gait.advance(self.step_phase, *self._command(self.steps + 1), facing)
-        if self.p.variant.action_noise:
-            noise = self.np_random.normal(0.0, self.p.variant.action_noise, self.model.nu)
+        if self.p.variant.training_noise:
+            noise = self.np_random.normal(0.0, self.p.variant.training_noise, self.model.nu)
             action = np.asarray(action) + noise
         d.ctrl[:] = self.gait.targets(action, self.p, self.ctrl_lo, self.ctrl_hi)
         if self.pushes:

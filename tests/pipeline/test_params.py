@@ -224,6 +224,10 @@ def test_a_variant_may_have_its_own_budget_and_one_longer_swing(tmp_path, params
     assert loaded.variant("weak").torque_factor("hip_l") == pytest.approx(0.6)
     side, ratio = params.variant("hemiparetic_left").swing_time_ratio
     assert side == "left" and ratio > 1.0
+    variants["slow"] = {"action_noise": 0.08, "train_action_noise": 0.15}
+    noisy = load_params(write(tmp_path, document))
+    assert noisy.variant("slow").action_noise == 0.08
+    assert noisy.train_params("slow").env.variant.training_noise == 0.15
     variants["slow"] = {"swing_time_ratio": {"left": 0.8}}
     with pytest.raises(ParamsError, match=r"cohort\.variants\.slow\.swing_time_ratio\.left"):
         load_params(write(tmp_path, document))

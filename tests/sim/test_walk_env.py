@@ -338,3 +338,25 @@ def test_a_hemiparetic_variant_trains_on_and_keeps_its_asymmetric_cycle(tmp_path
     assert right / left > 1.2
     train(xml, cycle, p, tmp_path, n_envs=2, threads=1, total_steps=512, resume=True, progress=False)
     np.testing.assert_array_equal(load_body(tmp_path)[1].qpos, saved.qpos)
+
+
+def test_a_variant_is_fine_tuned_under_its_training_noise_and_walks_with_its_own(setup, camargo_model):
+    """`train_action_noise` is the noise of the training env; `action_noise` is what its rollouts
+    walk with (`PolicyHuman.action_noise`), and the training env uses it only when no training
+    noise is set."""
+    from sim.body.variant import Variant
+
+    _, tp, _, cycle = setup
+
+    def ctrl_after_a_step(variant: Variant) -> np.ndarray:
+        env = make_walk_env(camargo_model / "human.xml", cycle, replace(tp.env, variant=variant), seed=0)
+        env.reset(seed=3)
+        env.step(np.zeros(env.action_space.shape))
+        return env.data.ctrl.copy()
+
+    quiet = ctrl_after_a_step(Variant())
+    np.testing.assert_array_equal(ctrl_after_a_step(Variant(action_noise=0.3, train_action_noise=0.0)), quiet)
+    assert np.abs(ctrl_after_a_step(Variant(train_action_noise=0.3)) - quiet).max() > 1e-3
+    assert np.abs(ctrl_after_a_step(Variant(action_noise=0.3)) - quiet).max() > 1e-3
+    assert Variant(action_noise=0.08, train_action_noise=0.15).training_noise == 0.15
+    assert Variant(action_noise=0.08).training_noise == 0.08
