@@ -660,6 +660,19 @@ def _missing_variants(*tables: pd.DataFrame) -> str:
     return text + (f": here {', '.join(missing)}." if missing else "; none is missing here.")
 
 
+def _not_walking(gait: pd.DataFrame) -> str:
+    """The sentence naming the variants and scenarios where no walk fell and none kept a stride: the
+    policy stood or shuffled instead of walking, so their rows here and with the robot describe that,
+    not a gait (empty when every variant walked or fell)."""
+    idle = gait[(gait["strides"].fillna(0) == 0) & (gait["falls"].fillna(0) < gait["walks"])]
+    if idle.empty:
+        return ""
+    names = ", ".join(f"{r.variant} in {r.scenario}" for r in _in_order(idle, "variant", "scenario")
+                      .itertuples(index=False))
+    return (f"**Did not walk:** {names}: walks without a fall and without a single kept stride. That "
+            f"policy does not walk (it stands or shuffles); its rows describe no gait.")
+
+
 def clinical_rows(ranges: dict[str, ClinicalRange]) -> tuple[list[str], list[list[str]]]:
     """The published reference values, one row each: measure, value, what it means, source."""
     header = ["Measure", "Published value", "Meaning", "Source"]
@@ -697,6 +710,8 @@ def cohort_lines(gait: pd.DataFrame, controllers: pd.DataFrame, ranges: dict[str
              _num(r.strides, 0)]
             for r in _in_order(gait, "variant", "scenario").itertuples(index=False)]
     lines += [md_table(header, rows)]
+    if idle := _not_walking(gait):
+        lines += [idle, ""]
     if ranges:
         lines += ["Published clinical reference values to compare with (data/paper/clinical_ranges.yaml). "
                   "They describe real people; the variants are simulated bodies, so this places them, it "

@@ -177,6 +177,20 @@ def test_cohort_section_prints_the_gait_beside_the_clinical_ranges():
     assert "![cohort]" not in "\n".join(cohort_lines(gait_frame(), controllers_frame(), ranges, figure=False))
 
 
+def test_cohort_section_names_the_variants_that_did_not_walk():
+    """A variant-scenario whose walks neither fell nor kept a stride is named as not walking; one whose
+    walks all fell is not (its falls say what happened), and a cohort that walked gets no such line."""
+    assert "Did not walk" not in "\n".join(cohort_lines(gait_frame(), controllers_frame(), {}, False))
+    idle = pd.DataFrame([
+        ["s1", "hemiparetic_right", "walk_10m", 2, 1, 0, NAN, NAN, NAN, NAN, NAN, NAN, 0],
+        ["s1", "unsteady", "walk_10m", 2, 2, 2, NAN, NAN, NAN, NAN, NAN, NAN, 0],
+        ["s1", "hemiparetic_right", "steady", 2, 1, 0, NAN, NAN, NAN, NAN, NAN, NAN, 0],
+    ], columns=GAIT)
+    text = "\n".join(cohort_lines(pd.concat([gait_frame(), idle]), controllers_frame(), {}, False))
+    assert "**Did not walk:** hemiparetic_right in steady, hemiparetic_right in walk_10m: walks" in text
+    assert "unsteady in walk_10m" not in text
+
+
 def test_cohort_section_without_rows_says_how_to_get_them():
     lines = cohort_lines(gait_frame().iloc[0:0], controllers_frame().iloc[0:0], load_clinical_ranges(), False)
     assert lines == ["## Virtual cohort", "", NO_COHORT, ""]
