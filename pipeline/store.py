@@ -114,6 +114,10 @@ QUALITY_DDL = ('run_id BIGINT NOT NULL, subject VARCHAR NOT NULL, stage VARCHAR,
 # a sweep walk's summary: two walks with the same one are the same walk (a deterministic walk from
 # standing repeats itself in every seed); the fall time tells apart walks that fell before a stride
 WALK_SUMMARY = "(gait_speed_mps, stride_length_m, stride_time_cv_pct, n_strides, fell, human_fall_s, walk_s)"
+# how a variant's free walks went (cohort views): `did_not_walk` when none fell and none kept a stride
+# (the policy stood or shuffled: its rows describe no gait), `fell` when any fell, else `walked`
+WALK_STATUS = ("CASE WHEN sum(n_strides) = 0 AND sum(fell::INT) < count(*) THEN 'did_not_walk' "
+               "WHEN sum(fell::INT) > 0 THEN 'fell' ELSE 'walked' END")
 LINKED = ("spm_curves", "spm_clusters")  # rows that belong to an SPM test's group via test_id
 # The scripted balance-loss rollouts (ev) and, per variant, scenario, event and seed, whether the
 # unsupported person fell walking free after the onset (unsupported.falls_free): the confirmation
@@ -323,19 +327,21 @@ def _views() -> list[str]:
         f"avg(gait_speed_mps) AS gait_speed_mps, CASE WHEN count(DISTINCT {WALK_SUMMARY}) > 1 "
         "THEN stddev_samp(gait_speed_mps) END AS gait_speed_sd, avg(stride_length_m) AS stride_length_m, "
         "avg(stance_ratio_lr) AS stance_ratio_lr, avg(swing_ratio_lr) AS swing_ratio_lr, "
-        "avg(stride_time_cv_pct) AS stride_time_cv_pct, sum(n_strides) AS strides "
+        f"avg(stride_time_cv_pct) AS stride_time_cv_pct, sum(n_strides) AS strides, {WALK_STATUS} AS status "
         "FROM sweep_rollouts WHERE coalesce(event, 'none') = 'none' AND condition = 'free' "
         "GROUP BY ALL ORDER BY subject, scenario, variant",
         # cohort x controller: following, harness force, and the gait change versus the same variant free
         "CREATE OR REPLACE VIEW cohort_controllers AS WITH normal AS (SELECT * FROM sweep_rollouts "
         "WHERE coalesce(event, 'none') = 'none'), free AS (SELECT subject, variant, scenario, "
         "avg(gait_speed_mps) AS free_speed, avg(stride_length_m) AS free_stride, "
-        "avg(stride_time_cv_pct) AS free_cv FROM normal WHERE condition = 'free' GROUP BY ALL) "
+        f"avg(stride_time_cv_pct) AS free_cv, {WALK_STATUS} AS free_status FROM normal "
+        "WHERE condition = 'free' GROUP BY ALL) "
         "SELECT n.subject, n.variant, n.condition, n.scenario, count(*) AS walks, sum(n.fell::INT) AS falls, "
         "avg(n.mean_abs_ex_cm) AS mean_abs_ex_cm, avg(n.mean_abs_ey_cm) AS mean_abs_ey_cm, "
         "avg(n.force_rms_n) AS force_rms_n, 100 * (avg(n.gait_speed_mps) / any_value(f.free_speed) - 1) "
         "AS speed_change_pct, 100 * (avg(n.stride_length_m) / any_value(f.free_stride) - 1) "
-        "AS stride_change_pct, avg(n.stride_time_cv_pct) - any_value(f.free_cv) AS cv_change_pct "
+        "AS stride_change_pct, avg(n.stride_time_cv_pct) - any_value(f.free_cv) AS cv_change_pct, "
+        "any_value(f.free_status) AS free_status "
         "FROM normal n LEFT JOIN free f USING (subject, variant, scenario) WHERE n.condition <> 'free' "
         "GROUP BY ALL ORDER BY n.subject, n.scenario, n.variant, n.condition",
         "CREATE OR REPLACE VIEW subject_summary AS SELECT v.subject, "

@@ -661,10 +661,10 @@ def _missing_variants(*tables: pd.DataFrame) -> str:
 
 
 def _not_walking(gait: pd.DataFrame) -> str:
-    """The sentence naming the variants and scenarios where no walk fell and none kept a stride: the
-    policy stood or shuffled instead of walking, so their rows here and with the robot describe that,
-    not a gait (empty when every variant walked or fell)."""
-    idle = gait[(gait["strides"].fillna(0) == 0) & (gait["falls"].fillna(0) < gait["walks"])]
+    """The sentence naming the variants and scenarios `cohort_gait` marks `did_not_walk` (no walk fell
+    and none kept a stride: the policy stood or shuffled, so their rows here and with the robot
+    describe that, not a gait); empty when every variant walked or fell."""
+    idle = gait[gait["status"] == "did_not_walk"]
     if idle.empty:
         return ""
     names = ", ".join(f"{r.variant} in {r.scenario}" for r in _in_order(idle, "variant", "scenario")

@@ -287,6 +287,11 @@ def test_cohort_and_fall_sections_match_the_views(store, reports):
     fallen, repeated = walk_10m.loc["weak"], walk_10m.loc["healthy"]
     assert fallen["walks"] == 2 and fallen["distinct_walks"] == 2 and fallen["falls"] == 2
     assert repeated["walks"] == 2 and repeated["distinct_walks"] == 1 and pd.isna(repeated["gait_speed_sd"])
+    assert (fallen["status"], repeated["status"]) == ("fell", "walked")
+    # each controller row carries how the same variant walked free (cohort_gait's status)
+    free = query(db, "select distinct c.free_status, g.status from cohort_controllers c "
+                     "join cohort_gait g using (subject, variant, scenario)")
+    assert len(free) and (free["free_status"] == free["status"]).all()
     assert f"| healthy | walk_10m | 2 (1 distinct) | 0/2 | {repeated['gait_speed_mps']:.3f} | " in md
     for r in gait.itertuples():
         assert (f"| {r.variant} | steady | 2 | 0/2 | {r.gait_speed_mps:.3f} ± {r.gait_speed_sd:.3f} | "

@@ -28,7 +28,7 @@ CAUGHT_DROP_M = 0.22
 WINDOW_S = 1.5
 GAIT = ["subject", "variant", "scenario", "walks", "distinct_walks", "falls", "gait_speed_mps",
         "gait_speed_sd", "stride_length_m", "stance_ratio_lr", "swing_ratio_lr", "stride_time_cv_pct",
-        "strides"]
+        "strides", "status"]
 CONTROLLERS = ["subject", "variant", "condition", "scenario", "walks", "falls", "mean_abs_ex_cm",
                "mean_abs_ey_cm", "force_rms_n", "speed_change_pct", "stride_change_pct", "cv_change_pct"]
 FALL = ["subject", "variant", "event", "condition", "rollouts", "fell_before_onset", "events",
@@ -45,9 +45,9 @@ def gait_frame() -> pd.DataFrame:
     """healthy and a left hemiparetic variant walking free; the hemiparetic one has no stance ratio
     (no toe-off found on one side) and fell once in walk_10m, where its 4 walks are 2 distinct ones."""
     return pd.DataFrame([
-        ["s1", "hemiparetic_left", "steady", 4, 4, 0, 0.71, 0.02, 0.82, 1.12, 0.78, 4.1, 60],
-        ["s1", "healthy", "steady", 4, 4, 0, 1.31, 0.01, 1.36, 1.01, 0.99, 1.4, 80],
-        ["s1", "hemiparetic_left", "walk_10m", 4, 2, 1, 0.69, NAN, 0.80, NAN, 0.80, 4.5, 30],
+        ["s1", "hemiparetic_left", "steady", 4, 4, 0, 0.71, 0.02, 0.82, 1.12, 0.78, 4.1, 60, "walked"],
+        ["s1", "healthy", "steady", 4, 4, 0, 1.31, 0.01, 1.36, 1.01, 0.99, 1.4, 80, "walked"],
+        ["s1", "hemiparetic_left", "walk_10m", 4, 2, 1, 0.69, NAN, 0.80, NAN, 0.80, 4.5, 30, "fell"],
     ], columns=GAIT)
 
 
@@ -178,13 +178,13 @@ def test_cohort_section_prints_the_gait_beside_the_clinical_ranges():
 
 
 def test_cohort_section_names_the_variants_that_did_not_walk():
-    """A variant-scenario whose walks neither fell nor kept a stride is named as not walking; one whose
-    walks all fell is not (its falls say what happened), and a cohort that walked gets no such line."""
+    """A variant-scenario `cohort_gait` marks `did_not_walk` is named as not walking; one whose walks
+    fell is not (its falls say what happened), and a cohort that walked gets no such line."""
     assert "Did not walk" not in "\n".join(cohort_lines(gait_frame(), controllers_frame(), {}, False))
     idle = pd.DataFrame([
-        ["s1", "hemiparetic_right", "walk_10m", 2, 1, 0, NAN, NAN, NAN, NAN, NAN, NAN, 0],
-        ["s1", "unsteady", "walk_10m", 2, 2, 2, NAN, NAN, NAN, NAN, NAN, NAN, 0],
-        ["s1", "hemiparetic_right", "steady", 2, 1, 0, NAN, NAN, NAN, NAN, NAN, NAN, 0],
+        ["s1", "hemiparetic_right", "walk_10m", 2, 1, 0, NAN, NAN, NAN, NAN, NAN, NAN, 0, "did_not_walk"],
+        ["s1", "unsteady", "walk_10m", 2, 2, 2, NAN, NAN, NAN, NAN, NAN, NAN, 0, "fell"],
+        ["s1", "hemiparetic_right", "steady", 2, 1, 0, NAN, NAN, NAN, NAN, NAN, NAN, 0, "did_not_walk"],
     ], columns=GAIT)
     text = "\n".join(cohort_lines(pd.concat([gait_frame(), idle]), controllers_frame(), {}, False))
     assert "**Did not walk:** hemiparetic_right in steady, hemiparetic_right in walk_10m: walks" in text
