@@ -272,14 +272,16 @@ def static_ik_angles(path: Path, subject: Subject) -> dict[str, float]:
 
 
 def read_static_trial(subject: Subject, manifest: Manifest, roles_dir: Path = SCALING_ROLES_DIR,
-                      check: StaticCheckParams = StaticCheckParams()) -> StaticTrial:
+                      check: StaticCheckParams = StaticCheckParams(),
+                      widths_per_height: tuple[float, float] | None = None) -> StaticTrial:
     """Read `subject`'s static trial (field `static` of the subject file), checked to be quiet
-    standing; `static: auto` first finds the window in the subject's trials."""
+    standing; `static: auto` first finds the window in the subject's trials; `static: none`
+    synthesises one from its walks (`walking_static`, which needs `widths_per_height`)."""
     if subject.static is None:
         raise SubjectError(subject.path, "no static trial (field 'static') to scale the model from")
     if subject.static.markers == STATIC_NONE:
         paths = [manifest.resolve(t.markers) for t in subject.trials if t.markers]
-        return walking_static(subject, paths, scaling_roles(subject, roles_dir), check)
+        return walking_static(subject, paths, scaling_roles(subject, roles_dir), check, widths_per_height)
     if subject.static.markers == STATIC_AUTO:
         subject = _with_auto_static(subject, manifest, check)
     path = manifest.resolve(subject.static.markers)
@@ -373,8 +375,26 @@ def _local(origin: np.ndarray, frame: np.ndarray, p: np.ndarray) -> np.ndarray:
     return np.einsum("nji,nj->ni", frame, p - origin)
 
 
+def _roll(angle: float) -> np.ndarray:
+    """Rotation about x (forward) by `angle` (rad): a segment leaning in the frontal plane."""
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def _half_width(local: dict[str, tuple[str, np.ndarray]], roles: dict[str, str], joint: str, side: str,
+                width_m: float) -> float:
+    """How far the joint centre lies medial of its lateral marker, as scaling will place it
+    (`sim.body.scaling.scale_subject`): half the lateral-medial marker distance when both ride on the
+    same segment, else half of `width_m` (the body-height ratio's width)."""
+    lat, med = (local.get(roles.get(r, "")) for r in (f"{joint}_{side}", f"{joint}_medial_{side}"))
+    if lat is not None and med is not None and lat[0] == med[0]:
+        return float(np.linalg.norm(lat[1] - med[1]) / 2)
+    return width_m / 2
+
+
 def walking_static(subject: Subject, paths: list[Path], roles: dict[str, str],
-                   p: StaticCheckParams = StaticCheckParams()) -> StaticTrial:
+                   p: StaticCheckParams = StaticCheckParams(),
+                   widths_per_height: tuple[float, float] | None = None) -> StaticTrial:
     """`static: none`: a standing pose synthesised from the walking trials `paths` (Werling et al.
     2023, AddBiomechanics, scale from motion without a static trial).
 
@@ -384,12 +404,20 @@ def walking_static(subject: Subject, paths: list[Path], roles: dict[str, str],
     ankle on the shank, heel and toe on the foot), any other marker on the segment where that
     median is the most rigid (median distance from it), kept when at most `max_marker_spread_m`
     (swinging arms are dropped: stature ratios replace them in scaling). The pose: pelvis with no
-    list or rotation at its median walking tilt; thigh and shank vertical under the hip centre
-    (the hip-knee and knee-ankle marker distances, medians, are kept: segment lengths); each foot
+    list or rotation at its median walking tilt; the leg's mechanical axis vertical: knee and ankle
+    centres under the hip centre, each lateral marker half its joint's width outside it
+    (`_half_width`; `widths_per_height`: knee and ankle width / body height, params `human`, as
+    scaling uses them), thigh and shank leaning in the frontal plane to put them there (the
+    hip-knee and knee-ankle marker distances, medians, are kept: segment lengths; with the lateral
+    markers themselves under the hip the knee centre stood half a knee width medial of it, 11 deg
+    of valgus on the four subjects scaled this way, which the `knee_alignment_deg` gate failed); each foot
     at its median toe-out relative to the pelvis' heading, pitched so that heel and toe markers
     stand at their foot-flat heights (10th percentile over the frames), the heels on them. No
     angles: the joint zeros are not calibrated (module docstring)."""
     origin = "walking trials " + ", ".join(Path(x).name for x in paths)
+    if widths_per_height is None:
+        raise SubjectError(subject.path or subject.id, "static none: the knee and ankle widths per body "
+                           "height (params human) are needed to stand the legs on their joint centres")
     if not paths:
         raise SubjectError(subject.path or subject.id, "static none: the subject has no marker files to "
                            "scale from")
@@ -443,9 +471,16 @@ def walking_static(subject: Subject, paths: list[Path], roles: dict[str, str],
                                                           "psis_right")))
     heel_h = {}
     for side in SIDES:
-        pose[f"thigh_{side}"] = (hjc[side][0], np.eye(3))
+        sign = 1.0 if side == "left" else -1.0  # +y is left: lateral
+        half_knee, half_ankle = (_half_width(local, roles, joint, side, ratio * subject.height_m)
+                                 for joint, ratio in zip(("knee", "ankle"), widths_per_height, strict=True))
+        # each segment's frame-defining marker lies at (0, 0, -length) in its frame: a roll about x by
+        # asin(offset / length) moves it `offset` sideways
+        thigh_m, shank_m = (-local[roles[f"{j}_{side}"]][1][2] for j in ("knee", "ankle"))
+        pose[f"thigh_{side}"] = (hjc[side][0], _roll(np.arcsin(np.clip(sign * half_knee / thigh_m, -1, 1))))
         knee = place(f"thigh_{side}", roles[f"knee_{side}"])
-        pose[f"shank_{side}"] = (knee, np.eye(3))
+        lean = sign * (half_ankle - half_knee) / shank_m
+        pose[f"shank_{side}"] = (knee, _roll(np.arcsin(np.clip(lean, -1, 1))))
         ankle = place(f"shank_{side}", roles[f"ankle_{side}"])
         heel, toe = m[f"heel_{side}"], m[f"toe_{side}"]
         along = toe - heel

@@ -127,7 +127,8 @@ def knee_alignment_check(subject: str, valgus_deg: Mapping[str, float] | None,
     sides = {s: float(v) for s, v in (valgus_deg or {}).items() if not _missing(v)}
     if not sides:
         return check(subject, "scale", "knee_alignment_deg", None, p.knee_alignment_deg,
-                     "no static_knee_valgus_deg in model.json")
+                     "not measured: no static_knee_valgus_deg in model.json (static: none stands the "
+                     "synthesised pose's legs straight)")
     side = max(sides, key=lambda s: abs(sides[s]))
     kind = "valgus" if sides[side] >= 0 else "varus"
     return check(subject, "scale", "knee_alignment_deg", abs(sides[side]), p.knee_alignment_deg,

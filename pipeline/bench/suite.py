@@ -88,7 +88,8 @@ def time_retarget(params: Params, repeat: int) -> dict:
     out = {}
     for sid, runs in (("camargo", min(repeat, 2)), ("opencap4", repeat)):
         subject = load_subject(sid)
-        model = build_human(scale_subject(subject, read_static_trial(subject, manifest), hp), hp).compile()
+        static = read_static_trial(subject, manifest, widths_per_height=hp.widths_per_height)
+        model = build_human(scale_subject(subject, static, hp), hp).compile()
         markers = [process_trial(load_trial(subject, s, manifest), subject.markerset, p).trial.markers
                    for s in subject.trials if s.condition == "free"]
         best = float("inf")
@@ -118,7 +119,8 @@ def time_human(params: Params, repeat: int, standing_s: float = 5.0) -> dict:
     out = {}
     for sid in ("camargo", "opencap4"):
         subject = load_subject(sid)
-        body = scale_subject(subject, read_static_trial(subject, manifest), hp)
+        static = read_static_trial(subject, manifest, widths_per_height=hp.widths_per_height)
+        body = scale_subject(subject, static, hp)
         build = float("inf")
         for _ in range(max(repeat, 1)):
             start = time.perf_counter()

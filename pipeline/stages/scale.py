@@ -16,7 +16,7 @@ import numpy as np
 
 from ingest.manifest import Manifest
 from ingest.static import read_static_trial
-from ingest.subject import load_subject
+from ingest.subject import STATIC_NONE, load_subject
 from pipeline.params import Params
 from pipeline.paths import PROCESSED_ROOT, REPORTS_ROOT, human_xml, model_dir, report_dir
 from pipeline.stages.outputs import json_text, replacing
@@ -35,8 +35,10 @@ def run_scale(subject_id: str, params: Params, root: Path = PROCESSED_ROOT,
     """Scale, build, check and render `subject_id`'s human; returns the model folder."""
     subject = load_subject(subject_id)
     p = params.human.build()
-    static = read_static_trial(subject, Manifest.load(), check=params.ingest.static.build())
+    static = read_static_trial(subject, Manifest.load(), check=params.ingest.static.build(),
+                               widths_per_height=p.widths_per_height)
     body = scale_subject(subject, static, p)
+    synthesised = subject.static is not None and subject.static.markers == STATIC_NONE
     spec = build_human(body, p)
     model = spec.compile()
     xml = spec.to_xml()
@@ -52,7 +54,9 @@ def run_scale(subject_id: str, params: Params, root: Path = PROCESSED_ROOT,
         "static_hinge_angles_deg": _rounded({k: np.degrees(v) for k, v in body.static_angles_rad.items()}, 2),
         "neutral": body.neutral,  # joint zeros (human.neutral after any fallback)
         "static_ik_deg": _rounded(body.static_ik_deg, 2),  # the static IK the zeros are calibrated to
-        "static_knee_valgus_deg": {s: round(knee_valgus_deg(body.joint_centres, s), 2) for s in ("l", "r")},
+        # not measured where the standing pose is synthesised from the walks: its legs stand straight
+        "static_knee_valgus_deg": None if synthesised else {
+            s: round(knee_valgus_deg(body.joint_centres, s), 2) for s in ("l", "r")},
         "markers": len(body.marker_bodies),
         "checks": checks,
     }

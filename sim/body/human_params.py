@@ -48,6 +48,12 @@ class HumanParams:
         "pelvis": 0.045, "torso": 0.06, "thigh": 0.033, "shank": 0.024, "foot": 0.012, "upper_arm": 0.021,
         "forearm": 0.017, "hand": 0.013})
 
+    @property
+    def widths_per_height(self) -> tuple[float, float]:
+        """(knee, ankle) width / body height: a joint centre lies half a width medial of its lateral
+        marker (scaling; `static: none` stands the legs on those centres)."""
+        return self.knee_width_per_height, self.ankle_width_per_height
+
     @classmethod
     def from_dict(cls, d: dict) -> HumanParams:
         """From the `human` section of params.yaml (missing keys keep their defaults)."""

@@ -26,7 +26,8 @@ def test_reference_stage_writes_npz_json_and_figure(tmp_path):
     """`python -m pipeline reference opencap4` on a scaled model written like the scale stage's."""
     hp = load_params().human.build()
     subject = load_subject("opencap4")
-    xml = build_human(scale_subject(subject, read_static_trial(subject, Manifest.load()), hp), hp).to_xml()
+    static = read_static_trial(subject, Manifest.load(), widths_per_height=hp.widths_per_height)
+    xml = build_human(scale_subject(subject, static, hp), hp).to_xml()
     (tmp_path / "opencap4" / "model").mkdir(parents=True)
     (tmp_path / "opencap4" / "model" / "human.xml").write_text(xml)
     argv = ["reference", "opencap4", "--root", str(tmp_path), "--reports", str(tmp_path / "reports")]

@@ -40,7 +40,8 @@ SUBJECTS = {"camargo": (74.8, 1.80), "opencap4": (62.6, 1.68)}
 def human(request, hp, manifest, tmp_path_factory):
     """(subject, body, model) with the model reloaded from its saved MJCF, as the stage writes it."""
     subject = load_subject(request.param)
-    body = scale_subject(subject, read_static_trial(subject, manifest), hp)
+    static = read_static_trial(subject, manifest, widths_per_height=hp.widths_per_height)
+    body = scale_subject(subject, static, hp)
     path = tmp_path_factory.mktemp(request.param) / "human.xml"
     path.write_text(build_human(body, hp).to_xml())
     return subject, body, load_human_model(path)

@@ -232,7 +232,8 @@ def real_fit(request, params):
     section = params.retarget.build()
     manifest = Manifest.load()
     subject = load_subject(request.param)
-    model = build_human(scale_subject(subject, read_static_trial(subject, manifest), hp), hp).compile()
+    static = read_static_trial(subject, manifest, widths_per_height=hp.widths_per_height)
+    model = build_human(scale_subject(subject, static, hp), hp).compile()
     trial_id, window = SLICES[request.param]
     spec = next(s for s in subject.trials if s.id == trial_id)
     assert spec.condition == "free"

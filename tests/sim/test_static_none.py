@@ -14,7 +14,7 @@ from ingest.errors import IngestError
 from ingest.static import read_static_trial, walking_static
 from ingest.subject import STATIC_NONE, FileFormat, StaticSpec, Subject, load_markerset, load_subject
 from sim.body.human import build_human, pose_hold_ctrl, pose_hold_gains
-from sim.body.scaling import scale_subject
+from sim.body.scaling import knee_valgus_deg, scale_subject
 
 LENGTHS = ("thigh_l", "thigh_r", "shank_l", "shank_r", "foot_l", "foot_r", "pelvis_width")
 
@@ -26,7 +26,7 @@ def scaled(request, hp, manifest):
     static = read_static_trial(subject, manifest)
     walks = dataclasses.replace(subject, static=StaticSpec(STATIC_NONE))
     return subject, static, scale_subject(subject, static, hp), scale_subject(walks, read_static_trial(
-        walks, manifest), hp)
+        walks, manifest, widths_per_height=hp.widths_per_height), hp)
 
 
 def test_walking_only_lengths_match_the_standing_ones(scaled, hp):
@@ -39,6 +39,16 @@ def test_walking_only_lengths_match_the_standing_ones(scaled, hp):
     for k in LENGTHS:
         assert walking.segment_lengths_m[k] == pytest.approx(like.segment_lengths_m[k], rel=0.05), k
         assert walking.segment_lengths_m[k] == pytest.approx(standing.segment_lengths_m[k], rel=0.06), k
+
+
+def test_walking_only_legs_stand_on_their_joint_centres(scaled):
+    """The synthesised pose stands each leg's mechanical axis straight: knee and ankle centres under
+    the hip centre (with the lateral markers under it instead, 11 deg of valgus)."""
+    jc = scaled[3].joint_centres
+    for s in ("l", "r"):
+        assert abs(jc[f"knee_{s}"][1] - jc[f"hip_{s}"][1]) < 0.002
+        assert abs(jc[f"ankle_{s}"][1] - jc[f"hip_{s}"][1]) < 0.002
+        assert abs(knee_valgus_deg(jc, s)) < 0.5
 
 
 def test_walking_only_model_compiles_and_stands(scaled, hp):
@@ -64,7 +74,7 @@ def test_subject_file_accepts_static_none(tmp_path):
     assert load_subject("camargo", tmp_path).static == StaticSpec(STATIC_NONE)
 
 
-def test_kgc6_walks_lack_the_knee_and_ankle_landmarks(manifest):
+def test_kgc6_walks_lack_the_knee_and_ankle_landmarks(manifest, hp):
     """kgc6's overground walks (mm, Y up) write the lateral knee and ankle markers as zeros (they are
     static-only landmarks): scaling from the walks is refused naming them, with their frame counts."""
     paths = sorted(manifest.mirror.glob("kgc6_DM_jam-resources/**/DM_ngait_og*_new.trc"))
@@ -73,4 +83,4 @@ def test_kgc6_walks_lack_the_knee_and_ankle_landmarks(manifest):
     subject = Subject("kgc6", 1.72, 70.0, "kgc6_DM", load_markerset("kgc6"), FileFormat(up_axis="y"),
                       StaticSpec(STATIC_NONE))
     with pytest.raises(IngestError, match=r"knee_left \(L_Knee_Lateral\) 0, knee_right"):
-        walking_static(subject, paths, dict(subject.markerset))
+        walking_static(subject, paths, dict(subject.markerset), widths_per_height=hp.widths_per_height)
