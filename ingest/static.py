@@ -408,9 +408,7 @@ def walking_static(subject: Subject, paths: list[Path], roles: dict[str, str],
     centres under the hip centre, each lateral marker half its joint's width outside it
     (`_half_width`; `widths_per_height`: knee and ankle width / body height, params `human`, as
     scaling uses them), thigh and shank leaning in the frontal plane to put them there (the
-    hip-knee and knee-ankle marker distances, medians, are kept: segment lengths; with the lateral
-    markers themselves under the hip the knee centre stood half a knee width medial of it, 11 deg
-    of valgus on the four subjects scaled this way, which the `knee_alignment_deg` gate failed); each foot
+    hip-knee and knee-ankle marker distances, medians, are kept: segment lengths); each foot
     at its median toe-out relative to the pelvis' heading, pitched so that heel and toe markers
     stand at their foot-flat heights (10th percentile over the frames), the heels on them. No
     angles: the joint zeros are not calibrated (module docstring)."""
