@@ -114,9 +114,10 @@ QUALITY_DDL = ('run_id BIGINT NOT NULL, subject VARCHAR NOT NULL, stage VARCHAR,
 # a sweep walk's summary: two walks with the same one are the same walk (a deterministic walk from
 # standing repeats itself in every seed); the fall time tells apart walks that fell before a stride
 WALK_SUMMARY = "(gait_speed_mps, stride_length_m, stride_time_cv_pct, n_strides, fell, human_fall_s, walk_s)"
-# how a variant's free walks went (cohort views): `did_not_walk` when none fell and none kept a stride
-# (the policy stood or shuffled: its rows describe no gait), `fell` when any fell, else `walked`
-WALK_STATUS = ("CASE WHEN sum(n_strides) = 0 AND sum(fell::INT) < count(*) THEN 'did_not_walk' "
+# how a variant's free walks went (cohort views): `no_strides` when none fell and the ingest code kept
+# not one stride (it stood, shuffled, or stepped in a way the events do not make strides of: its rows
+# describe no measured gait), `fell` when any fell, else `walked`
+WALK_STATUS = ("CASE WHEN sum(n_strides) = 0 AND sum(fell::INT) < count(*) THEN 'no_strides' "
                "WHEN sum(fell::INT) > 0 THEN 'fell' ELSE 'walked' END")
 LINKED = ("spm_curves", "spm_clusters")  # rows that belong to an SPM test's group via test_id
 # The scripted balance-loss rollouts (ev) and, per variant, scenario, event and seed, whether the

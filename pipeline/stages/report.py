@@ -661,16 +661,17 @@ def _missing_variants(*tables: pd.DataFrame) -> str:
 
 
 def _not_walking(gait: pd.DataFrame) -> str:
-    """The sentence naming the variants and scenarios `cohort_gait` marks `did_not_walk` (no walk fell
-    and none kept a stride: the policy stood or shuffled, so their rows here and with the robot
-    describe that, not a gait); empty when every variant walked or fell."""
-    idle = gait[gait["status"] == "did_not_walk"]
+    """The sentence naming the variants and scenarios `cohort_gait` marks `no_strides` (no walk fell
+    and the ingest code kept not one stride, so their rows here and with the robot describe no
+    measured gait); empty when every variant's strides were measured or it fell."""
+    idle = gait[gait["status"] == "no_strides"]
     if idle.empty:
         return ""
     names = ", ".join(f"{r.variant} in {r.scenario}" for r in _in_order(idle, "variant", "scenario")
                       .itertuples(index=False))
-    return (f"**Did not walk:** {names}: walks without a fall and without a single kept stride. That "
-            f"policy does not walk (it stands or shuffles); its rows describe no gait.")
+    return (f"**No stride measured:** {names}: walks without a fall in which the ingest code kept not "
+            f"one stride (the policy stands, shuffles, or steps in a way its events do not make strides "
+            f"of); their rows describe no measured gait.")
 
 
 def clinical_rows(ranges: dict[str, ClinicalRange]) -> tuple[list[str], list[list[str]]]:

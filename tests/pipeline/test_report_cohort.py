@@ -177,17 +177,17 @@ def test_cohort_section_prints_the_gait_beside_the_clinical_ranges():
     assert "![cohort]" not in "\n".join(cohort_lines(gait_frame(), controllers_frame(), ranges, figure=False))
 
 
-def test_cohort_section_names_the_variants_that_did_not_walk():
-    """A variant-scenario `cohort_gait` marks `did_not_walk` is named as not walking; one whose walks
+def test_cohort_section_names_the_variants_without_a_measured_stride():
+    """A variant-scenario `cohort_gait` marks `no_strides` is named; one whose walks
     fell is not (its falls say what happened), and a cohort that walked gets no such line."""
-    assert "Did not walk" not in "\n".join(cohort_lines(gait_frame(), controllers_frame(), {}, False))
+    assert "No stride measured" not in "\n".join(cohort_lines(gait_frame(), controllers_frame(), {}, False))
     idle = pd.DataFrame([
-        ["s1", "hemiparetic_right", "walk_10m", 2, 1, 0, NAN, NAN, NAN, NAN, NAN, NAN, 0, "did_not_walk"],
+        ["s1", "hemiparetic_right", "walk_10m", 2, 1, 0, NAN, NAN, NAN, NAN, NAN, NAN, 0, "no_strides"],
         ["s1", "unsteady", "walk_10m", 2, 2, 2, NAN, NAN, NAN, NAN, NAN, NAN, 0, "fell"],
-        ["s1", "hemiparetic_right", "steady", 2, 1, 0, NAN, NAN, NAN, NAN, NAN, NAN, 0, "did_not_walk"],
+        ["s1", "hemiparetic_right", "steady", 2, 1, 0, NAN, NAN, NAN, NAN, NAN, NAN, 0, "no_strides"],
     ], columns=GAIT)
     text = "\n".join(cohort_lines(pd.concat([gait_frame(), idle]), controllers_frame(), {}, False))
-    assert "**Did not walk:** hemiparetic_right in steady, hemiparetic_right in walk_10m: walks" in text
+    assert "**No stride measured:** hemiparetic_right in steady, hemiparetic_right in walk_10m: walks" in text
     assert "unsteady in walk_10m" not in text
 
 
