@@ -660,7 +660,7 @@ def _missing_variants(*tables: pd.DataFrame) -> str:
     return text + (f": here {', '.join(missing)}." if missing else "; none is missing here.")
 
 
-def _not_walking(gait: pd.DataFrame) -> str:
+def _no_strides_note(gait: pd.DataFrame) -> str:
     """The sentence naming the variants and scenarios `cohort_gait` marks `no_strides` (no walk fell
     and the ingest code kept not one stride, so their rows here and with the robot describe no
     measured gait); empty when every variant's strides were measured or it fell."""
@@ -711,7 +711,7 @@ def cohort_lines(gait: pd.DataFrame, controllers: pd.DataFrame, ranges: dict[str
              _num(r.strides, 0)]
             for r in _in_order(gait, "variant", "scenario").itertuples(index=False)]
     lines += [md_table(header, rows)]
-    if idle := _not_walking(gait):
+    if idle := _no_strides_note(gait):
         lines += [idle, ""]
     if ranges:
         lines += ["Published clinical reference values to compare with (data/paper/clinical_ranges.yaml). "

@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from sim.learn.steering import wrap_angle
+from sim.angles import wrap_angle
 
 
 @dataclass(frozen=True)

@@ -33,12 +33,12 @@ only its cycle.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, replace
 
 import mujoco
 import numpy as np
 
+from sim.angles import wrap_angle
 from sim.rollout.scenarios import CommandProfile, ProfileParams, Segment, command_profile
 
 
@@ -116,11 +116,6 @@ def command_at(speed_mps: np.ndarray, heading_rad: np.ndarray, k: int, ahead: in
     j = min(k + ahead, last)
     rate = (heading_rad[j] - heading_rad[k]) / dt_s if j > k else 0.0
     return float(speed_mps[k]), float(heading_rad[k]), float(rate)
-
-
-def wrap_angle(a: float) -> float:
-    """`a` (rad) wrapped to [-pi, pi)."""
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 
 def lead_heading(heading_rad: float, facing_rad: float, lead_rad: float) -> float:
@@ -247,5 +242,4 @@ class SteeredReference:
 
 
 __all__ = ["CommandSampling", "SteeredReference", "command_at", "lead_heading",
-           "level_speed_ratio", "sample_commands", "speed_law", "standing_pose", "turn_lean_offset",
-           "wrap_angle"]
+           "level_speed_ratio", "sample_commands", "speed_law", "standing_pose", "turn_lean_offset"]

@@ -37,6 +37,7 @@ import math
 import numpy as np
 from scipy.linalg import solve_continuous_are
 
+from sim.angles import wrap_angle
 from sim.robot.controllers.base import BaseCommand, Controller, RobotSensors
 
 GAINS = ("log_q_int_x", "log_q_e_x", "log_r_x", "log_q_int_y", "log_q_e_y", "log_r_y")
@@ -72,10 +73,6 @@ def scheduled_gains(tau_s: float, reach_m: float, q_int_x: float, q_e_x: float, 
     k_fwd = forward_gain(tau_s, q_int_x, q_e_x, r_x)
     k_lat = [lateral_gain(v, reach_m, tau_s, q_int_y, q_e_y, r_y) for v in SPEED_GRID_MPS]
     return tuple(k_fwd.tolist()), tuple(tuple(k.tolist()) for k in k_lat)
-
-
-def _wrap(a: float) -> float:
-    return (a + math.pi) % (2 * math.pi) - math.pi
 
 
 # walking_min_speed_mps: below it the user is taken as standing (the lowest speed of the gain schedule)
@@ -221,7 +218,7 @@ class Adaptive(Controller):
             # change of speed (a stopping user's would point the heading backward)
             across = (vx * cy - vy * cx) / speed
             turn = math.atan2(0.5 * comb * across, speed)
-            return speed, _wrap(heading + turn), turn / (0.5 * n * self.robot.dt_s)
+            return speed, wrap_angle(heading + turn), turn / (0.5 * n * self.robot.dt_s)
         jb, jc = (i - half) % size, (i - half - n) % size
         tb = self.ts[jb]
         dt0 = tb - self.ts[jc]
@@ -229,7 +226,7 @@ class Adaptive(Controller):
         lead, lead_h = self.obs["lag_compensation"], self.obs["heading_lag_compensation"]
         dtl = s.time_s - tb
         accel = (speed - math.hypot(ux, uy)) / dtl
-        rate = _wrap(heading - math.atan2(uy, ux)) / dtl
+        rate = wrap_angle(heading - math.atan2(uy, ux)) / dtl
         return speed + lead * accel * dtl, heading + lead_h * rate * dtl, lead_h * rate
 
     def step(self, s: RobotSensors) -> BaseCommand:
@@ -245,7 +242,7 @@ class Adaptive(Controller):
             heading_rate, self.osc = 0.0, (0.0, 0.0)
         else:
             self.held_heading = heading
-        psi_rel = _wrap(yaw - heading)
+        psi_rel = wrap_angle(yaw - heading)
         ox, oy = self.osc
         c, sn = math.cos(yaw), math.sin(yaw)
         k_fwd_osc, k_lat_osc = self.k_osc
