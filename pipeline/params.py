@@ -597,6 +597,7 @@ class EnvSchema(Schema):
     push_interval_s: Pair
     push_probability: float
     heading_scale: float
+    turn_imitation_scale: Annotated[float, Field(ge=0.0, le=1.0)]
     harness_twist: HarnessTwistSchema
     commands: CommandsSchema
 
@@ -610,6 +611,7 @@ class AmpSchema(Schema):
     batch_size: int
     replay_size: int
     reward_scale: float
+    motion_share: Annotated[float, Field(ge=0.0, le=1.0)]
 
 
 class TrainSchema(Schema):

@@ -41,7 +41,13 @@ from metrics.scenario_checks import (
 from pipeline import paths
 from pipeline.params import Params
 from pipeline.stages.outputs import write_figure
-from pipeline.stages.simulate import policy_job, policy_setup, scenario_jobs, scenario_profiles
+from pipeline.stages.simulate import (
+    policy_job,
+    policy_setup,
+    require_inputs,
+    scenario_jobs,
+    scenario_profiles,
+)
 from sim.body.variant import HEALTHY
 from sim.learn.policy_human import PolicyWalk
 from sim.learn.train import load_body
@@ -66,6 +72,11 @@ def evaluate_policy(subject: str, params: Params, root: Path = paths.PROCESSED_R
                                               ev.push_duration_s), tag="push") for s in seeds]
     sc = params.evaluate_policy.scenario_checks.build()
     scenario_runs = scenario_jobs(params, ("free", *controllers), sc.seeds)
+    real = paths.real_dir(root, subject)
+    # read before the rollouts (minutes): a missing recording fails at once, naming its file
+    require_inputs(real / "strides.parquet", real / "cycles.parquet", what=f"`evaluate-policy {subject}`")
+    real_strides = pd.read_parquet(real / "strides.parquet")
+    real_cycles = pd.read_parquet(real / "cycles.parquet")
     setup = policy_setup(subject, params, root, policy_root, variant)
     outcomes = run_batch(setup, jobs + scenario_runs, params.rollout.workers, f"policy rollouts {subject}",
                          progress)
@@ -74,9 +85,6 @@ def evaluate_policy(subject: str, params: Params, root: Path = paths.PROCESSED_R
     groups: dict[str, list[RolloutOutcome]] = {
         "free": [o for o in outcomes if o.job.condition == "free" and not o.job.human.push_n],
         **{c: [o for o in outcomes if o.job.condition == c] for c in controllers}}
-    real = paths.real_dir(root, subject)
-    real_strides = pd.read_parquet(real / "strides.parquet")
-    real_cycles = pd.read_parquet(real / "cycles.parquet")
     # the policy imitates free walking: its gait is compared with the free-walking strides
     real_kept = real_strides[real_strides["kept"] & (real_strides["condition"] == "free")]
     real_free_cycles = real_cycles[real_cycles["condition"] == "free"]

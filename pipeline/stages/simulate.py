@@ -41,7 +41,8 @@ if TYPE_CHECKING:
     from sim.learn.policy_human import PolicyWalk
 
 
-def _require(*files: Path, what: str) -> None:
+def require_inputs(*files: Path, what: str) -> None:
+    """`SimulationError` naming the first of `files` that does not exist (an earlier stage's output)."""
     for f in files:
         if not f.exists():
             raise SimulationError(f, f"missing input of {what} (run the stage that makes it)")
@@ -50,7 +51,7 @@ def _require(*files: Path, what: str) -> None:
 def replay_setup(subject: str, params: Params, root: Path = paths.PROCESSED_ROOT) -> BatchSetup:
     """The batch runner's setup for `subject`'s replay human (scaled model and reference motion)."""
     xml, npz = paths.human_xml(root, subject), paths.reference_npz(root, subject)
-    _require(xml, npz, what=f"`simulate {subject}`")
+    require_inputs(xml, npz, what=f"`simulate {subject}`")
     r = params.rollout
     source = ReplaySource(str(npz), r.replay.build(), r.lead_in_s, r.lead_in_ramp_s)
     return params.batch_setup(subject, load_subject(subject).markerset, xml, source)
@@ -61,7 +62,7 @@ def replay_jobs(subject: str, params: Params, root: Path = paths.PROCESSED_ROOT,
     """One job per straight bout, condition and seed (default: `rollout.conditions`, `n_seeds`)."""
     r = params.rollout
     strides_file = paths.real_dir(root, subject) / "strides.parquet"
-    _require(strides_file, what=f"`simulate {subject}`")
+    require_inputs(strides_file, what=f"`simulate {subject}`")
     strides = pd.read_parquet(strides_file)
     ref = load_reference(paths.reference_npz(root, subject))
     conditions = r.conditions if conditions is None else conditions

@@ -52,11 +52,14 @@ def run_train(subject: str, params: Params, *, n_envs: int | None, threads: int 
         if not (start / POLICY_FILE).exists():
             raise SimulationError(start, f"no trained policy of {init_from!r} to start {subject}'s from")
     xml, npz = train_inputs(subject, root)
-    cycle = load_reference(npz).cycle
+    reference = load_reference(npz)
+    cycle = reference.cycle
     command = "python -m pipeline train " + " ".join(sys.argv[2:]) if sys.argv[1:2] == ["train"] else ""
     kwargs = {"n_envs": n_envs, "threads": threads, "total_steps": steps, "resume": resume,
               "max_wall_s": max_wall_s, "subprocess": subprocess, "command": command,
-              "curriculum_steps": curriculum}
+              "curriculum_steps": curriculum,
+              # the recorded motion is the healthy subject's own: a variant's changed body keeps its cycle
+              "motion": reference if variant == HEALTHY else None}
     if on_ray:
         in_processes = p.subprocess if subprocess is None else subprocess
         cpus = (n_envs or p.n_envs) if in_processes else (threads or p.threads)

@@ -37,6 +37,9 @@ class AMPParams:
     batch_size: int = 512
     replay_size: int = 100000           # older policy transitions kept as negatives
     reward_scale: float = 1.0
+    # share of the reference transitions drawn from the subject's whole recorded motion (standing,
+    # starting, turning, stopping: `sim.learn.walk_env.motion_amp_pairs`) instead of its cycle
+    motion_share: float = 0.0
 
     @classmethod
     def from_dict(cls, d: dict) -> AMPParams:

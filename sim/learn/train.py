@@ -38,8 +38,16 @@ from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMoni
 
 from sim.body.variant import Variant
 from sim.learn.amp import AMP, AMPCallback, AMPParams
-from sim.learn.walk_env import AMP_SIZE, LEGACY_OBS_SIZE, OBS_SIZE, WalkEnv, WalkEnvParams, make_walk_env
-from sim.motion.reference import ReferenceCycle, with_longer_swing
+from sim.learn.walk_env import (
+    AMP_SIZE,
+    LEGACY_OBS_SIZE,
+    OBS_SIZE,
+    WalkEnv,
+    WalkEnvParams,
+    make_walk_env,
+    motion_amp_pairs,
+)
+from sim.motion.reference import Reference, ReferenceCycle, mirrored_motion, with_longer_swing
 from sim.rollout.cluster import connect
 
 POLICY_FILE, NORM_FILE, AMP_FILE, PROGRESS_FILE = "policy.zip", "vecnormalize.pkl", "amp.pt", "progress.json"
@@ -209,10 +217,11 @@ def train(model_path: str | Path, cycle: ReferenceCycle, p: TrainParams, out_dir
           n_envs: int | None = None, threads: int | None = None, total_steps: int | None = None,
           resume: bool = False, max_wall_s: float | None = None, subprocess: bool | None = None,
           progress: bool = True, command: str = "", init_from: str | Path | None = None,
-          curriculum_steps: int = 0) -> dict:
+          curriculum_steps: int = 0, motion: Reference | None = None) -> dict:
     """Train (or continue training) the walking policy; returns the progress record (also written
     to `out_dir/progress.json`). `init_from`: a policy folder to start from (module docstring);
-    `curriculum_steps`: ramp a cohort variant's body and speed in over this many steps (`_Curriculum`)."""
+    `curriculum_steps`: ramp a cohort variant's body and speed in over this many steps (`_Curriculum`);
+    `motion`: the subject's retargeted recording, `p.amp.motion_share` of the style reference."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     cycle = variant_cycle(model_path, cycle, p.env.variant)
@@ -242,7 +251,15 @@ def train(model_path: str | Path, cycle: ReferenceCycle, p: TrainParams, out_dir
         model = new_ppo(venv, p)
     ref_env = make_walk_env(model_path, cycle, p.env)
     rng = np.random.default_rng(p.seed)
-    amp = AMP(2 * AMP_SIZE, p.amp, lambda n: ref_env.ref.amp_pairs(rng, n, ref_env.step_phase), seed=p.seed)
+    recorded = None
+    if motion is not None and p.amp.motion_share > 0.0:
+        # the recording and its mirror image: Camargo's circuits turn one way only
+        recorded = np.vstack([motion_amp_pairs(ref_env.model, motion.time_s, q, v, motion.trial, ref_env.dt,
+                                               cycle.floor_shift_m)
+                              for q, v in ((motion.qpos, motion.qvel),
+                                           mirrored_motion(ref_env.model, motion.qpos, motion.qvel))])
+    amp = AMP(2 * AMP_SIZE, p.amp, lambda n: ref_env.ref.amp_pairs(rng, n, ref_env.step_phase, recorded,
+                                                                   p.amp.motion_share), seed=p.seed)
     if start_dir is not None and (start_dir / AMP_FILE).exists():
         amp.load_state_dict(torch.load(start_dir / AMP_FILE, weights_only=False))
     log = MetricsLog(out, resume=bool(prior))

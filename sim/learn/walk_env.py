@@ -98,6 +98,8 @@ class WalkEnvParams:
     push_interval_s: tuple[float, float] = (1.0, 3.0)
     push_probability: float = 0.5           # share of episodes with pushes
     heading_scale: float = 2.0              # task x exp(-scale (1 - cos heading error))
+    turn_imitation_scale: float = 1.0       # the imitation term x this while a turn is commanded (the
+                                            #   cycle is straight walking; a turn departs from it)
     harness_twist: TwistParams = field(default_factory=TwistParams)  # the robot's harness yaw load (off)
     commands: CommandSampling = field(default_factory=CommandSampling)
     profile: ProfileParams = field(default_factory=ProfileParams)  # the scenarios' transitions
@@ -210,10 +212,16 @@ class ReferenceTable:
         k = int(x)
         return k % self.n, (k + 1) % self.n, x - k
 
-    def amp_pairs(self, rng: np.random.Generator, size: int, step_phase: float) -> np.ndarray:
+    def amp_pairs(self, rng: np.random.Generator, size: int, step_phase: float,
+                  motion: np.ndarray | None = None, motion_share: float = 0.0) -> np.ndarray:
         """`size` reference transitions (features at phase and phase + the step's phase advance at
         the amplitude's phase rate), drawn over the gait amplitudes by `AMP_LEVEL_WEIGHTS`,
-        (size, 2 x AMP)."""
+        (size, 2 x AMP). With `motion` (`motion_amp_pairs`), about `motion_share` of them are drawn
+        from the recorded motion instead."""
+        if motion is not None and len(motion) and motion_share > 0.0:
+            m = int(rng.binomial(size, motion_share))
+            return np.vstack([self.amp_pairs(rng, size - m, step_phase),
+                              motion[rng.integers(0, len(motion), m)]])
         level = rng.choice(len(AMP_LEVELS), size, p=AMP_LEVEL_WEIGHTS)
         ph = rng.random(size)
         rate = self.level_rate[level]
@@ -307,6 +315,36 @@ def amp_features(data: mujoco.MjData, idx: BodyIndex, out: np.ndarray) -> None:
     out[13:13 + nu] = data.actuator_length[idx.act]
     out[13 + nu:13 + 2 * nu] = data.qvel[idx.jdof]
     _feet_into(data, idx, c, s, out[13 + 2 * nu:])
+
+
+def motion_amp_pairs(model: mujoco.MjModel, time_s: np.ndarray, qpos: np.ndarray, qvel: np.ndarray,
+                     trial: np.ndarray, dt_s: float, z_shift_m: float = 0.0) -> np.ndarray:
+    """AMP reference transitions from recorded (retargeted) motion, (M, 2 x AMP): the features of
+    every frame paired with those `dt_s` later in the same trial (linear interpolation between
+    frames). A subject's whole recording holds what its cycle cannot: quiet standing, starting,
+    turning and stopping in its own style (Camargo's circuits turn 180 deg in two ~90 deg corners at
+    1.3-1.8 m/s). `z_shift_m`: the cycle's floor alignment (`ReferenceCycle.floor_shift_m`), so the
+    root height matches the cycle's."""
+    data = mujoco.MjData(model)
+    idx = BodyIndex(model)
+    feats = np.empty((len(time_s), AMP_SIZE))
+    for k in range(len(time_s)):
+        data.qpos[:], data.qvel[:] = qpos[k], qvel[k]
+        data.qpos[idx.root_q + 2] += z_shift_m
+        mujoco.mj_forward(model, data)
+        amp_features(data, idx, feats[k])
+    pairs = []
+    for name in dict.fromkeys(trial.tolist()):
+        rows = np.flatnonzero(trial == name)
+        t, f = time_s[rows], feats[rows]
+        later = t + dt_s
+        ok = later <= t[-1]
+        if not ok.any():
+            continue
+        j = np.clip(np.searchsorted(t, later[ok], side="right") - 1, 0, len(t) - 2)
+        w = ((later[ok] - t[j]) / (t[j + 1] - t[j]))[:, None]
+        pairs.append(np.hstack([f[ok], f[j] * (1 - w) + f[j + 1] * w]))
+    return np.vstack(pairs) if pairs else np.empty((0, 2 * AMP_SIZE))
 
 
 class WalkEnv(gym.Env):
@@ -457,6 +495,8 @@ class WalkEnv(gym.Env):
                                  - p.heading_scale * heading_error)])
         imitation = (w["pose"] * terms[0] + w["velocity"] * terms[1] + w["feet"] * terms[2]
                      + w["height"] * terms[3] + w["root_velocity"] * terms[4])
+        if g.yaw_rate != 0.0:
+            imitation *= p.turn_imitation_scale
         return float(p.w_imitation * imitation + p.w_task * terms[5]), terms
 
     def _observe(self) -> np.ndarray:
@@ -584,4 +624,5 @@ def make_walk_env(model_path: str | Path, cycle: ReferenceCycle, p: WalkEnvParam
 __all__ = ["AMP_LEVELS", "AMP_SIZE", "HUMAN_ACTUATORS", "LEGACY_OBS_SIZE", "OBS_SIZE", "BodyIndex",
            "GaitState",
            "ReferenceTable", "WalkEnv", "WalkEnvParams", "amp_features", "feet_in_heading", "make_walk_env",
+           "motion_amp_pairs",
            "observe", "pd_servo_spec", "pelvis_yaw", "servo_ranges", "start_pose"]

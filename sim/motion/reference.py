@@ -145,6 +145,40 @@ def _root_addresses(model: mujoco.MjModel) -> tuple[int, int]:
     return int(model.jnt_qposadr[j]), int(model.jnt_dofadr[j])
 
 
+_MIRROR_AXIAL = np.array([-1.0, 1.0, -1.0])  # an axial vector (rotation axis) reflected in the x-z plane
+
+
+def mirrored_motion(model: mujoco.MjModel, qpos: np.ndarray,
+                    qvel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The motion reflected in the sagittal (x-z) plane, left and right exchanged: a left turn becomes
+    a right one. Positions and linear velocities flip y; rotations (free and ball joint quaternions,
+    angular velocities) keep w and their y component and flip x and z; a `_l` joint takes its `_r`
+    twin's value (hinge angles keep their sign where the twin's axis is this axis reflected, as in
+    `sim.body.human`). qpos (T, nq), qvel (T, nv) -> the reflected pair."""
+    jt = mujoco.mjtJoint
+    names = [model.joint(j).name for j in range(model.njnt)]
+    out_q, out_v = qpos.copy(), qvel.copy()
+    for j, name in enumerate(names):
+        twin = name[:-2] + {"_l": "_r", "_r": "_l"}[name[-2:]] if name[-2:] in ("_l", "_r") else name
+        k = names.index(twin) if twin in names else None
+        if k is None:
+            raise SimulationError("reference", f"joint {name!r} has no mirror twin {twin!r}")
+        qa, da, qb, db = model.jnt_qposadr[j], model.jnt_dofadr[j], model.jnt_qposadr[k], model.jnt_dofadr[k]
+        kind = model.jnt_type[j]
+        if kind == jt.mjJNT_FREE:
+            out_q[:, qa:qa + 3] = qpos[:, qb:qb + 3] * [1.0, -1.0, 1.0]
+            out_q[:, qa + 3:qa + 7] = qpos[:, qb + 3:qb + 7] * [1.0, *_MIRROR_AXIAL]
+            out_v[:, da:da + 3] = qvel[:, db:db + 3] * [1.0, -1.0, 1.0]
+            out_v[:, da + 3:da + 6] = qvel[:, db + 3:db + 6] * _MIRROR_AXIAL
+        elif kind == jt.mjJNT_BALL:
+            out_q[:, qa:qa + 4] = qpos[:, qb:qb + 4] * [1.0, *_MIRROR_AXIAL]
+            out_v[:, da:da + 3] = qvel[:, db:db + 3] * _MIRROR_AXIAL
+        else:
+            sign = float(np.sign(np.dot(model.jnt_axis[j], model.jnt_axis[k] * _MIRROR_AXIAL)))
+            out_q[:, qa], out_v[:, da] = sign * qpos[:, qb], sign * qvel[:, db]
+    return out_q, out_v
+
+
 def _heading_normalised(model: mujoco.MjModel, qpos: np.ndarray, start: np.ndarray,
                         heading: float) -> np.ndarray:
     """Configurations with the root moved so `start` (xy) is the origin and `heading` is +X."""

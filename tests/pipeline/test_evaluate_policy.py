@@ -22,3 +22,12 @@ def test_a_cohort_variant_is_evaluated_at_its_own_speed(params, policies_root, c
     # 20 s of steady walking: ~12 m at 0.6 m/s, ~37 m at the healthy twin's speed
     assert max(doc["free"]["distance_m"]) < 20.0
     assert set(doc["checks"]) >= {"free_no_fall", "scenario_walk_10m_free_no_fall"}
+
+
+def test_a_missing_recording_fails_before_any_rollout(params, policies_root, tmp_path):
+    """Without the subject's ingested strides the command stops at once, naming the file, instead of
+    after minutes of rollouts."""
+    from sim.errors import SimulationError
+
+    with pytest.raises(SimulationError, match="strides.parquet"):
+        evaluate_policy("camargo", gate_params(params, 1), tmp_path, policies_root, tmp_path, progress=False)

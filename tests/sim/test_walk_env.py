@@ -18,8 +18,8 @@ from sim.learn.amp import AMP, style_reward
 from sim.learn.harness_twist import HarnessTwist, TwistParams
 from sim.learn.policy_human import ActorMlp, PolicyHuman
 from sim.learn.train import load_body, load_policy, train
-from sim.learn.walk_env import AMP_SIZE, OBS_SIZE, make_walk_env
-from sim.motion.reference import load_reference
+from sim.learn.walk_env import AMP_SIZE, OBS_SIZE, BodyIndex, amp_features, make_walk_env, motion_amp_pairs
+from sim.motion.reference import load_reference, mirrored_motion
 from sim.rollout.loop import RolloutParams, rollout
 from sim.rollout.scenarios import Segment, command_profile
 
@@ -145,6 +145,71 @@ def test_discriminator_separates_reference_from_other_motion(env, setup):
     real = env.ref.amp_pairs(rng, 512, env.step_phase)
     assert amp.reward(real).mean() > amp.reward(fake[:512]).mean() + 0.3
     assert float(style_reward(torch.tensor(1.0))) == 1.0 and float(style_reward(torch.tensor(-1.0))) == 0.0
+
+
+def _features(model: mujoco.MjModel, qpos: np.ndarray, qvel: np.ndarray) -> np.ndarray:
+    data, idx = mujoco.MjData(model), BodyIndex(model)
+    out = np.empty((len(qpos), AMP_SIZE))
+    for k in range(len(qpos)):
+        data.qpos[:], data.qvel[:] = qpos[k], qvel[k]
+        mujoco.mj_forward(model, data)
+        amp_features(data, idx, out[k])
+    return out
+
+
+def test_mirror_image_of_the_cycle_is_its_other_half(env, setup):
+    """Reflected left-right, a stride of the right leg is the left leg's half a cycle later; twice is none."""
+    _, _, _, cycle = setup
+    q, v = mirrored_motion(env.model, cycle.qpos, cycle.qvel)
+    q2, v2 = mirrored_motion(env.model, q, v)
+    np.testing.assert_allclose(q2, cycle.qpos)
+    np.testing.assert_allclose(v2, cycle.qvel)
+    f, g = _features(env.model, cycle.qpos, cycle.qvel), _features(env.model, q, v)
+    half = np.roll(f, -len(f) // 2, axis=0)
+    sd = f.std(0) + 1e-6
+    mirrored_err, plain_err = np.abs(g - half).mean(0) / sd, np.abs(f - half).mean(0) / sd
+    moving = f.std(0) > 1e-3
+    # the cycle's own left-right asymmetry remains; without the reflection the halves differ far more
+    assert mirrored_err[moving].mean() < 0.5 * plain_err[moving].mean()
+    assert np.mean(g[:, 8] * f[:, 8]) < 0  # root lateral velocity flips
+
+
+def test_recorded_motion_gives_turning_reference_transitions(env, camargo_model):
+    """Camargo's recording turns (a circuit): its transitions hold yaw rates the straight cycle lacks,
+    each pair is the frame and the frame dt later, and a share of the reference is drawn from them."""
+    ref = load_reference(camargo_model / "reference.npz")
+    pairs = motion_amp_pairs(env.model, ref.time_s, ref.qpos, ref.qvel, ref.trial, env.dt,
+                             ref.cycle.floor_shift_m)
+    rate = ref.rate_hz(str(ref.trial[0]))
+    lag = int(round(env.dt * rate))
+    assert abs(env.dt * rate - lag) < 1e-6 and len(pairs) == len(ref.time_s) - lag
+    np.testing.assert_allclose(pairs[:-lag, AMP_SIZE:], pairs[lag:, :AMP_SIZE], atol=1e-9)
+    cycle_pairs = env.ref.amp_pairs(np.random.default_rng(0), 4000, env.step_phase)
+    yaw_rate = 12  # root angular velocity z in the features
+    peak = [np.quantile(np.abs(x[:, yaw_rate]), 0.95) for x in (pairs, cycle_pairs)]
+    assert peak[0] > 1.5 * peak[1]
+    mixed = env.ref.amp_pairs(np.random.default_rng(1), 4000, env.step_phase, pairs, 0.3)
+    recorded = {row.tobytes() for row in pairs}
+    from_motion = np.mean([row.tobytes() in recorded for row in mixed])
+    assert 0.25 < from_motion < 0.35
+
+
+def test_turn_imitation_scale_weakens_imitation_only_in_turns(setup, camargo_model):
+    _, tp, _, cycle = setup
+    rewards = []
+    for scale in (1.0, 0.5):
+        e = make_walk_env(camargo_model / "human.xml", cycle, replace(tp.env, turn_imitation_scale=scale),
+                          seed=0)
+        e.reset(seed=3, options={"pushes": False})
+        e.gait.yaw_rate = 0.0
+        straight, _ = e._reward()
+        e.gait.yaw_rate = 1.0
+        turning, terms = e._reward()
+        rewards.append((straight, turning, terms))
+    (s1, t1, terms), (s2, t2, _) = rewards
+    assert s1 == s2  # walking straight: unchanged
+    task = tp.env.w_task * terms[5]
+    assert t2 - task == pytest.approx(0.5 * (t1 - task))
 
 
 def test_short_training_run_checkpoints_and_resumes(tmp_path, setup, camargo_model):
