@@ -317,6 +317,21 @@ def amp_features(data: mujoco.MjData, idx: BodyIndex, out: np.ndarray) -> None:
     _feet_into(data, idx, c, s, out[13 + 2 * nu:])
 
 
+def motion_amp_features(model: mujoco.MjModel, qpos: np.ndarray, qvel: np.ndarray,
+                        z_shift_m: float = 0.0) -> np.ndarray:
+    """`amp_features` of every frame of a motion, (T, AMP); `z_shift_m` raises the root (a floor
+    alignment such as `ReferenceCycle.floor_shift_m`)."""
+    data = mujoco.MjData(model)
+    idx = BodyIndex(model)
+    feats = np.empty((len(qpos), AMP_SIZE))
+    for k in range(len(qpos)):
+        data.qpos[:], data.qvel[:] = qpos[k], qvel[k]
+        data.qpos[idx.root_q + 2] += z_shift_m
+        mujoco.mj_forward(model, data)
+        amp_features(data, idx, feats[k])
+    return feats
+
+
 def motion_amp_pairs(model: mujoco.MjModel, time_s: np.ndarray, qpos: np.ndarray, qvel: np.ndarray,
                      trial: np.ndarray, dt_s: float, z_shift_m: float = 0.0) -> np.ndarray:
     """AMP reference transitions from recorded (retargeted) motion, (M, 2 x AMP): the features of
@@ -325,14 +340,7 @@ def motion_amp_pairs(model: mujoco.MjModel, time_s: np.ndarray, qpos: np.ndarray
     turning and stopping in its own style (Camargo's circuits turn 180 deg in two ~90 deg corners at
     1.3-1.8 m/s). `z_shift_m`: the cycle's floor alignment (`ReferenceCycle.floor_shift_m`), so the
     root height matches the cycle's."""
-    data = mujoco.MjData(model)
-    idx = BodyIndex(model)
-    feats = np.empty((len(time_s), AMP_SIZE))
-    for k in range(len(time_s)):
-        data.qpos[:], data.qvel[:] = qpos[k], qvel[k]
-        data.qpos[idx.root_q + 2] += z_shift_m
-        mujoco.mj_forward(model, data)
-        amp_features(data, idx, feats[k])
+    feats = motion_amp_features(model, qpos, qvel, z_shift_m)
     pairs = []
     for name in dict.fromkeys(trial.tolist()):
         rows = np.flatnonzero(trial == name)
@@ -624,5 +632,5 @@ def make_walk_env(model_path: str | Path, cycle: ReferenceCycle, p: WalkEnvParam
 __all__ = ["AMP_LEVELS", "AMP_SIZE", "HUMAN_ACTUATORS", "LEGACY_OBS_SIZE", "OBS_SIZE", "BodyIndex",
            "GaitState",
            "ReferenceTable", "WalkEnv", "WalkEnvParams", "amp_features", "feet_in_heading", "make_walk_env",
-           "motion_amp_pairs",
+           "motion_amp_features", "motion_amp_pairs",
            "observe", "pd_servo_spec", "pelvis_yaw", "servo_ranges", "start_pose"]

@@ -159,10 +159,11 @@ def mirrored_motion(model: mujoco.MjModel, qpos: np.ndarray,
     names = [model.joint(j).name for j in range(model.njnt)]
     out_q, out_v = qpos.copy(), qvel.copy()
     for j, name in enumerate(names):
-        twin = name[:-2] + {"_l": "_r", "_r": "_l"}[name[-2:]] if name[-2:] in ("_l", "_r") else name
-        k = names.index(twin) if twin in names else None
-        if k is None:
+        side = name[-2:]
+        twin = name[:-2] + {"_l": "_r", "_r": "_l"}[side] if side in ("_l", "_r") else name
+        if twin not in names:
             raise SimulationError("reference", f"joint {name!r} has no mirror twin {twin!r}")
+        k = names.index(twin)
         qa, da, qb, db = model.jnt_qposadr[j], model.jnt_dofadr[j], model.jnt_qposadr[k], model.jnt_dofadr[k]
         kind = model.jnt_type[j]
         if kind == jt.mjJNT_FREE:

@@ -18,7 +18,7 @@ from sim.learn.amp import AMP, style_reward
 from sim.learn.harness_twist import HarnessTwist, TwistParams
 from sim.learn.policy_human import ActorMlp, PolicyHuman
 from sim.learn.train import load_body, load_policy, train
-from sim.learn.walk_env import AMP_SIZE, OBS_SIZE, BodyIndex, amp_features, make_walk_env, motion_amp_pairs
+from sim.learn.walk_env import AMP_SIZE, OBS_SIZE, make_walk_env, motion_amp_features, motion_amp_pairs
 from sim.motion.reference import load_reference, mirrored_motion
 from sim.rollout.loop import RolloutParams, rollout
 from sim.rollout.scenarios import Segment, command_profile
@@ -147,16 +147,6 @@ def test_discriminator_separates_reference_from_other_motion(env, setup):
     assert float(style_reward(torch.tensor(1.0))) == 1.0 and float(style_reward(torch.tensor(-1.0))) == 0.0
 
 
-def _features(model: mujoco.MjModel, qpos: np.ndarray, qvel: np.ndarray) -> np.ndarray:
-    data, idx = mujoco.MjData(model), BodyIndex(model)
-    out = np.empty((len(qpos), AMP_SIZE))
-    for k in range(len(qpos)):
-        data.qpos[:], data.qvel[:] = qpos[k], qvel[k]
-        mujoco.mj_forward(model, data)
-        amp_features(data, idx, out[k])
-    return out
-
-
 def test_mirror_image_of_the_cycle_is_its_other_half(env, setup):
     """Reflected left-right, a stride of the right leg is the left leg's half a cycle later; twice is none."""
     _, _, _, cycle = setup
@@ -164,7 +154,7 @@ def test_mirror_image_of_the_cycle_is_its_other_half(env, setup):
     q2, v2 = mirrored_motion(env.model, q, v)
     np.testing.assert_allclose(q2, cycle.qpos)
     np.testing.assert_allclose(v2, cycle.qvel)
-    f, g = _features(env.model, cycle.qpos, cycle.qvel), _features(env.model, q, v)
+    f, g = motion_amp_features(env.model, cycle.qpos, cycle.qvel), motion_amp_features(env.model, q, v)
     half = np.roll(f, -len(f) // 2, axis=0)
     sd = f.std(0) + 1e-6
     mirrored_err, plain_err = np.abs(g - half).mean(0) / sd, np.abs(f - half).mean(0) / sd
