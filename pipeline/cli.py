@@ -207,16 +207,17 @@ def cmd_export(args: argparse.Namespace) -> int:
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
-    from pipeline.stages.sweep import run_sweep
+    from pipeline.stages.sweep import check_failed, job_label, run_sweep
 
-    summary = run_sweep(load_params(args.params), args.root or SWEEPS_ROOT, study=args.study)
+    root = args.root or SWEEPS_ROOT
+    summary = run_sweep(load_params(args.params), root, study=args.study)
     for f in summary["failed"]:
-        print(f"failed: {f['subject']}/{f['variant']} {f['condition']} {f['scenario']} {f['event']} "
-              f"seed {f['seed']}: {f['error']}", file=sys.stderr)
+        print(f"failed: {job_label(f)}: {f['error']}", file=sys.stderr)
     for note in summary["notes"]:
         print(f"left out: {note}", file=sys.stderr)
     print(f"sweep {summary['study']}: {summary['ran']} ran, {summary['resumed']} resumed, "
           f"{len(summary['failed'])} failed of {summary['jobs']} jobs", file=sys.stderr)
+    check_failed(summary, root)  # failed jobs: `error: ...`, exit 2 (dvc does not record the stage as done)
     return 0
 
 

@@ -40,6 +40,7 @@ from pipeline.stages.outputs import write_outputs
 from pipeline.stages.simulate import policy_setup
 from pipeline.store import SWEEP_COLUMNS
 from sim.body.balance_loss import BalanceLoss
+from sim.errors import SimulationError
 from sim.learn.policy_human import PolicyWalk
 from sim.rollout.batch import BatchSetup, RolloutJob, Worker
 from sim.rollout.cluster import cached_worker, completed, connect
@@ -158,6 +159,28 @@ def job_row(worker: Worker, job: SweepJob, exclude_locked: bool,
     return {c: row[c] for c in SWEEP_COLUMNS}
 
 
+def job_label(failed: dict) -> str:
+    """`subject/variant condition scenario event seed N` of a failed job (a `summary["failed"]` entry)."""
+    return (f"{failed['subject']}/{failed['variant']} {failed['condition']} {failed['scenario']} "
+            f"{failed['event']} seed {failed['seed']}")
+
+
+def check_failed(summary: dict, root: Path = paths.SWEEPS_ROOT) -> None:
+    """Raise `SimulationError` naming the study's failed jobs, if any (after `run_sweep` wrote its outputs:
+    the finished jobs are kept, a rerun retries only the failed ones). A sweep with failed jobs is not
+    done: under `dvc repro` it must not be recorded as such."""
+    failed = summary["failed"]
+    if not failed:
+        return
+    shown = "; ".join(f"{job_label(f)} ({f['error']})" for f in failed[:5])
+    more = f"; and {len(failed) - 5} more" if len(failed) > 5 else ""
+    listed = paths.sweep_dir(root, summary["study"]) / "summary.json"
+    raise SimulationError(f"sweep {summary['study']}",
+                          f"{len(failed)} of {summary['jobs']} jobs failed after their retries: "
+                          f"{shown}{more} (all in {listed}; the finished jobs are kept: rerun to retry "
+                          f"only the failed ones)")
+
+
 def error_text(exc: BaseException) -> str:
     """`Type: first line of the message` of a failed job, as the summary reports it. An exception the
     job raised comes wrapped in a `RayTaskError` whose text starts with the task's name and pid, not
@@ -219,4 +242,5 @@ def run_sweep(params: Params, root: Path = paths.SWEEPS_ROOT, policy_root: Path 
     return summary
 
 
-__all__ = ["SweepJob", "error_text", "job_row", "run_sweep", "study_params", "sweep_jobs"]
+__all__ = ["SweepJob", "check_failed", "error_text", "job_label", "job_row", "run_sweep", "study_params",
+           "sweep_jobs"]

@@ -18,6 +18,7 @@ import pandas as pd
 import pytest
 import yaml
 
+from pipeline.cli import EXIT_ERROR
 from pipeline.params import load_params, parse_params
 from pipeline.paths import POLICIES_ROOT
 from pipeline.stages.sweep import rollout_params_hash, run_sweep, sweep_jobs
@@ -118,7 +119,8 @@ def test_sweep_completes_after_its_worker_node_is_killed(cluster, tmp_path):
 def test_a_job_that_raises_is_retried_once_then_reported_while_the_rest_completes(tmp_path):
     """`python -m pipeline sweep` on a local Ray: the job whose plug-in controller raises runs twice
     (once, then `ray.max_retries` = 1 retry), is reported in summary.json and on stderr with its error,
-    and the other jobs finish, each stored once."""
+    and the other jobs finish, each stored once; the sweep exits non-zero naming the failed job (issue 34
+    case 11: it exited 0, and `dvc repro` recorded the stage as done)."""
     params = small_study("failed_job", seeds=1, conditions=("free", "failing", "pid"))
     doc = params.document()
     doc["ray"]["num_cpus"] = 1
@@ -134,7 +136,10 @@ def test_a_job_that_raises_is_retried_once_then_reported_while_the_rest_complete
     sweeps = tmp_path / "sweeps"
     cmd = [sys.executable, "-m", "pipeline", "--params", str(params_file), "sweep", "--root", str(sweeps)]
     run = subprocess.run(cmd, env=env, cwd=REPO, capture_output=True, text=True, timeout=600)
-    assert run.returncode == 0, run.stderr
+    assert run.returncode == EXIT_ERROR, run.stderr
+    [error] = [line for line in run.stderr.splitlines() if line.startswith("error: ")]
+    assert error.startswith("error: sweep failed_job: 1 of 3 jobs failed after their retries: "
+                            "camargo/healthy failing steady none seed 0 (RuntimeError: "), error
 
     assert len(attempts.read_text().splitlines()) == 2  # tried once, retried once
     summary = json.loads((sweeps / "failed_job" / "summary.json").read_text())
