@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ingest.errors import GaitloopError
+from ingest.subject import UP_AXIS_CHOICES
 from pipeline.bench import SECTIONS
 from pipeline.params import load_params
 from pipeline.paths import (
@@ -379,8 +380,9 @@ def build_parser() -> argparse.ArgumentParser:
                         help="event source (default: params ingest.events.method)")
     events.add_argument("--format", choices=("csv", "table", "json"), default="csv")
     events.add_argument("--subject", help="take the file format and marker set from this subject")
-    events.add_argument("--up-axis", choices=("y", "z"),
-                        help="the file's up axis (default: the subject's, else z)")
+    events.add_argument("--up-axis", choices=UP_AXIS_CHOICES,
+                        help="the file's up axis (default: the subject's, else auto: detected from pelvis "
+                        "and foot markers, as add-subject does)")
     events.add_argument("--markerset", help="marker set: a name in data/markersets/ or a YAML file "
                         "(default: the shipped set that fits the file)")
     events.set_defaults(func=cmd_events)

@@ -38,13 +38,14 @@ def fitting_markerset(names: tuple[str, ...], path: Path, directory: Path = MARK
 def quicklook_subject(path: Path, subject_id: str | None, up_axis: str | None,
                       markerset: str | None) -> Subject:
     """The subject whose file format and marker set apply to `path`: the registered one when
-    `subject_id` is given, else a stand-in (no body size) with up axis `up_axis` (default z) and
-    the marker set `markerset` or the one that fits the file; `up_axis` and `markerset` override."""
+    `subject_id` is given, else a stand-in (no body size) with up axis `up_axis` (default auto: detected
+    as a subject file's `auto`, `ingest.canonical.detect_up_axis`) and the marker set `markerset` or
+    the one that fits the file; `up_axis` and `markerset` override."""
     if subject_id:
         subject = load_subject(subject_id)
     else:
         subject = Subject(id="unknown", height_m=math.nan, mass_kg=math.nan, dataset="file",
-                          markerset={}, format=FileFormat(), static=None)
+                          markerset={}, format=FileFormat(up_axis="auto"), static=None)
         markerset = markerset or fitting_markerset(read_markers(path).names, path)
     if up_axis:
         subject = dataclasses.replace(subject, format=dataclasses.replace(subject.format, up_axis=up_axis))

@@ -49,9 +49,23 @@ def test_unknown_subject_is_one_line_error():
 
 
 def test_events_wrong_up_axis_names_the_file(capsys):
-    assert main(["events", str(CAMARGO_TRC), "--markerset", "camargo"]) == 2  # Y-up file read as Z-up
+    assert main(["events", str(CAMARGO_TRC), "--markerset", "camargo", "--up-axis", "z"]) == 2  # Y-up as Z-up
     err = capsys.readouterr().err.strip()
     assert err.startswith(f"error: {CAMARGO_TRC.resolve()}") and "up_axis" in err and "\n" not in err
+
+
+def test_events_detects_the_up_axis_without_a_flag(capsys):
+    """Issue 34 case 8: `events` rejected `--up-axis auto` and read a Y-up OpenCap file as Z-up when no
+    flag was given; now no flag (or `auto`) detects Y, and the events are those of `--up-axis y`."""
+    trc = DATA / "opencap_labval_subject4" / "MarkerData" / "walking1.trc"
+    grf = DATA / "opencap_labval_subject4" / "ID" / "walking1_grf.mot"
+    printed = {}
+    for flag in ([], ["--up-axis", "auto"], ["--up-axis", "y"]):
+        assert main(["events", str(trc), "--grf", str(grf), *flag]) == 0, capsys.readouterr().err
+        printed[" ".join(flag)] = capsys.readouterr().out
+    lines = printed["--up-axis y"].strip().splitlines()
+    assert lines[0] == "side,event,time_s" and len(lines) > 2
+    assert printed[""] == printed["--up-axis auto"] == printed["--up-axis y"]
 
 
 def test_missing_params_file_is_one_line_error(tmp_path, capsys):
