@@ -4,6 +4,11 @@ Layout: line 1 file type; lines 2-3 header keys and values (DataRate, NumFrames,
 Units, ...); line 4 `Frame#`, `Time` and one name per marker (spanning X/Y/Z); line 5 the
 X1 Y1 Z1 ... labels; then tab-separated rows. Empty cells are missing samples (NaN).
 
+The header's DataRate is the rate: a Time column written with few decimals (60 Hz rounded to
+0.001 s steps 0.016 and 0.017 s apart, whose median reads as 58.82 Hz) is replaced by the header's
+grid when every row lies within the column's rounding of it (`regular_time`); a Time column that
+departs further from the header's rate is refused, naming both.
+
 Header lines 2-3 and the marker-name line are also read when aligned with repeated tabs or spaces
 (some exporters pad them): keys, values and names never contain spaces, so when the tab cells do
 not pair up, the runs of whitespace separate them. Data rows stay strictly tab-separated.
@@ -80,6 +85,37 @@ def _rows(raw: bytes, n_cols: int) -> np.ndarray | None:
     return data
 
 
+def time_resolution(time_s: np.ndarray) -> float:
+    """The coarsest power of ten (0.1 s down to 1e-9 s) of which every time is a whole multiple: the
+    rounding of a Time column written with that many decimals (1e-9 s for one written in full)."""
+    for decimals in range(1, 10):
+        step = 10.0 ** -decimals
+        if np.abs(time_s / step - np.round(time_s / step)).max() < 1e-3:
+            return step
+    return 1e-9
+
+
+def regular_time(path: Path, time_s: np.ndarray, rate_hz: float) -> np.ndarray:
+    """`time_s` on the header's grid `time_s[0] + k / rate_hz`: as it is when it lies there already (to
+    1e-9 s), the grid when every row lies within the column's rounding of it (`time_resolution`: the
+    first time and each row rounded); `IngestError` naming the file and both rates when it departs
+    further (a wrong DataRate, dropped frames, another clock)."""
+    grid = time_s[0] + np.arange(len(time_s)) / rate_hz
+    off = np.abs(time_s - grid)
+    worst = int(np.argmax(off)) if len(off) else 0
+    if not len(off) or off[worst] <= 1e-9:
+        return time_s
+    resolution = time_resolution(time_s)
+    if off[worst] <= resolution * (1 + 1e-6):
+        return grid
+    steps = np.diff(time_s)
+    column = f"{1.0 / float(np.median(steps)):.6g} Hz" if len(steps) and np.median(steps) > 0 else "no rate"
+    raise IngestError(path, f"header DataRate {rate_hz:g} Hz but the Time column steps at {column} "
+                            f"(median step): row {worst + 1} is at {time_s[worst]:.6g} s, {off[worst]:.3g} s "
+                            f"off the header's {grid[worst]:.6g} s, more than the column's rounding "
+                            f"({resolution:g} s); fix DataRate or the Time column")
+
+
 def read_trc(path: str | Path) -> MarkerTable:
     """Read a `.trc` file; raises `IngestError` naming the file on any structural problem. The file
     is read once: its header from the text, its rows from the same bytes by the strict fast reader
@@ -130,6 +166,7 @@ def read_trc(path: str | Path) -> MarkerTable:
     time = data[:, 1].copy()  # not a view: it would hold the whole table for the trial's lifetime
     if np.isnan(time).any():
         raise IngestError(path, "Time column has empty cells")
+    time = regular_time(path, time, rate)
     xyz = data[:, 2:].reshape(len(rows), n_markers, 3)  # a view: metres need no copy
     if UNIT_TO_M[unit] != 1.0:
         xyz = xyz * UNIT_TO_M[unit]

@@ -224,6 +224,35 @@ def test_trc_header_aligned_with_repeated_tabs_or_spaces_reads_the_same(corpus, 
     np.testing.assert_array_equal(padded.xyz_m, ref.xyz_m)
 
 
+POSE2SIM_60HZ = "pose2sim_demo_markerless/S00_P00_T01_BalancingTrial_0-100.trc"
+
+
+def test_trc_time_column_rounded_to_3_decimals_reads_at_the_header_rate(corpus, real):
+    """Issue 34 case 6: 60 Hz with its Time column rounded to 0.001 s (steps 0.016 and 0.017 s) was read
+    with a 0.017 s median step, 58.82 Hz, and made `simulate` 13x slower; the header's 60 Hz holds."""
+    def round_time(cells):
+        return [cells[0], f"{float(cells[1]):.3f}", *cells[2:]]
+
+    key = corpus.add(POSE2SIM_60HZ, _trc_edit(corpus.text(POSE2SIM_60HZ), round_time))
+    rounded, ref = read_trc(corpus.manifest().resolve(key)), read_trc(real.resolve(POSE2SIM_60HZ))
+    assert rounded.rate_hz == ref.rate_hz == 60.0
+    assert 1.0 / np.median(np.diff(rounded.time_s)) == pytest.approx(60.0, rel=1e-9)
+    np.testing.assert_allclose(rounded.time_s, ref.time_s, atol=5e-4)  # the start rounded, nothing else
+    np.testing.assert_array_equal(rounded.xyz_m, ref.xyz_m)
+
+
+def test_trc_time_column_that_disagrees_with_its_header_rate(corpus, camargo):
+    """A header claiming 100 Hz over a Time column stepping at 200 Hz: refused, naming both rates."""
+    lines = corpus.text(CAMARGO_TRC).splitlines()
+    values = lines[2].split("\t")
+    values[0] = values[1] = "100"
+    lines[2] = "\t".join(values)
+    key = corpus.add(CAMARGO_TRC, "\n".join(lines) + "\n")
+    subject, spec = _one_trial(camargo, key)
+    with _raises(IngestError, corpus.path(key), "DataRate 100 Hz", "Time column steps at 200 Hz"):
+        load_trial(subject, spec, corpus.manifest())
+
+
 def test_up_axis_auto_refuses_a_tilted_lab(corpus, camargo):
     """The recording turned 45 deg about X: the pelvis stands ~0.7 m above the feet along both Y and Z,
     so `auto` cannot choose; the error gives the heights per axis and the way to declare it."""
