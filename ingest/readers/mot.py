@@ -2,6 +2,8 @@
 
 Layout: `key=value` header lines up to `endheader`, then a tab-separated table whose first row
 names the columns. `inDegrees=yes|no` says whether rotational columns are degrees or radians.
+Every cell read must hold a number: an empty or NaN cell is refused naming its column and rows
+(`missing_cells`), never passed on as a hole in a joint curve or a force that never loads.
 """
 
 from __future__ import annotations
@@ -97,14 +99,34 @@ def read_mot(path: str | Path, columns: Callable[[str], bool] | None = None) -> 
     while body[end_of_rows - 1] in b" \t\r\n\x0b\x0c":
         end_of_rows -= 1
     last = body[body.rfind(b"\n", 0, end_of_rows) + 1:end_of_rows]
-    if np.isnan(values[-1]).any() or len(last.rstrip().split(b"\t")) < width:
+    if len(last.rstrip(b" \r\n").split(b"\t")) < width:
         raise IngestError(path, "truncated: the last row is incomplete")
+    if np.isnan(values).any():
+        raise IngestError(path, missing_cells(table))
     n_rows = header.get("nrows") or header.get("datarows")
     if n_rows is not None and int(n_rows) != len(table):
         raise IngestError(path, f"truncated: header declares {n_rows} rows, file holds {len(table)}")
     if len(table) > 1 and not (np.diff(values[:, table.columns.get_loc("time")]) > 0).all():
         raise IngestError(path, "time column is not strictly increasing")
     return MotTable(path, header, table)
+
+
+def missing_cells(table: pd.DataFrame, shown: int = 4) -> str:
+    """What a table's empty or NaN cells are, by column: `column: rows a-b (t0-t1 s)`, rows counted
+    from 1 after the column names, runs of consecutive rows joined (the first `shown` columns)."""
+    time = table["time"].to_numpy(float)
+    parts = []
+    holes = table.isna().to_numpy()
+    columns = [j for j in range(table.shape[1]) if holes[:, j].any()]
+    for j in columns[:shown]:
+        rows = np.flatnonzero(holes[:, j])
+        breaks = np.flatnonzero(np.diff(rows) > 1)
+        starts, ends = rows[np.r_[0, breaks + 1]], rows[np.r_[breaks, len(rows) - 1]]
+        runs = [f"{a + 1}" if a == b else f"{a + 1}-{b + 1}" for a, b in zip(starts, ends, strict=True)]
+        span = "" if table.columns[j] == "time" else f" ({time[rows[0]]:.4g}-{time[rows[-1]]:.4g} s)"
+        parts.append(f"{table.columns[j]} rows {', '.join(runs[:3])}{', ...' if len(runs) > 3 else ''}{span}")
+    more = f"; and {len(columns) - shown} more columns" if len(columns) > shown else ""
+    return f"empty or NaN cells: {'; '.join(parts)}{more} (every cell read must hold a number)"
 
 
 def _fast_table(body: bytes, columns: Callable[[str], bool] | None) -> tuple[pd.DataFrame | None, int]:

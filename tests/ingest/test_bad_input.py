@@ -341,6 +341,58 @@ def test_mot_with_a_text_cell_names_its_column(corpus, camargo):
         load_trial(subject, subject.trials[0], corpus.manifest())
 
 
+CAMARGO_GRF = "camargo2021_levelground/ID/levelground_ccw_fast_01_01_grf.mot"
+
+
+def _mot_cells(text: str, column: str, rows: range, value: str) -> str:
+    """A storage file's text with the cells of `column` in data `rows` (0-based, after the names) set
+    to `value`."""
+    head, body = text.split("endheader\n", 1)
+    lines = body.splitlines()
+    j = lines[0].split("\t").index(column)
+    for k in rows:
+        cells = lines[k + 1].split("\t")
+        cells[j] = value
+        lines[k + 1] = "\t".join(cells)
+    return head + "endheader\n" + "\n".join(lines) + "\n"
+
+
+@pytest.mark.parametrize("cell", ["NaN", ""])
+def test_ik_mot_with_nan_cells_names_the_column_and_rows(corpus, camargo, cell):
+    """Issue 34 case 2: NaN (or empty) knee cells inside an IK file flowed into kept cycles (a hole in the
+    knee curve) and into ROM; refused, naming the file, the column and its rows and times."""
+    text = _mot_cells(corpus.text(CAMARGO_MOT), "knee_angle_r", range(400, 481), cell)
+    key = corpus.add(CAMARGO_MOT, text)
+    subject = dataclasses.replace(camargo, trials=(TrialSpec("bad", "free", angles=key),))
+    with _raises(IngestError, corpus.path(key), "empty or NaN cells: knee_angle_r rows 401-481",
+                 "(2.005-2.405 s)", "every cell read must hold a number"):
+        load_trial(subject, subject.trials[0], corpus.manifest())
+
+
+def test_grf_mot_with_a_nan_vertical_force_names_the_column_and_rows(corpus, camargo):
+    """A NaN vertical force silently turned every event kinematic (and `events --method force` printed a
+    bare header); refused, naming the plate's column and rows."""
+    text = _mot_cells(corpus.text(CAMARGO_GRF), "ground_force_2_vy", range(10, 12), "nan")
+    key = corpus.add(CAMARGO_GRF, _mot_cells(text, "ground_force_2_vy", range(100, 301), "NaN"))
+    markers = corpus.add(CAMARGO_TRC, corpus.text(CAMARGO_TRC))
+    subject = dataclasses.replace(camargo, trials=(TrialSpec("bad", "free", markers, grf=key),))
+    with _raises(IngestError, corpus.path(key), "ground_force_2_vy rows 11-12, 101-301 (0.055-1.505 s)"):
+        load_trial(subject, subject.trials[0], corpus.manifest())
+
+
+def test_mot_nan_in_the_last_row_is_not_called_truncated(corpus, camargo):
+    """A NaN cell in a complete last row was reported as a truncated file; a row cut short still is."""
+    text = corpus.text(CAMARGO_MOT)
+    key = corpus.add(CAMARGO_MOT, _mot_cells(text, "knee_angle_l", range(3066, 3067), "NaN"))
+    subject = dataclasses.replace(camargo, trials=(TrialSpec("bad", "free", angles=key),))
+    with _raises(IngestError, corpus.path(key), "knee_angle_l rows 3067 (15.34-15.34 s)") as info:
+        load_trial(subject, subject.trials[0], corpus.manifest())
+    assert "truncated" not in str(info.value)
+    key = corpus.add(CAMARGO_MOT, text.rstrip("\n").rsplit("\t", 3)[0] + "\n")  # the last row cut short
+    with _raises(IngestError, corpus.path(key), "truncated: the last row is incomplete"):
+        load_trial(subject, subject.trials[0], corpus.manifest())
+
+
 def test_knee_sign_not_declared(corpus, camargo):
     """Camargo's knee flexion is negative in the file; a subject file that forgets to say so."""
     key = _mot_with_header(corpus, None)

@@ -68,6 +68,27 @@ def test_events_detects_the_up_axis_without_a_flag(capsys):
     assert printed[""] == printed["--up-axis auto"] == printed["--up-axis y"]
 
 
+def test_events_force_with_a_nan_vertical_force_is_an_error(tmp_path, capsys):
+    """Issue 34 case 2: a GRF file with NaN vertical forces made `events --method force` print a bare
+    header with exit 0; now exit 2 and one line naming the file and the column."""
+    grf = DATA / "camargo2021_levelground" / "ID" / "levelground_ccw_fast_01_01_grf.mot"
+    head, body = grf.read_text().split("endheader\n", 1)
+    lines = body.splitlines()
+    vy = [j for j, name in enumerate(lines[0].split("\t")) if name.endswith("_vy")]
+    for k in range(1, len(lines) - 1):  # all but the last row (a NaN there read as "truncated")
+        cells = lines[k].split("\t")
+        for j in vy:
+            cells[j] = "NaN"
+        lines[k] = "\t".join(cells)
+    bad = tmp_path / grf.name
+    bad.write_text(head + "endheader\n" + "\n".join(lines) + "\n")
+    code = main(["events", str(CAMARGO_TRC), "--grf", str(bad), "--method", "force", "--up-axis", "y"])
+    out, err = capsys.readouterr()
+    assert code == 2 and out == "", out
+    assert err.startswith(f"error: {bad}: empty or NaN cells: ground_force_1_vy rows 1-3066 "), err
+    assert "\n" not in err.strip()
+
+
 def test_missing_params_file_is_one_line_error(tmp_path, capsys):
     assert main(["--params", str(tmp_path / "none.yaml"), "ingest", "camargo"]) == 2
     assert "none.yaml" in capsys.readouterr().err
