@@ -13,7 +13,8 @@ from pipeline import paths
 from pipeline.params import Params
 from sim.body.variant import HEALTHY
 from sim.errors import SimulationError
-from sim.learn.train import POLICY_FILE, train, train_on_ray
+from sim.learn.train import POLICY_FILE, train
+from sim.learn.train_ray import train_on_ray
 from sim.motion.reference import load_reference
 
 
@@ -32,7 +33,7 @@ def run_train(subject: str, params: Params, *, n_envs: int | None, threads: int 
               max_wall_s: float | None = None, subprocess: bool | None = None,
               init_from: str | None = None, on_ray: bool = False, variant: str = HEALTHY) -> dict:
     """Train `subject`'s policy; `init_from`: another subject whose committed policy is the start;
-    `on_ray`: as one Ray job (`sim.learn.train.train_on_ray`: locally, or on a node of the
+    `on_ray`: as one Ray job (`sim.learn.train_ray.train_on_ray`: locally, or on a node of the
     `RAY_ADDRESS` cluster) of as many CPUs as it uses (its environment processes, else its threads).
     `variant`: fine-tune cohort variant `variant` from the subject's own policy (params `cohort`:
     its body and goals, its `fine_tune_steps` unless `steps`; the body and speed ramp in over

@@ -90,10 +90,10 @@ class AMP:
     """Discriminator, its optimiser and a replay of policy transitions."""
 
     def __init__(self, n_in: int, p: AMPParams, reference_sampler: Callable[[int], np.ndarray],
-                 seed: int = 0) -> None:
+                 seed: int = 0, device: str = "cpu") -> None:
         torch.manual_seed(seed)
-        self.p, self.sample_reference = p, reference_sampler
-        self.disc = Discriminator(n_in, p.hidden)
+        self.p, self.sample_reference, self.device = p, reference_sampler, torch.device(device)
+        self.disc = Discriminator(n_in, p.hidden).to(self.device)
         self.opt = torch.optim.Adam(self.disc.parameters(), lr=p.learning_rate, weight_decay=p.weight_decay)
         self.replay = np.zeros((p.replay_size, n_in), np.float32)
         self.replay_n, self.replay_i = 0, 0
@@ -109,18 +109,17 @@ class AMP:
     def update(self, policy_x: np.ndarray) -> dict[str, float]:
         """One discriminator update on this rollout's transitions (half fresh, half replayed)."""
         p = self.p
-        fresh = torch.as_tensor(policy_x, dtype=torch.float32)
-        self.disc.update_normaliser(torch.cat([fresh, torch.as_tensor(self.sample_reference(len(policy_x)),
-                                                                      dtype=torch.float32)]))
+        fresh = self._tensor(policy_x)
+        self.disc.update_normaliser(torch.cat([fresh, self._tensor(self.sample_reference(len(policy_x)))]))
         n_batches = max(1, p.epochs * len(policy_x) // p.batch_size)
-        stats = np.zeros(5)
+        stats = torch.zeros(5, device=self.device)  # summed on the device: no sync per batch
         for _ in range(n_batches):
             half = p.batch_size // 2
             neg = policy_x[self.rng.integers(0, len(policy_x), half)]
             if self.replay_n:
                 neg = np.vstack([neg, self.replay[self.rng.integers(0, self.replay_n, half)]])
-            neg_t = torch.as_tensor(neg, dtype=torch.float32)
-            pos_t = torch.as_tensor(self.sample_reference(len(neg)), dtype=torch.float32).requires_grad_(True)
+            neg_t = self._tensor(neg)
+            pos_t = self._tensor(self.sample_reference(len(neg))).requires_grad_(True)
             d_pos, d_neg = self.disc(pos_t), self.disc(neg_t)
             loss_ls = 0.5 * ((d_pos - 1.0) ** 2).mean() + 0.5 * ((d_neg + 1.0) ** 2).mean()
             grad = torch.autograd.grad(d_pos.sum(), pos_t, create_graph=True)[0]
@@ -129,17 +128,20 @@ class AMP:
             self.opt.zero_grad()
             loss.backward()
             self.opt.step()
-            stats += [loss_ls.item(), gp.item(), (d_pos > 0).float().mean().item(),
-                      (d_neg < 0).float().mean().item(), d_pos.mean().item() - d_neg.mean().item()]
+            stats += torch.stack([loss_ls, gp, (d_pos > 0).float().mean(), (d_neg < 0).float().mean(),
+                                  d_pos.mean() - d_neg.mean()]).detach()
         self._store(policy_x)
-        s = stats / n_batches
+        s = (stats / n_batches).cpu().numpy()
         return {"disc_loss": s[0], "disc_grad_penalty": s[1], "disc_acc_reference": s[2],
                 "disc_acc_policy": s[3], "disc_margin": s[4]}
 
+    def _tensor(self, x: np.ndarray) -> torch.Tensor:
+        return torch.as_tensor(x, dtype=torch.float32, device=self.device)
+
     @torch.no_grad()
     def reward(self, x: np.ndarray) -> np.ndarray:
-        d = self.disc(torch.as_tensor(x, dtype=torch.float32))
-        return (self.p.reward_scale * style_reward(d)).numpy()
+        d = self.disc(self._tensor(x))
+        return (self.p.reward_scale * style_reward(d)).cpu().numpy()
 
     def state_dict(self) -> dict:
         return {"disc": self.disc.state_dict(), "opt": self.opt.state_dict()}

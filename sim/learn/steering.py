@@ -175,13 +175,13 @@ def standing_pose(model: mujoco.MjModel, foot_bodies: np.ndarray) -> np.ndarray:
     q[3:7] = 1.0, 0.0, 0.0, 0.0
     data.qpos[:] = q
     mujoco.mj_forward(model, data)
-    feet = np.isin(model.geom_bodyid, _subtree(model, foot_bodies))
-    lowest = min(_geom_bottom(model, data, g) for g in np.flatnonzero(feet))
+    feet = np.isin(model.geom_bodyid, subtree(model, foot_bodies))
+    lowest = min(geom_bottom(model, data, g) for g in np.flatnonzero(feet))
     q[2] = 1.0 - lowest
     return q
 
 
-def _subtree(model: mujoco.MjModel, roots: np.ndarray) -> np.ndarray:
+def subtree(model: mujoco.MjModel, roots: np.ndarray) -> np.ndarray:
     ids = set(int(r) for r in roots)
     for b in range(model.nbody):
         parent = int(model.body_parentid[b])
@@ -190,7 +190,7 @@ def _subtree(model: mujoco.MjModel, roots: np.ndarray) -> np.ndarray:
     return np.array(sorted(ids))
 
 
-def _geom_bottom(model: mujoco.MjModel, data: mujoco.MjData, g: int) -> float:
+def geom_bottom(model: mujoco.MjModel, data: mujoco.MjData, g: int) -> float:
     """Lowest world z of geom `g` (sphere, capsule, box or ellipsoid; others by bounding sphere)."""
     size, r = model.geom_size[g], data.geom_xmat[g].reshape(3, 3)
     kind, g_type = int(model.geom_type[g]), mujoco.mjtGeom
@@ -241,5 +241,6 @@ class SteeredReference:
                 speed_ratio * row[-2:])
 
 
-__all__ = ["CommandSampling", "SteeredReference", "command_at", "lead_heading",
-           "level_speed_ratio", "sample_commands", "speed_law", "standing_pose", "turn_lean_offset"]
+__all__ = ["CommandSampling", "SteeredReference", "command_at", "geom_bottom", "lead_heading",
+           "level_speed_ratio", "sample_commands", "speed_law", "standing_pose", "subtree",
+           "turn_lean_offset"]

@@ -21,7 +21,6 @@ from __future__ import annotations
 import csv
 import hashlib
 import json
-import tempfile
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, fields, replace
@@ -30,7 +29,6 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
-import ray
 import torch
 from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList
@@ -48,7 +46,6 @@ from sim.learn.walk_env import (
     motion_amp_pairs,
 )
 from sim.motion.reference import Reference, ReferenceCycle, mirrored_motion, with_longer_swing
-from sim.rollout.cluster import connect
 
 POLICY_FILE, NORM_FILE, AMP_FILE, PROGRESS_FILE = "policy.zip", "vecnormalize.pkl", "amp.pt", "progress.json"
 BODY_FILE, CYCLE_FILE = "human.xml", "cycle.npz"  # the body and reference cycle the policy was trained on
@@ -139,7 +136,7 @@ class _Curriculum(BaseCallback):
         return True
 
 
-class _Budget(BaseCallback):
+class Budget(BaseCallback):
     """Progress bar, periodic checkpoints and a wall-time limit."""
 
     def __init__(self, total: int, checkpoint_steps: int, save: Callable[[], None], max_wall_s: float | None,
@@ -237,7 +234,7 @@ def train(model_path: str | Path, cycle: ReferenceCycle, p: TrainParams, out_dir
                 raise FileNotFoundError(f"{start_dir / f}: no policy to start from")
         old = PPO.load(str(start_dir / POLICY_FILE), device="cpu")
         if old.observation_space.shape[0] == LEGACY_OBS_SIZE:  # a straight walker: widen to steering
-            venv, model = widen_policy(old, _load_norm(start_dir), venv, p, cycle.speed_mps)
+            venv, model = widen_policy(old, load_norm(start_dir), venv, p, cycle.speed_mps)
         else:
             venv = VecNormalize.load(str(start_dir / NORM_FILE), venv)
             venv.training = True
@@ -302,7 +299,7 @@ def train(model_path: str | Path, cycle: ReferenceCycle, p: TrainParams, out_dir
         return rec
 
     callbacks = [AMPCallback(amp, p.env.w_style, 6, log),
-                 _Budget(total, p.checkpoint_steps, save, max_wall_s, progress)]
+                 Budget(total, p.checkpoint_steps, save, max_wall_s, progress)]
     if curriculum_steps > 0:
         callbacks.append(_Curriculum(curriculum_steps))
     callbacks = CallbackList(callbacks)
@@ -313,51 +310,6 @@ def train(model_path: str | Path, cycle: ReferenceCycle, p: TrainParams, out_dir
     rec = save()
     log.close()
     venv.close()
-    return rec
-
-
-def _pack(folder: Path) -> dict[str, bytes]:
-    """Every file under `folder` by its relative path (a policy folder is a few MB)."""
-    return {str(f.relative_to(folder)): f.read_bytes() for f in sorted(folder.rglob("*")) if f.is_file()}
-
-
-def _unpack(folder: Path, files: dict[str, bytes]) -> None:
-    for name, data in files.items():
-        (folder / name).parent.mkdir(parents=True, exist_ok=True)
-        (folder / name).write_bytes(data)
-
-
-@ray.remote
-def _train_job(human_xml: bytes, cycle: ReferenceCycle, p: TrainParams, policy: dict[str, bytes],
-               init: dict[str, bytes] | None, kwargs: dict) -> tuple[dict[str, bytes], dict]:
-    with tempfile.TemporaryDirectory() as tmp:
-        root = Path(tmp)
-        (root / "human.xml").write_bytes(human_xml)
-        _unpack(root / "policy", policy)
-        if init is not None:
-            _unpack(root / "init", init)
-        rec = train(root / "human.xml", cycle, p, root / "policy", init_from=root / "init" if init else None,
-                    progress=False, **kwargs)
-        return _pack(root / "policy"), rec
-
-
-def train_on_ray(model_path: str | Path, cycle: ReferenceCycle, p: TrainParams, out_dir: str | Path, *,
-                 cpus: int, init_from: str | Path | None = None, **kwargs: object) -> dict:
-    """`train` as one Ray job of `cpus` CPUs: on this machine or on a node of the `RAY_ADDRESS`
-    cluster (`sim.rollout.cluster`). The body, the policy to resume or start from and the resulting
-    policy folder travel as bytes, so the node needs no shared disk; `out_dir` is written only when
-    the job succeeded (a failed job leaves the committed policy as it was)."""
-    connect(cpus)
-    out = Path(out_dir)
-    policy = _pack(out) if kwargs.get("resume") and out.is_dir() else {}
-    init = _pack(Path(init_from)) if init_from is not None else None
-    files, rec = ray.get(_train_job.options(num_cpus=cpus).remote(Path(model_path).read_bytes(), cycle, p,
-                                                                   policy, init, kwargs))
-    if init_from is not None and "initialised_from" in rec:  # name the real start, not the job's copy
-        rec["initialised_from"] = str(init_from)
-        files[PROGRESS_FILE] = (json.dumps(rec, indent=2) + "\n").encode()
-    out.mkdir(parents=True, exist_ok=True)
-    _unpack(out, files)
     return rec
 
 
@@ -420,7 +372,7 @@ def widen_policy(old: PPO, old_norm: VecNormalize, venv: VecMonitor, p: TrainPar
     return norm, model
 
 
-def _load_norm(folder: Path) -> VecNormalize:
+def load_norm(folder: Path) -> VecNormalize:
     import pickle
 
     with (folder / NORM_FILE).open("rb") as f:
@@ -466,9 +418,9 @@ def load_policy(out_dir: str | Path) -> tuple[PPO, VecNormalize | None]:
     """The trained PPO policy and its observation normaliser (for `PolicyHuman`)."""
     out = Path(out_dir)
     model = PPO.load(str(out / POLICY_FILE), device="cpu")
-    return model, (_load_norm(out) if (out / NORM_FILE).exists() else None)
+    return model, (load_norm(out) if (out / NORM_FILE).exists() else None)
 
 
 __all__ = ["AMP_FILE", "BODY_FILE", "CYCLE_FILE", "NORM_FILE", "POLICY_FILE", "PROGRESS_FILE",
-           "STEERING_FILE", "TrainParams", "load_body", "load_policy", "make_vec_env", "new_ppo",
-           "policy_env", "save_body", "train", "variant_cycle", "widen_policy"]
+           "STEERING_FILE", "Budget", "MetricsLog", "TrainParams", "load_body", "load_norm", "load_policy",
+           "make_vec_env", "new_ppo", "policy_env", "save_body", "train", "variant_cycle", "widen_policy"]

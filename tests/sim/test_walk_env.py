@@ -334,7 +334,7 @@ def test_policy_human_refuses_a_world_at_another_timestep(setup, policies_root):
 
 def test_training_runs_as_a_ray_job_and_resumes(tmp_path, setup, camargo_model):
     """`train_on_ray`: the same training as one Ray job; the folder comes back and resumes there."""
-    from sim.learn.train import train_on_ray
+    from sim.learn.train_ray import train_on_ray
 
     _, tp, _, cycle = setup
     p = replace(tp, n_steps=128, batch_size=256, n_epochs=1, net_arch=(32, 32),

@@ -1,0 +1,488 @@
+"""One walking policy for many bodies: PPO + AMP over the bundled subjects' humans and bodies drawn
+around them, the body in the observation.
+
+Every env holds a pool of bodies (`MultiBodyEnv`): each bundled subject's scaled human with its own
+reference cycle, and `UniversalParams.drawn` bodies drawn around them (`sim.learn.bodies`: segment
+lengths and masses within +-15 %, the cycle carried over by dynamic similarity). At each episode it
+picks one, half uniformly and half in proportion to how often that body fell lately (Won & Lee
+2019 sample bodies where control is still poor; here the falls are the measure), and now and then
+replaces a drawn body by a new one. The observation is the walking env's (`OBS_SIZE`) followed by
+`body_observation` (`BODY_OBS_SIZE`). The discriminator's reference transitions come from every
+body's cycle alike, and `motion_share` of them from the subjects' whole recordings and their mirror
+images (their starts, stops and turns).
+
+The run starts from a single-body policy (`init_from`, e.g. camargo's committed one), its first
+layers widened with zero weights for the body inputs (`widen_for_body`), so it walks from step
+one; it is ONE run that resumes from its own folder (`resume`). At every checkpoint it writes the
+policy, the observation statistics, the discriminator and `progress.json`: steps, wall time and
+`quick_gate` (each subject's body, its cycle: walk_10m and turn_90, no fall, standing at the end,
+steady speed within the bound) against steps.
+
+Run it with `python -m sim.learn.universal` (flags: `--help`); it needs numpy, torch, mujoco,
+gymnasium, stable-baselines3 and pyyaml only.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+import time
+from dataclasses import dataclass, field, fields, replace
+from functools import partial
+from pathlib import Path
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+import torch
+from stable_baselines3 import PPO
+from stable_baselines3.common.callbacks import BaseCallback, CallbackList
+from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor, VecNormalize
+
+from sim.learn.amp import AMP, AMPCallback
+from sim.learn.bodies import (
+    BODY_OBS_SIZE,
+    BodyDraw,
+    BodyScales,
+    body_observation,
+    draw_scales,
+    scale_spec,
+    similar_cycle,
+)
+from sim.learn.train import (
+    AMP_FILE,
+    NORM_FILE,
+    POLICY_FILE,
+    PROGRESS_FILE,
+    Budget,
+    MetricsLog,
+    TrainParams,
+    load_norm,
+    new_ppo,
+    ppo_settings,
+)
+from sim.learn.walk_env import AMP_SIZE, OBS_SIZE, WalkEnv, WalkEnvParams, motion_amp_pairs, pd_servo_spec
+from sim.motion.reference import ReferenceCycle, load_reference, mirrored_motion
+from sim.rollout.scenarios import ProfileParams, Segment, command_profile
+
+UNIVERSAL_OBS_SIZE = OBS_SIZE + BODY_OBS_SIZE
+BODY_FILE_JSON = "body.json"  # a subject's policy folder from the universal one: its body observation
+
+
+@dataclass(frozen=True)
+class UniversalParams:
+    """The `universal` section of params.yaml (module docstring)."""
+
+    subjects: tuple[str, ...] = ()       # bundled subjects whose bodies and cycles it trains on
+    drawn: int = 6                       # drawn bodies in each env's pool
+    refresh_probability: float = 0.02    # chance, at each episode, that a drawn body is replaced
+    adaptive_share: float = 0.5          # share of episodes on bodies picked by their recent falls
+    fall_memory: float = 0.05            # weight of the newest episode in a body's fall rate
+    motion_share: float = 0.1            # discriminator references from the recordings (module docstring)
+    init_from: str = "camargo"           # the single-body policy the run starts from
+    critic_warmup_steps: int = 200_000   # from `init_from`: only the value network learns at first
+    gate_scenarios: tuple[str, ...] = ("walk_10m", "turn_90")
+    gate_seeds: int = 2
+    gate_speed_tolerance: float = 0.10   # steady speed within +- this of the cycle's
+    gate_standing_mps: float = 0.15      # standing at the end: pelvis slower than this over the last second
+    bodies: BodyDraw = field(default_factory=BodyDraw)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> UniversalParams:
+        known = {f.name: f for f in fields(cls)}
+        out: dict = {}
+        for k, v in d.items():
+            if k not in known:
+                raise KeyError(f"universal: unknown key {k!r}")
+            if k == "bodies":
+                extra = set(v) - {f.name for f in fields(BodyDraw)}
+                if extra:
+                    raise KeyError(f"universal.bodies: unknown key {sorted(extra)[0]!r}")
+                out[k] = BodyDraw(**{a: float(b) for a, b in v.items()})
+            elif k in ("subjects", "gate_scenarios"):
+                out[k] = tuple(str(x) for x in v)
+            elif k == "init_from":
+                out[k] = str(v)
+            elif k in ("drawn", "gate_seeds", "critic_warmup_steps"):
+                out[k] = int(v)
+            else:
+                out[k] = float(v)
+        return cls(**out)
+
+
+@dataclass(frozen=True)
+class Source:
+    """A bundled subject's scaled human and reference motion (its cycle and whole recording)."""
+
+    name: str
+    xml: str
+    reference_npz: str
+
+
+def compile_body(xml: str, scales: BodyScales | None, p: WalkEnvParams) -> mujoco.MjModel:
+    """The human of `xml`, scaled by `scales` (None: as it is), with the walking env's PD servos."""
+    spec = mujoco.MjSpec.from_file(xml)
+    if scales is not None:
+        scale_spec(spec, scales)
+    pd_servo_spec(spec, p)
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    return spec.compile()
+
+
+@dataclass
+class Body:
+    """One body of a pool: its walking env, body observation and recent fall rate."""
+
+    source: str
+    scales: BodyScales | None
+    env: WalkEnv
+    obs: np.ndarray
+    fall_rate: float = 0.5
+
+
+def make_body(src: Source, cycle: ReferenceCycle, scales: BodyScales | None, p: WalkEnvParams,
+              seed: int | None) -> Body:
+    """A `Body` of subject `src` (scaled by `scales`; None: the subject's own)."""
+    model = compile_body(src.xml, scales, p)
+    if scales is not None:
+        cycle = similar_cycle(mujoco.MjModel.from_xml_path(src.xml), model, cycle)
+    return Body(src.name, scales, WalkEnv(model, cycle, p, seed=seed), body_observation(model, cycle))
+
+
+class MultiBodyEnv(gym.Env):
+    """A pool of bodies, one walking per episode (module docstring)."""
+
+    metadata = {"render_modes": []}
+
+    def __init__(self, sources: tuple[Source, ...], up: UniversalParams, p: WalkEnvParams, seed: int) -> None:
+        self.sources, self.up, self.p = sources, up, p
+        self.rng = np.random.default_rng(seed)
+        self.cycles = {s.name: load_reference(s.reference_npz).cycle for s in sources}
+        self.bodies = [make_body(s, self.cycles[s.name], None, p, seed) for s in sources]
+        self.bodies += [self._draw(seed + 1 + i) for i in range(up.drawn)]
+        self.observation_space = gym.spaces.Box(-np.inf, np.inf, (UNIVERSAL_OBS_SIZE,), np.float32)
+        self.action_space = gym.spaces.Box(-1.0, 1.0, (21,), np.float32)
+        self.current = self.bodies[0]
+        self._seed = seed + 1 + up.drawn
+
+    def _draw(self, seed: int) -> Body:
+        src = self.sources[int(self.rng.integers(len(self.sources)))]
+        return make_body(src, self.cycles[src.name], draw_scales(self.rng, self.up.bodies), self.p, seed)
+
+    def _pick(self) -> Body:
+        n = len(self.bodies)
+        falls = np.array([b.fall_rate for b in self.bodies]) + 1e-3
+        prob = (1.0 - self.up.adaptive_share) / n + self.up.adaptive_share * falls / falls.sum()
+        return self.bodies[int(self.rng.choice(n, p=prob / prob.sum()))]
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        if seed is not None:
+            self.rng = np.random.default_rng(seed)
+        n_own = len(self.sources)
+        if self.up.drawn and self.rng.random() < self.up.refresh_probability:
+            i = n_own + int(self.rng.integers(self.up.drawn))
+            self._seed += 1
+            self.bodies[i] = self._draw(self._seed)
+        self.current = self._pick()
+        obs, info = self.current.env.reset(seed=seed, options=options)
+        return np.concatenate([obs, self.current.obs]), info
+
+    def step(self, action):
+        obs, reward, fallen, truncated, info = self.current.env.step(action)
+        if fallen or truncated:
+            m = self.up.fall_memory
+            self.current.fall_rate = (1 - m) * self.current.fall_rate + m * float(fallen)
+        return np.concatenate([obs, self.current.obs]), reward, fallen, truncated, info
+
+
+def amp_reference_sampler(sources: tuple[Source, ...], up: UniversalParams, p: WalkEnvParams, dt_s: float,
+                          seed: int):
+    """`n -> (n, 2 x AMP)` reference transitions: every subject's body and `up.drawn` drawn bodies
+    alike, `up.motion_share` of them from the recordings (each subject's own body) and their mirror
+    images."""
+    pool = MultiBodyEnv(sources, replace(up, refresh_probability=0.0), p, seed)
+    tables = [(b.env.ref, b.env.step_phase) for b in pool.bodies]
+    recorded = []
+    if up.motion_share > 0:
+        for s, b in zip(sources, pool.bodies, strict=False):
+            m = load_reference(s.reference_npz)
+            for q, v in ((m.qpos, m.qvel), mirrored_motion(b.env.model, m.qpos, m.qvel)):
+                recorded.append(motion_amp_pairs(b.env.model, m.time_s, q, v, m.trial, dt_s,
+                                                 m.cycle.floor_shift_m))
+    motion = np.vstack(recorded) if recorded else np.empty((0, 2 * AMP_SIZE))
+    rng = np.random.default_rng(seed)
+
+    def sample(n: int) -> np.ndarray:
+        m = int(rng.binomial(n, up.motion_share)) if len(motion) else 0
+        counts = rng.multinomial(n - m, np.full(len(tables), 1.0 / len(tables)))
+        parts = [ref.amp_pairs(rng, c, step) for (ref, step), c in zip(tables, counts, strict=True) if c]
+        if m:
+            parts.append(motion[rng.integers(0, len(motion), m)])
+        out = np.vstack(parts)
+        return out[rng.permutation(len(out))]
+
+    return sample
+
+
+def widen_for_body(old: PPO, old_norm: VecNormalize, venv, p: TrainParams) -> tuple[VecNormalize, PPO]:
+    """A body-conditioned policy that acts exactly as the single-body `old` whatever the body: the
+    first layers of the policy and value networks get the body inputs with zero weights, the old
+    inputs keep their weights and normalisation statistics; the body inputs start at mean 0, std 0.1
+    (log ratios of about +-10 %)."""
+    n_old = old.observation_space.shape[0]
+    if n_old != OBS_SIZE:
+        raise ValueError(f"the start policy has {n_old} observations, not the walking env's {OBS_SIZE}")
+    norm = VecNormalize(venv, norm_obs=True, norm_reward=False, clip_obs=10.0, gamma=p.gamma)
+    mean, var = np.zeros(UNIVERSAL_OBS_SIZE), np.full(UNIVERSAL_OBS_SIZE, 0.01)
+    mean[:n_old], var[:n_old] = old_norm.obs_rms.mean, old_norm.obs_rms.var
+    norm.obs_rms.mean, norm.obs_rms.var, norm.obs_rms.count = mean, var, 1e5
+    model = new_ppo(norm, p)
+    state = {k: v.clone() for k, v in old.policy.state_dict().items()}
+    for net in ("policy_net", "value_net"):
+        key = f"mlp_extractor.{net}.0.weight"
+        w = torch.zeros((state[key].shape[0], UNIVERSAL_OBS_SIZE), dtype=state[key].dtype)
+        w[:, :n_old] = state[key]
+        state[key] = w
+    model.policy.load_state_dict(state)
+    return norm, model
+
+
+class CriticWarmup(BaseCallback):
+    """The first `steps` env steps of a run started from a single-body policy update the value
+    network only: its values were learnt on one body, and advantages from them would first push the
+    walking policy about on bodies it has never seen."""
+
+    def __init__(self, steps: int) -> None:
+        super().__init__()
+        self.steps = steps
+
+    def _actor(self) -> list[torch.nn.Parameter]:
+        pol = self.model.policy
+        return [*pol.mlp_extractor.policy_net.parameters(), *pol.action_net.parameters(), pol.log_std]
+
+    def _on_rollout_start(self) -> None:
+        for prm in self._actor():
+            prm.requires_grad_(self.num_timesteps >= self.steps)
+
+    def _on_step(self) -> bool:
+        return True
+
+
+def _make_env(sources: tuple[Source, ...], up: UniversalParams, p: WalkEnvParams, seed: int) -> MultiBodyEnv:
+    torch.set_num_threads(1)
+    return MultiBodyEnv(sources, up, p, seed)
+
+
+def quick_gate(model: PPO, norm: VecNormalize, sources: tuple[Source, ...], up: UniversalParams,
+               p: WalkEnvParams, scenarios: dict[str, list[Segment]]) -> dict:
+    """Each subject's own body walking `up.gate_scenarios` (deterministic actions, no pushes,
+    `up.gate_seeds` start phases): per subject and scenario, no fall in any walk and standing at
+    the end; walk_10m's steady speed within `gate_speed_tolerance` of the cycle's. Returns
+    {subject: {check: {"pass", "value"}}}, plus `passed` and `checks` counts."""
+    out: dict = {}
+    passed = total = 0
+    for src in sources:
+        cycle = load_reference(src.reference_npz).cycle
+        rows: dict = {}
+        for name in up.gate_scenarios:
+            body = make_body(src, cycle, None, replace(p, episode_s=120.0, push_probability=0.0), 0)
+            env = body.env
+            prof = command_profile(name, scenarios[name], cycle.speed_mps, 1.0 / env.dt, p.profile)
+            falls, standing, speeds = 0, 0, []
+            for seed in range(up.gate_seeds):
+                obs, _ = env.reset(seed=seed, options={"commands": prof, "pushes": False,
+                                                       "phase": seed / max(up.gate_seeds, 1)})
+                v, steady = [], prof.phase == "steady"
+                for k in range(len(prof.time_s)):
+                    x = norm.normalize_obs(np.concatenate([obs, body.obs])[None])
+                    action, _ = model.predict(x, deterministic=True)
+                    obs, _, fell, _, _ = env.step(action[0])
+                    h = prof.heading_rad[min(k + 1, len(prof.time_s) - 1)]
+                    v.append(math.cos(h) * env.data.qvel[0] + math.sin(h) * env.data.qvel[1])
+                    if fell:
+                        falls += 1
+                        break
+                else:
+                    last = np.abs(v[-int(round(1.0 / env.dt)):])
+                    standing += int(last.max() < up.gate_standing_mps)
+                    if steady.any():
+                        at = steady[np.minimum(np.arange(len(v)) + 1, len(steady) - 1)]  # step k: command k+1
+                        speeds.append(float(np.mean(np.asarray(v)[at])))
+            rows[f"{name}_no_fall"] = {"pass": falls == 0, "value": falls}
+            rows[f"{name}_standing_at_end"] = {"pass": standing == up.gate_seeds, "value": standing}
+            if name == "walk_10m":
+                err = float(np.mean(speeds)) / cycle.speed_mps - 1.0 if speeds else None
+                ok = err is not None and abs(err) <= up.gate_speed_tolerance
+                rows["walk_10m_steady_speed"] = {"pass": ok, "value": None if err is None else round(err, 4)}
+        out[src.name] = rows
+        passed += sum(r["pass"] for r in rows.values())
+        total += len(rows)
+    return {"subjects": out, "passed": passed, "checks": total}
+
+
+def device_of(name: str) -> str:
+    """`auto`: cuda when torch sees a GPU, else cpu."""
+    return ("cuda" if torch.cuda.is_available() else "cpu") if name == "auto" else name
+
+
+def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalParams, out_dir: str | Path,
+                    scenarios: dict[str, list[Segment]], *, init_from: str | Path | None = None,
+                    resume: bool = False, total_steps: int | None = None, n_envs: int | None = None,
+                    subprocess: bool = False, max_wall_s: float | None = None, device: str = "auto",
+                    threads: int = 1, command: str = "", progress: bool = False) -> dict:
+    """Train (or resume) the universal policy into `out_dir` (module docstring); returns the
+    progress record."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    device = device_of(device)
+    torch.set_num_threads(threads)
+    n_envs = n_envs or p.n_envs
+    fns = [partial(_make_env, sources, up, p.env, p.seed * 1000 + 37 * i) for i in range(n_envs)]
+    vec = SubprocVecEnv(fns, start_method="fork") if subprocess and n_envs > 1 else DummyVecEnv(fns)
+    venv = VecMonitor(vec)
+    prior = json.loads((out / PROGRESS_FILE).read_text()) if resume and (out / PROGRESS_FILE).exists() else {}
+    if prior:
+        venv = VecNormalize.load(str(out / NORM_FILE), venv)
+        venv.training = True
+        model = PPO.load(str(out / POLICY_FILE), env=venv, device=device, custom_objects=ppo_settings(p))
+    elif init_from is not None:
+        old = PPO.load(str(Path(init_from) / POLICY_FILE), device="cpu")
+        venv, model = widen_for_body(old, load_norm(Path(init_from)), venv, p)
+        if device != "cpu":
+            model = _to_device(model, venv, p, device)
+    else:
+        venv = VecNormalize(venv, norm_obs=True, norm_reward=False, clip_obs=10.0, gamma=p.gamma)
+        model = new_ppo(venv, p) if device == "cpu" else _to_device(new_ppo(venv, p), venv, p, device)
+    probe = make_body(sources[0], load_reference(sources[0].reference_npz).cycle, None, p.env, None)
+    sampler = amp_reference_sampler(sources, up, p.env, probe.env.dt, p.seed)
+    amp = AMP(2 * AMP_SIZE, p.amp, sampler, seed=p.seed, device=device)
+    start_amp = out if prior else (Path(init_from) if init_from is not None else None)
+    if start_amp is not None and (start_amp / AMP_FILE).exists():
+        amp.load_state_dict(torch.load(start_amp / AMP_FILE, weights_only=False, map_location=device))
+    log = MetricsLog(out, resume=bool(prior))
+    start = time.perf_counter()
+    steps0, wall0 = int(prior.get("steps", 0)), float(prior.get("wall_s", 0.0))
+    runs, checkpoints = list(prior.get("runs", [])), list(prior.get("checkpoints", []))
+    origin = {k: v for k, v in prior.items() if k.startswith("initial")} or (
+        {"initialised_from": str(init_from)} if init_from is not None else {})
+    if not prior:
+        model.num_timesteps = 0
+    total = total_steps or p.total_steps
+    gate_wall = [0.0]
+
+    def save() -> dict:
+        model.save(str(out / POLICY_FILE))
+        venv.save(str(out / NORM_FILE))
+        torch.save(amp.state_dict(), out / AMP_FILE)
+        t0 = time.perf_counter()
+        gate = quick_gate(model, venv, sources, up, p.env, scenarios)
+        gate_wall[0] += time.perf_counter() - t0
+        wall = round(wall0 + time.perf_counter() - start, 1)
+        checkpoints.append({"steps": int(model.num_timesteps), "wall_s": wall, "passed": gate["passed"],
+                            "checks": gate["checks"], "gate": gate["subjects"]})
+        run_steps = int(model.num_timesteps) - steps0
+        run_wall = time.perf_counter() - start
+        rec = {"steps": int(model.num_timesteps), "wall_s": wall, **origin,
+               "subjects": [s.name for s in sources], "obs_size": UNIVERSAL_OBS_SIZE,
+               "runs": runs + [{"command": command, "n_envs": n_envs, "subprocess": subprocess,
+                                "device": device, "threads": threads, "cpu_count": os.cpu_count(),
+                                "steps": run_steps,
+                                "wall_s": round(run_wall, 1), "gate_wall_s": round(gate_wall[0], 1),
+                                "steps_per_s": round(run_steps / max(run_wall - gate_wall[0], 1e-9), 1)}],
+               "checkpoints": checkpoints}
+        tmp = out / f".{PROGRESS_FILE}.tmp"
+        tmp.write_text(json.dumps(rec, indent=1) + "\n")
+        os.replace(tmp, out / PROGRESS_FILE)
+        if progress:
+            print(f"{rec['steps']} steps, {wall:.0f} s: gate {gate['passed']}/{gate['checks']}", flush=True)
+        return rec
+
+    callbacks = [AMPCallback(amp, p.env.w_style, 6, log),
+                 Budget(total, p.checkpoint_steps, save, max_wall_s, False)]
+    if not prior and init_from is not None and up.critic_warmup_steps > 0:
+        callbacks.append(CriticWarmup(up.critic_warmup_steps))
+    callbacks = CallbackList(callbacks)
+    remaining = max(total - steps0, 0)
+    if remaining:
+        model.learn(total_timesteps=remaining, callback=callbacks, reset_num_timesteps=not prior,
+                    progress_bar=False)
+    rec = save() if not checkpoints or checkpoints[-1]["steps"] != model.num_timesteps else \
+        json.loads((out / PROGRESS_FILE).read_text())
+    log.close()
+    venv.close()
+    return rec
+
+
+def _to_device(model: PPO, venv: VecNormalize, p: TrainParams, device: str) -> PPO:
+    """`model`'s weights in a PPO on `device`."""
+    moved = PPO("MlpPolicy", venv, **ppo_settings(p), seed=p.seed, device=device, verbose=0,
+                policy_kwargs=model.policy_kwargs)
+    moved.policy.load_state_dict(model.policy.state_dict())
+    return moved
+
+
+# -- command line: reads params.yaml and data/processed directly (no pipeline imports) -------------
+
+def sources_of(subjects: tuple[str, ...], processed: Path) -> tuple[Source, ...]:
+    """The bundled subjects' scaled humans and references under `processed` (checked to exist)."""
+    out = []
+    for s in subjects:
+        xml, npz = processed / s / "model" / "human.xml", processed / s / "model" / "reference.npz"
+        for f in (xml, npz):
+            if not f.exists():
+                raise FileNotFoundError(f"{f}: missing (run `python -m pipeline run reference` first)")
+        out.append(Source(s, str(xml), str(npz)))
+    return tuple(out)
+
+
+def params_from_yaml(path: Path) -> tuple[TrainParams, UniversalParams, dict[str, list[Segment]]]:
+    """`train` (with the scenarios' transition timing), `universal` and the scenarios' segments."""
+    import yaml
+
+    doc = yaml.safe_load(path.read_text())
+    train = {k: v for k, v in doc["train"].items() if k != "subjects"}
+    p = TrainParams.from_dict(train)
+    p = replace(p, env=replace(p.env, profile=ProfileParams(**doc["scenarios"]["profile"])))
+    up = UniversalParams.from_dict(doc["universal"])
+    scenarios = {k: [Segment(**seg) for seg in v] for k, v in doc["scenarios"]["commands"].items()}
+    return p, up, scenarios
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m sim.learn.universal", description=__doc__.split("\n")[0])
+    ap.add_argument("--params", type=Path, default=Path("params.yaml"))
+    ap.add_argument("--processed", type=Path, default=Path("data/processed"))
+    ap.add_argument("--out", type=Path, default=Path("data/policies/universal"))
+    ap.add_argument("--init-from", type=Path, default=None, help="single-body policy folder (default: "
+                    "data/policies/<universal.init_from>)")
+    ap.add_argument("--resume", action="store_true", help="continue the run in --out")
+    ap.add_argument("--steps", type=int, default=None, help="total env steps of the run "
+                    "(default train.total_steps)")
+    ap.add_argument("--max-wall-s", type=float, default=None)
+    ap.add_argument("--n-envs", type=int, default=None)
+    ap.add_argument("--subprocess", action="store_true", help="one process per env")
+    ap.add_argument("--device", default="auto", help="auto | cpu | cuda (the PPO and AMP updates)")
+    ap.add_argument("--threads", type=int, default=1, help="torch threads of the update")
+    ap.add_argument("--checkpoint-steps", type=int, default=None)
+    args = ap.parse_args(argv)
+    p, up, scenarios = params_from_yaml(args.params)
+    if args.checkpoint_steps:
+        p = replace(p, checkpoint_steps=args.checkpoint_steps)
+    resume = args.resume and (args.out / PROGRESS_FILE).exists()
+    init = None if resume else (args.init_from or Path("data/policies") / up.init_from)
+    command = "python -m sim.learn.universal " + " ".join(sys.argv[1:] if argv is None else argv)
+    rec = train_universal(sources_of(up.subjects, args.processed), p, up, args.out, scenarios, init_from=init,
+                          resume=resume, total_steps=args.steps, n_envs=args.n_envs,
+                          subprocess=args.subprocess, max_wall_s=args.max_wall_s, device=args.device,
+                          threads=args.threads, command=command, progress=True)
+    last = rec["checkpoints"][-1]
+    print(f"{rec['steps']} steps in {rec['wall_s']} s; gate {last['passed']}/{last['checks']}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,164 @@
+"""Bodies around a subject's and the body-conditioned walking policy (sim/learn/bodies.py,
+sim/learn/universal.py) on camargo's real scaled human and reference cycle."""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import replace
+
+import mujoco
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+from sim.learn.bodies import (
+    BODY_OBS_SIZE,
+    BodyDraw,
+    BodyScales,
+    body_observation,
+    draw_scales,
+    leg_length,
+    scale_spec,
+    similar_cycle,
+)
+from sim.learn.steering import geom_bottom, subtree
+from sim.learn.train import load_norm, load_policy, new_ppo
+from sim.learn.universal import (
+    UNIVERSAL_OBS_SIZE,
+    MultiBodyEnv,
+    Source,
+    UniversalParams,
+    params_from_yaml,
+    train_universal,
+    widen_for_body,
+)
+from sim.learn.walk_env import OBS_SIZE, make_walk_env
+from sim.motion.reference import load_reference
+
+
+@pytest.fixture(scope="module")
+def camargo(camargo_model):
+    xml = str(camargo_model / "human.xml")
+    return Source("camargo", xml, str(camargo_model / "reference.npz")), mujoco.MjModel.from_xml_path(xml), \
+        load_reference(camargo_model / "reference.npz").cycle
+
+
+def _scaled(xml: str, s: BodyScales) -> mujoco.MjModel:
+    spec = mujoco.MjSpec.from_file(xml)
+    scale_spec(spec, s)
+    return spec.compile()
+
+
+def test_a_geometric_scaling_scales_lengths_masses_and_torques(camargo):
+    src, model, _ = camargo
+    big = _scaled(src.xml, BodyScales.uniform(1.1, 1.1 ** 3))
+    assert leg_length(big) == pytest.approx(1.1 * leg_length(model), rel=1e-9)
+    assert big.body_mass.sum() == pytest.approx(1.1 ** 3 * model.body_mass.sum(), rel=1e-9)
+    np.testing.assert_allclose(big.actuator_gear[:, :3], model.actuator_gear[:, :3] * 1.1 ** 4, rtol=1e-9)
+    foot = model.body("foot_l").id
+    np.testing.assert_allclose(big.body_inertia[foot], model.body_inertia[foot] * 1.1 ** 5, rtol=1e-9)
+
+
+def test_drawn_bodies_stay_within_the_range(camargo):
+    rng = np.random.default_rng(0)
+    draws = [draw_scales(rng, BodyDraw(range=0.15, segment_jitter=0.05)) for _ in range(200)]
+    lengths, masses = np.array([d.length for d in draws]), np.array([d.mass for d in draws])
+    assert lengths.min() >= 0.85 - 1e-12 and lengths.max() <= 1.15 + 1e-12
+    assert masses.min() >= 0.85 - 1e-12 and masses.max() <= 1.15 + 1e-12
+    assert lengths.std() > 0.05  # they do differ
+
+
+def test_the_cycle_carries_over_by_dynamic_similarity(camargo):
+    src, model, cycle = camargo
+    big = _scaled(src.xml, BodyScales.uniform(1.1, 1.1 ** 3))
+    c = similar_cycle(model, big, cycle)
+    assert c.speed_mps == pytest.approx(cycle.speed_mps * math.sqrt(1.1), rel=1e-9)
+    assert c.period_s == pytest.approx(cycle.period_s * math.sqrt(1.1), rel=1e-9)
+    assert c.stride_length_m == pytest.approx(cycle.stride_length_m * 1.1, rel=1e-9)
+    np.testing.assert_array_equal(c.qpos[:, 7:], cycle.qpos[:, 7:])  # the same joint angles
+    feet = [model.body(f"foot_{s}").id for s in "lr"]
+    for m, q in ((model, cycle.qpos), (big, c.qpos)):
+        d = mujoco.MjData(m)
+        geoms = np.flatnonzero(np.isin(m.geom_bodyid, subtree(m, np.array(feet))))
+        lows = []
+        for k in range(0, len(q), 10):
+            d.qpos[:] = q[k]
+            mujoco.mj_kinematics(m, d)
+            lows.append(min(geom_bottom(m, d, g) for g in geoms))
+        if m is model:
+            ref_lows = lows
+    np.testing.assert_allclose(lows, ref_lows, atol=1e-9)  # feet clear the floor as on the source body
+
+
+def test_the_body_observation_reads_the_body(camargo):
+    src, model, cycle = camargo
+    big = _scaled(src.xml, BodyScales.uniform(1.1, 1.2))
+    a, b = body_observation(model, cycle), body_observation(big, similar_cycle(model, big, cycle))
+    assert a.shape == (BODY_OBS_SIZE,)
+    np.testing.assert_allclose(b - a, [math.log(1.1), math.log(1.2), math.log(1.1), 0.5 * math.log(1.1),
+                                       0.5 * math.log(1.1)], atol=0.01)
+
+
+@pytest.fixture(scope="module")
+def universal(params, camargo):
+    p, up, scenarios = params_from_yaml(params._path)
+    up = replace(up, subjects=("camargo",), drawn=2, gate_seeds=1, gate_scenarios=("walk_10m",),
+                 critic_warmup_steps=256)
+    return p, up, scenarios
+
+
+def test_a_pool_of_bodies_is_one_gymnasium_env(universal, camargo):
+    p, up, _ = universal
+    env = MultiBodyEnv((camargo[0],), up, p.env, seed=0)
+    check_env(env, skip_render_check=True)
+    seen = set()
+    for i in range(12):
+        obs, _ = env.reset(seed=i)
+        assert obs.shape == (UNIVERSAL_OBS_SIZE,) and np.isfinite(obs).all()
+        seen.add(tuple(np.round(obs[OBS_SIZE:], 6)))
+    assert len(seen) == 3  # camargo's own body and the two drawn ones
+
+
+def test_widening_keeps_the_single_body_policy(universal, camargo, tmp_path):
+    p, up, _ = universal
+    src, _, cycle = camargo
+    single = DummyVecEnv([lambda: make_walk_env(src.xml, cycle, p.env, seed=0)])
+    norm = VecNormalize(single, norm_obs=True, norm_reward=False)
+    old = new_ppo(norm, replace(p, net_arch=(32, 32)))
+    norm.obs_rms.mean = np.random.default_rng(1).normal(size=OBS_SIZE)
+    multi = DummyVecEnv([lambda: MultiBodyEnv((src,), up, p.env, seed=0)])
+    wide_norm, wide = widen_for_body(old, norm, multi, replace(p, net_arch=(32, 32)))
+    rng = np.random.default_rng(2)
+    for _ in range(5):
+        obs = rng.normal(size=OBS_SIZE).astype(np.float32)
+        body = rng.normal(scale=0.2, size=BODY_OBS_SIZE).astype(np.float32)
+        a_old, _ = old.predict(norm.normalize_obs(obs[None]), deterministic=True)
+        x = wide_norm.normalize_obs(np.concatenate([obs, body])[None])
+        a_new, _ = wide.predict(x, deterministic=True)
+        np.testing.assert_allclose(a_new, a_old, atol=1e-6)
+
+
+def test_one_run_resumes_and_records_its_gate(universal, camargo, tmp_path):
+    p, up, scenarios = universal
+    p = replace(p, n_steps=64, batch_size=128, n_epochs=1, checkpoint_steps=256, net_arch=(32, 32))
+    out = tmp_path / "universal"
+    rec = train_universal((camargo[0],), p, up, out, scenarios, total_steps=256, n_envs=2)
+    assert rec["steps"] == 256 and rec["obs_size"] == UNIVERSAL_OBS_SIZE
+    gate = rec["checkpoints"][-1]
+    assert gate["checks"] == 3 and set(gate["gate"]) == {"camargo"}
+    again = train_universal((camargo[0],), p, up, out, scenarios, total_steps=512, n_envs=2, resume=True)
+    assert again["steps"] == 512 and [c["steps"] for c in again["checkpoints"]] == [256, 512]
+    assert len(again["runs"]) == 2 and json.loads((out / "progress.json").read_text()) == again
+    model, norm = load_policy(out)
+    assert model.observation_space.shape == (UNIVERSAL_OBS_SIZE,)
+    assert norm.obs_rms.mean.shape == (UNIVERSAL_OBS_SIZE,)
+    assert load_norm(out).obs_rms.count > 0
+
+
+def test_the_universal_params_reject_unknown_keys():
+    with pytest.raises(KeyError, match="universal: unknown key 'drwan'"):
+        UniversalParams.from_dict({"drwan": 3})
+    with pytest.raises(KeyError, match="universal.bodies: unknown key"):
+        UniversalParams.from_dict({"bodies": {"rnage": 0.1}})
