@@ -23,7 +23,15 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    PrivateAttr,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
 
 from ingest.errors import GaitloopError
 from ingest.process import IngestParams
@@ -41,6 +49,7 @@ from sim.body.balance_loss import BalanceLoss
 from sim.body.human_params import HumanParams
 from sim.body.variant import HEALTHY, Variant, variant_from_dict
 from sim.errors import SimulationError
+from sim.learn.pool import UniversalParams
 from sim.learn.transfer import FeatureWeights
 from sim.motion.reference import ReferenceParams
 from sim.motion.replay import ReplayParams
@@ -136,7 +145,7 @@ Vec6 = tuple[float, float, float, float, float, float]
 
 class FilterSchema(Schema):
     order: int
-    cutoff_hz: float
+    cutoff_hz: Annotated[float, Field(gt=0.0)]
 
 
 class GapsSchema(Schema):
@@ -320,7 +329,7 @@ class IkSchema(Schema):
 
 class RetargetSchema(Schema):
     conditions: tuple[str, ...]
-    qvel_cutoff_hz: float
+    qvel_cutoff_hz: Annotated[float, Field(gt=0.0)]
     cycle_samples: int
     cycle_side: Literal["left", "right"]
     floor_align: bool
@@ -418,6 +427,22 @@ class TuningSchema(Schema):
 class ControllerSchema(Schema):
     class_: str = Field(alias="class")  # registry name or package.module:Class
     gains: dict[str, float]
+
+    @model_validator(mode="after")
+    def _gains_fit_the_class(self) -> ControllerSchema:
+        """The gains its class needs and reads (`Controller.gain_problems`); a class that does not
+        resolve here (registered later) is left to `make_controller`."""
+        from sim.errors import SimulationError
+        from sim.robot.controllers import resolve
+
+        try:
+            cls = resolve(self.class_)
+        except SimulationError:
+            return self
+        problem = cls.gain_problems(self.gains)
+        if problem:
+            raise ValueError(f"gains: {problem}")
+        return self
 
     def spec(self) -> dict:
         """The {class, gains} dict `sim.robot.controllers.make_controller` takes."""
@@ -910,8 +935,18 @@ class Params(Schema):
     cohort: CohortSchema
     fall_intervention: FallInterventionSchema
     transfer: TransferSchema
+    universal: dict[str, Any]  # the schema is `sim.learn.pool.UniversalParams` (`_universal_keys`)
 
     _path: Path = PrivateAttr(default=PARAMS_FILE)
+
+    @field_validator("universal")
+    @classmethod
+    def _universal_keys(cls, v: dict[str, Any]) -> dict[str, Any]:
+        try:
+            UniversalParams.from_dict(v)
+        except (KeyError, TypeError, ValueError) as exc:
+            raise ValueError(str(exc.args[0]).removeprefix("universal: ")) from None
+        return v
 
     @model_validator(mode="after")
     def _controllers_exist(self) -> Params:

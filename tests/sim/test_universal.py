@@ -23,17 +23,10 @@ from sim.learn.bodies import (
     scale_spec,
     similar_cycle,
 )
+from sim.learn.pool import UNIVERSAL_OBS_SIZE, MultiBodyEnv, Source, UniversalParams
 from sim.learn.steering import geom_bottom, subtree
 from sim.learn.train import load_norm, load_policy, new_ppo
-from sim.learn.universal import (
-    UNIVERSAL_OBS_SIZE,
-    MultiBodyEnv,
-    Source,
-    UniversalParams,
-    params_from_yaml,
-    train_universal,
-    widen_for_body,
-)
+from sim.learn.universal import params_from_yaml, train_universal, widen_for_body
 from sim.learn.walk_env import OBS_SIZE, make_walk_env
 from sim.motion.reference import load_reference
 
