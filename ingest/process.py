@@ -27,6 +27,7 @@ from ingest.robot_log import log_from_markers, robot_table
 from ingest.strides import StrideParams, segment_strides
 from ingest.treadmill import Treadmill, TreadmillParams, check_treadmill, decide, overground_equivalent
 from ingest.trial import SIDES, Provenance, Trial
+from ingest.weighing import check_mass, stride_masses
 
 ID_COLUMNS = ["subject", "source", "condition", "trial"]
 PELVIS_ROLES = ("asis_left", "asis_right", "psis_left", "psis_right")
@@ -237,6 +238,9 @@ def process_subject(subject, manifest, p: IngestParams, progress: bool = False) 
     for spec in tqdm(subject.trials, desc=f"ingest {subject.id}", unit="trial", disable=not progress):
         results.append(process_trial(load_trial(subject, spec, manifest), subject.markerset, p,
                                      spec.treadmill, spec.belt_speed_mps))
+    masses = [m for r in results if r.trial.plates is not None
+              for m in stride_masses(r.trial.plates, r.events, p.events.force_threshold_n)]
+    check_mass(subject.mass_kg, masses, subject.path)
     logs = [r.robot for r in results if not r.robot.empty]
     robot = pd.concat(logs, ignore_index=True) if logs else pd.DataFrame(columns=ROBOT_COLUMNS)
     tables = SubjectTables(*(pd.concat([getattr(r, name) for r in results], ignore_index=True)

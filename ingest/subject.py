@@ -31,6 +31,8 @@ SUBJECTS_DIR = REPO_ROOT / "data" / "subjects"
 MARKERSETS_DIR = markersets.MARKERSETS_DIR
 ROLES = ("heel", "toe", "ankle", "knee", "asis", "psis")
 UP_AXIS_CHOICES = ("x", "y", "z", "auto")
+HEIGHT_RANGE_M = (0.5, 2.5)
+MASS_RANGE_KG = (10.0, 300.0)
 STATIC_AUTO = "auto"  # `static: auto`: the quietest standing window of the subject's trials
 STATIC_NONE = "none"  # `static: none`: no standing at all; scaled from the walking trials
 
@@ -131,6 +133,17 @@ def _belt_speed(value, path: Path) -> float | None:
     return speed
 
 
+def check_body_size(height_m: float, mass_kg: float, source: str | Path) -> None:
+    """`SubjectError` naming `source` and the accepted range when the height (m) or the mass (kg) is
+    outside `HEIGHT_RANGE_M` / `MASS_RANGE_KG` (the force plates check the mass closer:
+    `ingest.weighing`)."""
+    for name, value, (lo, hi), unit, what in (("height_m", height_m, HEIGHT_RANGE_M, "m", "metres"),
+                                              ("mass_kg", mass_kg, MASS_RANGE_KG, "kg", "kilograms")):
+        if not lo <= value <= hi:
+            raise SubjectError(source, f"{name} {value:g} is outside the accepted {lo:g}-{hi:g} {unit} "
+                                       f"(a human's, in {what})")
+
+
 def load_subject(subject_id: str, directory: Path = SUBJECTS_DIR) -> Subject:
     """Load and validate `<directory>/<subject_id>.yaml`."""
     path = directory / f"{subject_id}.yaml"
@@ -144,10 +157,7 @@ def load_subject(subject_id: str, directory: Path = SUBJECTS_DIR) -> Subject:
     if _require(doc, "id", path) != subject_id:
         raise SubjectError(path, f"id {doc['id']!r} does not match the file name {subject_id!r}")
     height, mass = float(_require(doc, "height_m", path)), float(_require(doc, "mass_kg", path))
-    if not 0.5 <= height <= 2.5:
-        raise SubjectError(path, f"height_m {height} is not a human height in metres")
-    if not 10 <= mass <= 300:
-        raise SubjectError(path, f"mass_kg {mass} is not a human mass in kilograms")
+    check_body_size(height, mass, path)
     fmt_doc = doc.get("format") or {}
     fmt = FileFormat(
         up_axis=str(fmt_doc.get("up_axis", "auto")).lower(),

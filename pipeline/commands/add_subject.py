@@ -63,6 +63,7 @@ from ingest.subject import (
     StaticSpec,
     Subject,
     TrialSpec,
+    check_body_size,
     load_markerset,
 )
 from pipeline.commands.quicklook import fitting_markerset
@@ -279,8 +280,7 @@ def add_subject(subject_id: str, height_m: float, mass_kg: float, static: Path |
     if needed and not any(t.condition in needed for t in trials):
         raise SubjectError(subject_id, f"no trial with condition in {needed} (params retarget.conditions): "
                            "the reference motion of the simulated human is built from those")
-    if not 0.5 <= height_m <= 2.5 or not 10 <= mass_kg <= 300:
-        raise SubjectError(subject_id, f"height {height_m} m / mass {mass_kg} kg are not a human's")
+    check_body_size(height_m, mass_kg, subject_id)
     if up_axis not in UP_AXIS_CHOICES or knee_flexion_sign not in (1, -1):
         raise SubjectError(subject_id, "up axis must be x, y, z or auto and knee flexion sign 1 or -1")
     if round_trip_of is not None and not ID_PATTERN.match(round_trip_of):

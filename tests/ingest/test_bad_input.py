@@ -568,6 +568,32 @@ def _subject_file(tmp_path: Path, **changes) -> Path:
     return tmp_path / "camargo.yaml"
 
 
+@pytest.mark.parametrize(("field", "value", "accepted"), [("height_m", 168.0, "0.5-2.5 m"),
+                                                          ("mass_kg", 2.5, "10-300 kg")])
+def test_body_size_out_of_range_names_the_accepted_range(tmp_path, field, value, accepted):
+    """Issue 34 case 3: a height in centimetres was refused without the accepted range."""
+    path = _subject_file(tmp_path, **{field: value})
+    with _raises(SubjectError, str(path), f"{field} {value:g} is outside the accepted {accepted}"):
+        load_subject("camargo", tmp_path)
+
+
+def test_mass_in_pounds_is_refused_against_the_force_plates(real, ingest_params):
+    """Issue 34 case 3: opencap4's 62.6 kg typed as pounds (x 2.2) was accepted while the plates weigh
+    her near 60 kg; refused naming both numbers. The mass as given passes the same check."""
+    opencap = load_subject("opencap4")
+    opencap = dataclasses.replace(opencap, trials=tuple(t for t in opencap.trials
+                                                        if t.id in ("walking4", "walkingTS1", "walkingTS2")))
+    assert all(t.grf for t in opencap.trials) and len(opencap.trials) == 3
+    tables = process_subject(opencap, real, ingest_params)
+    assert tables.strides["kept"].any()
+    pounds = dataclasses.replace(opencap, mass_kg=round(opencap.mass_kg * 2.2, 2))
+    with _raises(SubjectError, str(opencap.path), "mass_kg 137.72 but the force plates weigh the subject at ",
+                 "kg (median of 3 strides wholly on plates)", "more than 10%") as info:
+        process_subject(pounds, real, ingest_params)
+    weighed = float(str(info.value).split("weigh the subject at ")[1].split(" kg")[0])
+    assert abs(weighed / opencap.mass_kg - 1) < 0.10  # the plates agree with the mass as given
+
+
 def test_robot_log_on_a_free_trial(tmp_path):
     doc = yaml.safe_load((ROOT / "data" / "subjects" / "camargo.yaml").read_text())
     trials = [{**doc["trials"][0], "robot_log": "some/robot.csv"}]
