@@ -122,6 +122,14 @@ def test_every_key_of_params_yaml_is_read_and_kept(params):
      r"params\.yaml: rollout\.conditions: 'pdi' is neither free nor a controller in robot\.controllers$"),
     (lambda d: d["robot"]["tuning"]["initial"].update(lqr={"k": 1.0}),
      r"params\.yaml: robot\.tuning\.initial\.lqr: no controller 'lqr' in robot\.controllers$"),
+    # issue 34 case 14: these passed the check and failed seconds later as raw tracebacks (KeyError: 'kp_x')
+    (lambda d: d["ingest"]["filter"].update(cutoff_hz=-6.0),
+     r"params\.yaml: ingest\.filter\.cutoff_hz: Input should be greater than 0 \(got -6\.0\)$"),
+    (lambda d: (gains := d["robot"]["controllers"]["pid"]["gains"]).update(kp_xx=gains.pop("kp_x")),
+     r"params\.yaml: robot\.controllers\.pid: gains: missing gain\(s\) 'kp_x'; unknown gain\(s\) 'kp_xx' "
+     r"\(PID takes kp_x, ki_x, kd_x, kp_y, ki_y, kd_y; optional i_max\)$"),
+    (lambda d: d["robot"]["controllers"]["adaptive"]["gains"].pop("log_r_y"),
+     r"params\.yaml: robot\.controllers\.adaptive: gains: missing gain\(s\) 'log_r_y' \(Adaptive takes "),
 ])
 def test_errors_name_the_file_and_the_key_path(tmp_path, edit, message):
     document = doc()

@@ -85,6 +85,9 @@ OBSERVER_DEFAULTS = {"stride_init_s": 1.1, "stride_min_s": 0.6, "stride_max_s": 
 
 
 class Adaptive(Controller):
+    required_gains = GAINS
+    optional_gains = ("i_max", *OBSERVER_DEFAULTS)
+
     def reset(self) -> None:
         g, rb = self.gains, self.robot
         q = {k: 10.0 ** g[k] for k in GAINS}

@@ -54,11 +54,33 @@ class RobotInfo:
 
 
 class Controller(ABC):
-    """A follow-me controller. Construct with (gains dict, RobotInfo); `reset` before each rollout."""
+    """A follow-me controller. Construct with (gains dict, RobotInfo); `reset` before each rollout.
+
+    `required_gains` are the gains it cannot run without, `optional_gains` those it reads when given;
+    `gain_problems` checks a gains dict against them (params load calls it, so a misspelt or missing
+    gain fails there). `optional_gains` None (a plug-in that does not say) accepts any other gain."""
+
+    required_gains: tuple[str, ...] = ()
+    optional_gains: tuple[str, ...] | None = None
 
     def __init__(self, gains: dict, robot: RobotInfo) -> None:
         self.gains = dict(gains)
         self.robot = robot
+
+    @classmethod
+    def gain_problems(cls, gains: dict) -> str | None:
+        """What is wrong with `gains` for this controller (missing and unknown gains), or None."""
+        missing = [g for g in cls.required_gains if g not in gains]
+        allowed = None if cls.optional_gains is None else {*cls.required_gains, *cls.optional_gains}
+        unknown = [] if allowed is None else sorted(g for g in gains if g not in allowed)
+        if not missing and not unknown:
+            return None
+        said = [f"missing gain(s) {', '.join(map(repr, missing))}" if missing else "",
+                f"unknown gain(s) {', '.join(map(repr, unknown))}" if unknown else ""]
+        takes = f"{cls.__name__} takes {', '.join(cls.required_gains)}"
+        if cls.optional_gains:
+            takes += f"; optional {', '.join(cls.optional_gains)}"
+        return f"{'; '.join(p for p in said if p)} ({takes})"
 
     @abstractmethod
     def reset(self) -> None: ...

@@ -12,6 +12,9 @@ GAINS = ("kp_x", "ki_x", "kd_x", "kp_y", "ki_y", "kd_y")
 
 
 class PID(Controller):
+    required_gains = GAINS
+    optional_gains = ("i_max",)
+
     def reset(self) -> None:
         self.integral = (0.0, 0.0)
         self.t_prev: float | None = None
