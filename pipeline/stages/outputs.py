@@ -1,6 +1,7 @@
 """Stage outputs written all-or-nothing: every file goes to a temp file beside its target and
 replaces it (`os.replace`) only once all of them are written, so a failure leaves no half-written
-output and keeps whatever was stored before."""
+output and keeps whatever was stored before. A writer killed outright (kill -9) cannot delete its
+temp files: the next writer into the folder deletes those whose writer is gone (`remove_stale_temps`)."""
 
 from __future__ import annotations
 
@@ -13,14 +14,39 @@ from pathlib import Path
 import pandas as pd
 
 
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's process
+        return True
+    return True
+
+
+def remove_stale_temps(folder: Path) -> list[Path]:
+    """Delete the temp files `replacing` left in `folder` (`.<name>.<pid>.tmp`) whose writing process no
+    longer runs; returns them. A live writer's temp files are kept."""
+    stale = []
+    for temp in folder.glob(".*.tmp"):
+        pid = temp.name[:-len(".tmp")].rpartition(".")[2]
+        if pid.isdigit() and int(pid) != os.getpid() and not _alive(int(pid)):
+            temp.unlink(missing_ok=True)
+            stale.append(temp)
+    return stale
+
+
 @contextmanager
 def replacing(*targets: Path) -> Iterator[list[Path]]:
     """Temp paths beside `targets` to write to; on a clean exit each replaces its target, on an
-    error they are deleted and the targets stay as they were."""
+    error they are deleted and the targets stay as they were. Temp files a killed writer left in
+    the targets' folders are deleted first (`remove_stale_temps`)."""
     temps = []
     try:
+        for folder in dict.fromkeys(target.parent for target in targets):
+            folder.mkdir(parents=True, exist_ok=True)
+            remove_stale_temps(folder)
         for target in targets:
-            target.parent.mkdir(parents=True, exist_ok=True)
             temps.append(target.with_name(f".{target.name}.{os.getpid()}.tmp"))
         yield temps
         for temp, target in zip(temps, targets, strict=True):
