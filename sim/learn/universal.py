@@ -59,12 +59,11 @@ from sim.rollout.scenarios import ProfileParams, Segment, command_profile
 BODY_FILE_JSON = "body.json"  # a subject's policy folder from the universal one: its body observation
 
 
-def amp_reference_sampler(sources: tuple[Source, ...], up: UniversalParams, p: WalkEnvParams, dt_s: float,
-                          seed: int):
-    """`n -> (n, 2 x AMP)` reference transitions: every subject's body and `up.drawn` drawn bodies
-    alike, `up.motion_share` of them from the recordings (each subject's own body) and their mirror
+def amp_reference_sampler(pool: MultiBodyEnv, up: UniversalParams, dt_s: float, seed: int):
+    """`n -> (n, 2 x AMP)` reference transitions: every body of `pool` alike (the subjects' own
+    first), `up.motion_share` of them from the recordings (each subject's own body) and their mirror
     images."""
-    pool = MultiBodyEnv(sources, replace(up, refresh_probability=0.0), p, seed)
+    sources = pool.sources
     tables = [(b.env.ref, b.env.step_phase) for b in pool.bodies]
     recorded = []
     if up.motion_share > 0:
@@ -88,18 +87,22 @@ def amp_reference_sampler(sources: tuple[Source, ...], up: UniversalParams, p: W
     return sample
 
 
-def widen_for_body(old: PPO, old_norm: VecNormalize, venv, p: TrainParams) -> tuple[VecNormalize, PPO]:
+def widen_for_body(old: PPO, old_norm: VecNormalize, venv, p: TrainParams, body_mean: np.ndarray,
+                   body_std: np.ndarray) -> tuple[VecNormalize, PPO]:
     """A body-conditioned policy that acts exactly as the single-body `old` whatever the body: the
     first layers of the policy and value networks get the body inputs with zero weights, the old
-    inputs keep their weights and normalisation statistics; the body inputs start at mean 0, std 0.1
-    (log ratios of about +-10 %)."""
+    inputs keep their weights and normalisation statistics, the body inputs are normalised by
+    `body_mean`, `body_std` (the pool's), and the statistics stay fixed: updated by the other bodies'
+    observations, they would change what the old inputs mean to the network (a first run, updating
+    them, broke camargo's walk within 250 k steps)."""
     n_old = old.observation_space.shape[0]
     if n_old != OBS_SIZE:
         raise ValueError(f"the start policy has {n_old} observations, not the walking env's {OBS_SIZE}")
     norm = VecNormalize(venv, norm_obs=True, norm_reward=False, clip_obs=10.0, gamma=p.gamma)
-    mean, var = np.zeros(UNIVERSAL_OBS_SIZE), np.full(UNIVERSAL_OBS_SIZE, 0.01)
-    mean[:n_old], var[:n_old] = old_norm.obs_rms.mean, old_norm.obs_rms.var
-    norm.obs_rms.mean, norm.obs_rms.var, norm.obs_rms.count = mean, var, 1e5
+    mean = np.concatenate([old_norm.obs_rms.mean, body_mean])
+    var = np.concatenate([old_norm.obs_rms.var, np.square(body_std) - norm.epsilon])
+    norm.obs_rms.mean, norm.obs_rms.var, norm.obs_rms.count = mean, var, old_norm.obs_rms.count
+    norm.training = False
     model = new_ppo(norm, p)
     state = {k: v.clone() for k, v in old.policy.state_dict().items()}
     for net in ("policy_net", "value_net"):
@@ -205,20 +208,23 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
     vec = SubprocVecEnv(fns, start_method="fork") if subprocess and n_envs > 1 else DummyVecEnv(fns)
     venv = VecMonitor(vec)
     prior = json.loads((out / PROGRESS_FILE).read_text()) if resume and (out / PROGRESS_FILE).exists() else {}
+    pool = MultiBodyEnv(sources, replace(up, refresh_probability=0.0), p.env, p.seed)  # AMP references, stats
+    body_obs = np.array([b.obs for b in pool.bodies])
+    frozen = bool(prior.get("obs_stats_frozen")) if prior else init_from is not None
     if prior:
         venv = VecNormalize.load(str(out / NORM_FILE), venv)
-        venv.training = True
+        venv.training = not frozen
         model = PPO.load(str(out / POLICY_FILE), env=venv, device=device, custom_objects=ppo_settings(p))
     elif init_from is not None:
         old = PPO.load(str(Path(init_from) / POLICY_FILE), device="cpu")
-        venv, model = widen_for_body(old, load_norm(Path(init_from)), venv, p)
+        venv, model = widen_for_body(old, load_norm(Path(init_from)), venv, p, body_obs.mean(0),
+                                     np.maximum(body_obs.std(0), 0.02))
         if device != "cpu":
             model = _to_device(model, venv, p, device)
     else:
         venv = VecNormalize(venv, norm_obs=True, norm_reward=False, clip_obs=10.0, gamma=p.gamma)
         model = new_ppo(venv, p) if device == "cpu" else _to_device(new_ppo(venv, p), venv, p, device)
-    probe = make_body(sources[0], load_reference(sources[0].reference_npz).cycle, None, p.env, None)
-    sampler = amp_reference_sampler(sources, up, p.env, probe.env.dt, p.seed)
+    sampler = amp_reference_sampler(pool, up, pool.bodies[0].env.dt, p.seed)
     amp = AMP(2 * AMP_SIZE, p.amp, sampler, seed=p.seed, device=device)
     start_amp = out if prior else (Path(init_from) if init_from is not None else None)
     if start_amp is not None and (start_amp / AMP_FILE).exists():
@@ -248,6 +254,7 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
         run_wall = time.perf_counter() - start
         rec = {"steps": int(model.num_timesteps), "wall_s": wall, **origin,
                "subjects": [s.name for s in sources], "obs_size": UNIVERSAL_OBS_SIZE,
+               "obs_stats_frozen": frozen,
                "runs": runs + [{"command": command, "n_envs": n_envs, "subprocess": subprocess,
                                 "device": device, "threads": threads, "cpu_count": os.cpu_count(),
                                 "steps": run_steps,
@@ -267,6 +274,8 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
         callbacks.append(CriticWarmup(up.critic_warmup_steps))
     callbacks = CallbackList(callbacks)
     remaining = max(total - steps0, 0)
+    if not prior:
+        save()  # the curve's origin: the start policy's gate
     if remaining:
         model.learn(total_timesteps=remaining, callback=callbacks, reset_num_timesteps=not prior,
                     progress_bar=False)

@@ -122,7 +122,9 @@ def test_widening_keeps_the_single_body_policy(universal, camargo, tmp_path):
     old = new_ppo(norm, replace(p, net_arch=(32, 32)))
     norm.obs_rms.mean = np.random.default_rng(1).normal(size=OBS_SIZE)
     multi = DummyVecEnv([lambda: MultiBodyEnv((src,), up, p.env, seed=0)])
-    wide_norm, wide = widen_for_body(old, norm, multi, replace(p, net_arch=(32, 32)))
+    wide_norm, wide = widen_for_body(old, norm, multi, replace(p, net_arch=(32, 32)), np.zeros(BODY_OBS_SIZE),
+                                     np.full(BODY_OBS_SIZE, 0.1))
+    assert not wide_norm.training  # the statistics the old policy knows stay as they are
     rng = np.random.default_rng(2)
     for _ in range(5):
         obs = rng.normal(size=OBS_SIZE).astype(np.float32)
@@ -142,7 +144,7 @@ def test_one_run_resumes_and_records_its_gate(universal, camargo, tmp_path):
     gate = rec["checkpoints"][-1]
     assert gate["checks"] == 3 and set(gate["gate"]) == {"camargo"}
     again = train_universal((camargo[0],), p, up, out, scenarios, total_steps=512, n_envs=2, resume=True)
-    assert again["steps"] == 512 and [c["steps"] for c in again["checkpoints"]] == [256, 512]
+    assert again["steps"] == 512 and [c["steps"] for c in again["checkpoints"]] == [0, 256, 512]
     assert len(again["runs"]) == 2 and json.loads((out / "progress.json").read_text()) == again
     model, norm = load_policy(out)
     assert model.observation_space.shape == (UNIVERSAL_OBS_SIZE,)
