@@ -196,9 +196,9 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
                     scenarios: dict[str, list[Segment]], *, init_from: str | Path | None = None,
                     resume: bool = False, total_steps: int | None = None, n_envs: int | None = None,
                     subprocess: bool = False, max_wall_s: float | None = None, device: str = "auto",
-                    threads: int = 1, command: str = "", progress: bool = False) -> dict:
+                    threads: int = 1, command: str = "", progress: bool = False, gate: bool = True) -> dict:
     """Train (or resume) the universal policy into `out_dir` (module docstring); returns the
-    progress record."""
+    progress record. `gate`: False skips `quick_gate` at the checkpoints (throughput runs)."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     device = device_of(device)
@@ -244,12 +244,13 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
         model.save(str(out / POLICY_FILE))
         venv.save(str(out / NORM_FILE))
         torch.save(amp.state_dict(), out / AMP_FILE)
-        t0 = time.perf_counter()
-        gate = quick_gate(model, venv, sources, up, p.env, scenarios)
-        gate_wall[0] += time.perf_counter() - t0
         wall = round(wall0 + time.perf_counter() - start, 1)
-        checkpoints.append({"steps": int(model.num_timesteps), "wall_s": wall, "passed": gate["passed"],
-                            "checks": gate["checks"], "gate": gate["subjects"]})
+        if gate:
+            t0 = time.perf_counter()
+            g = quick_gate(model, venv, sources, up, p.env, scenarios)
+            gate_wall[0] += time.perf_counter() - t0
+            checkpoints.append({"steps": int(model.num_timesteps), "wall_s": wall, "passed": g["passed"],
+                                "checks": g["checks"], "gate": g["subjects"]})
         run_steps = int(model.num_timesteps) - steps0
         run_wall = time.perf_counter() - start
         rec = {"steps": int(model.num_timesteps), "wall_s": wall, **origin,
@@ -264,8 +265,8 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
         tmp = out / f".{PROGRESS_FILE}.tmp"
         tmp.write_text(json.dumps(rec, indent=1) + "\n")
         os.replace(tmp, out / PROGRESS_FILE)
-        if progress:
-            print(f"{rec['steps']} steps, {wall:.0f} s: gate {gate['passed']}/{gate['checks']}", flush=True)
+        if progress and gate:
+            print(f"{rec['steps']} steps, {wall:.0f} s: gate {g['passed']}/{g['checks']}", flush=True)
         return rec
 
     callbacks = [AMPCallback(amp, p.env.w_style, 6, log),
@@ -274,7 +275,7 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
         callbacks.append(CriticWarmup(up.critic_warmup_steps))
     callbacks = CallbackList(callbacks)
     remaining = max(total - steps0, 0)
-    if not prior:
+    if not prior and gate:
         save()  # the curve's origin: the start policy's gate
     if remaining:
         model.learn(total_timesteps=remaining, callback=callbacks, reset_num_timesteps=not prior,

@@ -1,0 +1,139 @@
+"""How fast the universal policy trains on this machine, against what its physics allows.
+
+Three rates, each measured here in one run: raw `mj_step` of a subject's human (one process, and
+one process per core side by side), env steps of the pool of bodies alone (random actions, no
+learning: one env, and `n_envs` in one process each), and training (PPO + AMP updates included, the
+same envs). Training is update-bound when its rate is well below the env-only one at the same env
+count; the ratio is what `python -m pipeline bench` holds to its target.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+import time
+from dataclasses import replace
+from functools import partial
+from multiprocessing import get_context
+
+import mujoco
+import numpy as np
+import torch
+from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
+
+from sim.learn.pool import MultiBodyEnv, Source, UniversalParams
+from sim.learn.train import TrainParams
+from sim.learn.universal import train_universal
+from sim.rollout.scenarios import Segment
+
+
+def _mj_steps(xml: str, seconds: float) -> float:
+    model = mujoco.MjModel.from_xml_path(xml)
+    data = mujoco.MjData(model)
+    mujoco.mj_step(model, data, nstep=100)
+    n, start = 0, time.perf_counter()
+    while time.perf_counter() - start < seconds:
+        mujoco.mj_resetData(model, data)
+        mujoco.mj_step(model, data, nstep=500)
+        n += 500
+    return n / (time.perf_counter() - start)
+
+
+def raw_step_rate(xml: str, processes: int, seconds: float = 2.0) -> float:
+    """`mj_step` per second of the human in `xml`, summed over `processes` processes side by side."""
+    if processes == 1:
+        return _mj_steps(xml, seconds)
+    with get_context("fork").Pool(processes) as pool:
+        return float(sum(pool.starmap(_mj_steps, [(xml, seconds)] * processes)))
+
+
+def _pool_env(sources: tuple[Source, ...], up: UniversalParams, p: TrainParams, seed: int) -> MultiBodyEnv:
+    torch.set_num_threads(1)
+    return MultiBodyEnv(sources, up, p.env, seed)
+
+
+def env_step_rate(sources: tuple[Source, ...], up: UniversalParams, p: TrainParams, n_envs: int,
+                  steps: int) -> float:
+    """Env steps per second of `n_envs` pools of bodies (one process each when more than one),
+    random actions, resets included."""
+    fns = [partial(_pool_env, sources, up, p, 100 + i) for i in range(n_envs)]
+    venv = SubprocVecEnv(fns, start_method="fork") if n_envs > 1 else DummyVecEnv(fns)
+    rng = np.random.default_rng(0)
+    venv.reset()
+    venv.step(rng.uniform(-1, 1, (n_envs, 21)).astype(np.float32))
+    start, n = time.perf_counter(), 0
+    while n < steps:
+        venv.step(rng.uniform(-1, 1, (n_envs, 21)).astype(np.float32))
+        n += n_envs
+    rate = n / (time.perf_counter() - start)
+    venv.close()
+    return rate
+
+
+Scenarios = dict[str, list[Segment]]
+
+
+def train_step_rate(sources: tuple[Source, ...], up: UniversalParams, p: TrainParams, scenarios: Scenarios,
+                    n_envs: int, steps: int, device: str, init_from: str | None) -> float:
+    """Training env steps per second (PPO + AMP updates) with `n_envs` envs (one process each when
+    more than one), from `init_from` as the run does, no gate."""
+    with tempfile.TemporaryDirectory() as tmp:
+        rec = train_universal(sources, replace(p, checkpoint_steps=10 ** 12), up, tmp, scenarios,
+                              init_from=init_from, total_steps=steps, n_envs=n_envs, subprocess=n_envs > 1,
+                              device=device, gate=False)
+    return float(rec["runs"][-1]["steps_per_s"])
+
+
+def measure(sources: tuple[Source, ...], up: UniversalParams, p: TrainParams, scenarios: Scenarios, *,
+            n_envs: int | None = None, device: str = "auto", init_from: str | None = None,
+            env_steps: int = 4000, train_steps: int = 8192) -> dict:
+    """The three rates on 1 and on `n_envs` (default: every core) envs / processes (module docstring)."""
+    cores = os.cpu_count() or 1
+    n = n_envs or cores
+    up = replace(up, refresh_probability=0.0)
+    out: dict = {"cpu_count": cores, "n_envs": n, "device": device,
+                 "cuda": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None}
+    for label, k in (("one", 1), ("all", n)):
+        out[f"mj_step_per_s_{label}"] = round(raw_step_rate(sources[0].xml, k), 1)
+        out[f"env_steps_per_s_{label}"] = round(env_step_rate(sources, up, p, k, env_steps * k), 1)
+        out[f"train_steps_per_s_{label}"] = round(
+            train_step_rate(sources, up, p, scenarios, k, max(train_steps * k, p.n_steps * k * 2), device,
+                            init_from), 1)
+        ratio = out[f"train_steps_per_s_{label}"] / out[f"env_steps_per_s_{label}"]
+        out[f"train_to_env_{label}"] = round(ratio, 3)
+    out["env_scaling"] = round(out["env_steps_per_s_all"] / out["env_steps_per_s_one"], 2)
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    """`python -m sim.learn.throughput`: `measure` on this machine, printed and written as JSON."""
+    import argparse
+    import json
+    from pathlib import Path
+
+    from sim.learn.universal import params_from_yaml, sources_of
+
+    ap = argparse.ArgumentParser(prog="python -m sim.learn.throughput", description=measure.__doc__)
+    ap.add_argument("--params", type=Path, default=Path("params.yaml"))
+    ap.add_argument("--processed", type=Path, default=Path("data/processed"))
+    ap.add_argument("--init-from", default="data/policies/camargo")
+    ap.add_argument("--n-envs", type=int, default=None)
+    ap.add_argument("--device", default="auto")
+    ap.add_argument("--train-steps", type=int, default=8192)
+    ap.add_argument("--out", type=Path, default=None)
+    args = ap.parse_args(argv)
+    p, up, scenarios = params_from_yaml(args.params)
+    doc = measure(sources_of(up.subjects, args.processed), up, p, scenarios, n_envs=args.n_envs,
+                  device=args.device, init_from=args.init_from, train_steps=args.train_steps)
+    text = json.dumps(doc, indent=1)
+    print(text, flush=True)
+    if args.out is not None:
+        args.out.write_text(text + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
+
+
+__all__ = ["env_step_rate", "measure", "raw_step_rate", "train_step_rate"]
