@@ -173,7 +173,7 @@ def run_bench(params: Params, repeat: int = 5, sections: tuple[str, ...] = SECTI
     """The benchmark sections asked for, each with its own `targets` and `meets_targets`:
     ingest (`TARGETS`), retarget (`RETARGET_TARGETS`), human (no target: the physical limit that
     rollouts are compared to), store (`STORE_TARGETS`), rollout and policy_rollout (ratio to raw
-    `mj_step`), sweep (Ray: parallel efficiency, overhead per job), train (ratio to Humanoid-v5),
+    `mj_step`), sweep (Ray: parallel efficiency, overhead per job), train (training vs env-only steps/s),
     transfer (steps and wall time to a gate-passing transferred policy, `transfer.bench`)."""
     unknown = sorted(set(sections) - set(SECTIONS))
     if unknown:

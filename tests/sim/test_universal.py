@@ -157,3 +157,18 @@ def test_the_universal_params_reject_unknown_keys():
         UniversalParams.from_dict({"drwan": 3})
     with pytest.raises(KeyError, match="universal.bodies: unknown key"):
         UniversalParams.from_dict({"bodies": {"rnage": 0.1}})
+
+
+def test_throughput_is_measured_against_the_physics(universal, camargo):
+    from sim.learn.throughput import measure
+
+    p, up, scenarios = universal
+    doc = measure((camargo[0],), up, replace(p, n_steps=64, batch_size=128), scenarios, n_envs=2,
+                  device="cpu", init_from="data/policies/camargo", env_steps=100, train_steps=128)
+    assert doc["cpu_count"] >= 1 and doc["n_envs"] == 2
+    for label in ("one", "all"):
+        # an env step is 15 physics steps (30 ms policy, 2 ms physics) plus the env's own work
+        assert 0 < doc[f"env_steps_per_s_{label}"] < doc[f"mj_step_per_s_{label}"] / 10
+        assert 0 < doc[f"train_steps_per_s_{label}"]
+        assert doc[f"train_to_env_{label}"] == pytest.approx(
+            doc[f"train_steps_per_s_{label}"] / doc[f"env_steps_per_s_{label}"], abs=1e-3)
