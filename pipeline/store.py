@@ -8,8 +8,12 @@ the code revision (`git rev-parse HEAD`, 'unknown' outside git) and the creation
   unchanged pipeline adds nothing. Changed content gets a new version; an earlier version is never
   updated or deleted (content that returns to an older state is a new version, so "latest" is
   always what the last run computed).
-- One store run is one transaction: killed midway, the file keeps its previous state.
-- DuckDB lets one process write a file at a time. A second writer retries for `busy_timeout_s`,
+- Readers never block a store run and a store run never changes what a reader sees: a run writes a
+  copy of the store (`<store>.<pid>.tmp` beside it) and swaps it in (`os.replace`) once committed, so
+  a reader (a notebook, any DuckDB client, `read_only=True`) keeps its snapshot until it reconnects,
+  and a run killed midway leaves the store as it was (its temp file is deleted by the next run).
+- One store run writes at a time: runs take `<store>.lock` (flock), and a DuckDB client holding the
+  store itself open for writing is waited for too. A second writer retries for `busy_timeout_s`,
   then fails with `StoreError` "store is busy". Connections are always closed.
 
 SPM tests belong to the group of their second sample (`*_b`: the simulated or the controller
@@ -25,12 +29,15 @@ stay queryable. `quality` holds each subject's quality gates (`metrics.quality`)
 
 from __future__ import annotations
 
+import fcntl
 import hashlib
 import json
+import os
+import shutil
 import subprocess
 import time
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -194,6 +201,54 @@ def connect(path: Path, read_only: bool = False, busy_timeout_s: float = 10.0,
             time.sleep(retry_interval_s)
         except duckdb.Error as exc:
             raise StoreError(path, f"cannot open the store ({exc})") from None
+
+
+@contextmanager
+def _writer_lock(path: Path, busy_timeout_s: float, retry_interval_s: float) -> Iterator[None]:
+    """Hold `<path>.lock` (flock, released when this process ends whatever happens), waiting up to
+    `busy_timeout_s` for another store run to finish."""
+    fd = os.open(path.with_name(f"{path.name}.lock"), os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        deadline = time.monotonic() + busy_timeout_s
+        while True:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                break
+            except BlockingIOError:
+                if time.monotonic() >= deadline:
+                    raise StoreError(path, f"store is busy: another store run is writing it; waited "
+                                     f"{busy_timeout_s:g} s") from None
+                time.sleep(retry_interval_s)
+        yield
+    finally:
+        os.close(fd)
+
+
+@contextmanager
+def _writing_copy(path: Path, busy_timeout_s: float = 10.0, retry_interval_s: float = 0.2) -> Iterator[Path]:
+    """A copy of the store at `path` (empty when there is none) to write to; once the block ends
+    cleanly, the copy replaces the store at once (`os.replace`), otherwise it is deleted and the
+    store stays as it was. Readers are never waited for and keep their snapshot; another store run,
+    or a client holding the store open for writing, is waited for up to `busy_timeout_s`."""
+    path = Path(path)
+    with _writer_lock(path, busy_timeout_s, retry_interval_s):
+        for stale in path.parent.glob(f"{path.name}.*.tmp*"):  # of runs killed midway: none runs now
+            stale.unlink(missing_ok=True)
+        temp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
+        try:
+            with ExitStack() as held:
+                if path.is_file():
+                    if path.with_name(f"{path.name}.wal").is_file():  # a writer's log: fold it in first
+                        connect(path, False, busy_timeout_s, retry_interval_s).close()
+                    # readers share this read-only lock; it keeps other clients from writing the store
+                    # in place until the copy has replaced it
+                    held.enter_context(open_store(path, True, busy_timeout_s, retry_interval_s))
+                    shutil.copyfile(path, temp)
+                yield temp
+                os.replace(temp, path)
+        finally:
+            temp.unlink(missing_ok=True)
+            temp.with_name(f"{temp.name}.wal").unlink(missing_ok=True)
 
 
 @contextmanager
@@ -452,7 +507,8 @@ def store_results(path: Path, results: list[SubjectResults], params: StoreParams
     path.parent.mkdir(parents=True, exist_ok=True)
     rev = rev or code_rev()
     now = datetime.now(UTC).replace(tzinfo=None)
-    with open_store(path, False, params.busy_timeout_s, params.retry_interval_s) as con:
+    with (_writing_copy(path, params.busy_timeout_s, params.retry_interval_s) as temp,
+          open_store(temp, False, params.busy_timeout_s, params.retry_interval_s) as con):
         con.execute("BEGIN TRANSACTION")
         try:
             ensure_schema(con)

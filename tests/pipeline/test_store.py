@@ -7,6 +7,7 @@ import sys
 import time
 from pathlib import Path
 
+import duckdb
 import pytest
 
 from pipeline.cli import main
@@ -134,6 +135,43 @@ def test_second_writer_gets_store_is_busy(processed, tmp_path):
     assert store_results(db, results(processed), FAST).new_versions == ()  # free again
 
 
+READ = """
+import sys
+import duckdb
+con = duckdb.connect(sys.argv[1], read_only=True)  # a notebook keeping the store open
+count = "select count(*) from versions"
+print(con.execute(count).fetchone()[0], flush=True)
+sys.stdin.readline()  # until the test has stored again
+print(con.execute(count).fetchone()[0], flush=True)
+"""
+
+
+def test_readers_holding_the_store_open_never_block_the_writer(processed, tmp_path):
+    """Issue 34 case 16: a reader in this process and one in another hold the store open read-only;
+    a store run that adds versions succeeds at once, both readers keep reading their snapshot, and
+    a connection opened afterwards sees every version, old and new."""
+    db = tmp_path / "results.duckdb"
+    store_results(db, results(processed)[:1], FAST, rev="before")  # camargo: 1 version
+    here = duckdb.connect(str(db), read_only=True)
+    there = subprocess.Popen([sys.executable, "-c", READ, str(db)], cwd=ROOT, stdin=subprocess.PIPE,
+                             stdout=subprocess.PIPE, text=True)
+    try:
+        assert there.stdout.readline().strip() == "1"
+        report = store_results(db, results(processed), FAST, rev="after")  # + opencap4's 4 (no busy)
+        assert len(report.new_versions) == 4
+        assert here.execute("select count(*) from versions").fetchone()[0] == 1
+        there.stdin.write("\n")
+        there.stdin.flush()
+        assert there.stdout.readline().strip() == "1"
+    finally:
+        here.close()
+        there.kill()
+        there.wait()
+    revs = query(db, "select code_rev, count(*) as n from versions group by 1 order by 1")
+    assert revs.to_dict("list") == {"code_rev": ["after", "before"], "n": [4, 1]}
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["results.duckdb", "results.duckdb.lock"]
+
+
 CRASH = """
 import sys, time
 from pathlib import Path
@@ -165,8 +203,10 @@ def test_killed_store_run_leaves_previous_state(processed, tmp_path):
     after = query(db, "select * from versions")
     assert after.equals(before) and count(db, "select count(*) from result_gait") == rows
     assert count(db, "select count(*) from store_runs") == 1
+    assert [p.name for p in tmp_path.glob("*.tmp")] == [f"results.duckdb.{crash.pid}.tmp"]  # its copy
     done = store_results(db, results(processed), FAST)  # the next run completes normally
     assert len(done.new_versions) == 4 and count(db, "select count(*) from versions") == 5
+    assert not list(tmp_path.glob("*.tmp*"))  # and deletes the killed run's copy
 
 
 def test_store_and_query_commands(processed, tmp_path, capsys):
