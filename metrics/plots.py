@@ -368,3 +368,39 @@ def fall_intervention_figure(fall: pd.DataFrame, title: str, caught_drop_m: floa
     fig.suptitle(title)
     fig.tight_layout(rect=(0, 0.05 if handles else 0, 1, 1))
     return fig
+
+
+def training_progress_figure(progress: dict,
+                             title: str = "Universal walking policy: gate against training") -> Figure:
+    """A training run's progress record (`sim.learn.universal`, progress.json): gate checks passed
+    at each checkpoint against env steps, in all (left, of the checks there are) and per subject's
+    own body (right); dotted lines where a run segment began (its machine in the label)."""
+    points = progress.get("checkpoints", [])
+    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(11, 3.6))
+    if not points:
+        ax.text(0.5, 0.5, "no checkpoint yet", ha="center", va="center", transform=ax.transAxes)
+        return fig
+    steps = [c["steps"] / 1e6 for c in points]
+    ax.plot(steps, [c["passed"] for c in points], "o-", color="k", ms=3)
+    ax.set_ylim(0, max(c["checks"] for c in points))
+    ax.set_xlabel("env steps (M)")
+    ax.set_ylabel(f"gate checks passed (of {points[-1]['checks']})")
+    subjects = list(points[-1]["gate"])
+    for s in subjects:
+        ax2.plot(steps, [sum(r["pass"] for r in c["gate"].get(s, {}).values()) for c in points], "o-", ms=2,
+                 label=s)
+    ax2.set_xlabel("env steps (M)")
+    ax2.set_ylabel("checks passed, own body")
+    ax2.legend(fontsize=7, ncol=2)
+    done = 0
+    for run in progress.get("runs", []):
+        where = f"{run.get('cpu_count', '?')} cores" + (", cuda" if run.get("device") == "cuda" else "")
+        for a in (ax, ax2):
+            a.axvline(done / 1e6, color="0.6", linestyle=":", linewidth=0.8)
+        ax.text(done / 1e6, ax.get_ylim()[1], where, fontsize=6, rotation=90, va="top", ha="right")
+        done += run.get("steps", 0)
+    for a in (ax, ax2):
+        a.grid(alpha=0.3)
+    fig.suptitle(title)
+    fig.tight_layout()
+    return fig

@@ -47,6 +47,7 @@ from metrics.plots import (
     ordered,
     spm_figure,
     tracking_figure,
+    training_progress_figure,
     tuning_figure,
 )
 from metrics.quality import worst
@@ -62,6 +63,9 @@ from sim.rollout.scenarios import PHASES
 # the tables: condition -> `real` (their recorded trials) or `sim` (their simulation) -> values.
 
 Source = Literal["real", "sim"]
+
+
+UNIVERSAL_FIGURE = "universal_progress.png"  # in reports/: the universal policy's gate against steps
 
 
 class PaperError(GaitloopError):
@@ -883,10 +887,34 @@ def _html_table(header: list[str], rows: list[list[str]]) -> str:
     return f"<table>\n<thead><tr>{head}</tr></thead>\n<tbody>{body}</tbody>\n</table>\n"
 
 
+def universal_lines(progress: dict) -> list[str]:
+    """The universal walking policy's run in a few lines: steps, wall time, its machines and the
+    last gate, per subject's own body (`sim.learn.universal.quick_gate`)."""
+    points = progress.get("checkpoints", [])
+    machines = sorted({f"{r.get('cpu_count', '?')} cores" + (" + GPU" if r.get("device") == "cuda" else "")
+                       for r in progress.get("runs", [])})
+    steps_m, hours = progress.get("steps", 0) / 1e6, progress.get("wall_s", 0) / 3600
+    start = progress.get("initialised_from", "scratch")
+    lines = [f"One run of {steps_m:.2f} M env steps in {hours:.1f} h of training ({', '.join(machines)}), "
+             f"from {start}."]
+    if points:
+        last = points[-1]
+        best = max(points, key=lambda c: c["passed"])
+        lines.append(f"Last gate ({last['steps'] / 1e6:.2f} M steps): {last['passed']} of {last['checks']} "
+                     f"checks; best {best['passed']} at {best['steps'] / 1e6:.2f} M.")
+        for subject, rows in last["gate"].items():
+            failed = [k for k, r in rows.items() if not r["pass"]]
+            lines.append(f"{subject}: {len(rows) - len(failed)} of {len(rows)}"
+                         + (f" (failed: {', '.join(failed)})" if failed else ""))
+    return lines
+
+
 def summary_report(subjects: list[str], data: dict[str, pd.DataFrame], reports: Path = REPORTS_ROOT,
-                   p: ReportParams = ReportParams(), paper: PaperValues | None = None) -> tuple[Path, Path]:
+                   p: ReportParams = ReportParams(), paper: PaperValues | None = None,
+                   progress: dict | None = None) -> tuple[Path, Path]:
     """Write `reports/summary.md` and `reports/index.html` across subjects: figures first, then the
-    subject summary, Tables I-III with the paper's values and the per-phase table."""
+    subject summary, Tables I-III with the paper's values and the per-phase table, then the universal
+    walking policy's training progress (`progress`, its progress.json; figure `UNIVERSAL_FIGURE`)."""
     paper = paper or load_paper(PAPER_FILE)
     reports = Path(reports)
     stored = set(data["summary"]["subject"]) if not data["summary"].empty else set()
@@ -927,6 +955,14 @@ def summary_report(subjects: list[str], data: dict[str, pd.DataFrame], reports: 
         if key == PAPER_TABLES[-1]:
             md += [paper.note(), ""]
             body += [f"<p>{html.escape(paper.note())}</p>"]
+    if progress is not None:
+        write_figure(training_progress_figure(progress), reports / UNIVERSAL_FIGURE, p.dpi)
+        lines = universal_lines(progress)
+        md += ["## Universal walking policy: training progress", "",
+               f"![training progress]({UNIVERSAL_FIGURE})", "", *[f"- {x}" for x in lines], ""]
+        body += ["<h2>Universal walking policy: training progress</h2>",
+                 f'<img src="{UNIVERSAL_FIGURE}" alt="training progress" width="900">', "<ul>",
+                 *[f"<li>{html.escape(x)}</li>" for x in lines], "</ul>"]
     page = ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>gaitloop reports</title>"
             "<style>body{font-family:sans-serif;max-width:1100px;margin:auto}table{border-collapse:collapse;"
             "font-size:13px}td,th{border:1px solid #bbb;padding:2px 6px}img{max-width:100%;height:auto}"
@@ -951,5 +987,6 @@ def run_report(subjects: list[str], all_subjects: list[str], db: Path, reports: 
     clinical = load_clinical_ranges(CLINICAL_FILE) if subjects else {}
     written = [subject_report(s, data, reports, p, paper, _evaluation(s), clinical) for s in subjects]
     if summary:
-        written += list(summary_report(all_subjects, data, reports, p, paper))
+        progress = read_json(policy_dir(POLICIES_ROOT, "universal") / "progress.json")
+        written += list(summary_report(all_subjects, data, reports, p, paper, progress))
     return written

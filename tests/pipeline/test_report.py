@@ -18,6 +18,7 @@ import pandas as pd
 import pytest
 
 from pipeline.params import load_params
+from pipeline.paths import POLICIES_ROOT
 from pipeline.stages.ingest import run_ingest
 from pipeline.stages.metrics import run_metrics
 from pipeline.stages.report import ReportParams, run_report
@@ -203,7 +204,7 @@ def test_reports_index_and_figures_resolve(reports):
     assert page.tables == 5  # subject summary, Tables I-III, per-phase compliance
     assert text.index("<img") < text.index("<table")  # figures lead, tables below
     assert page.images == [f"camargo/figures/{n}.png" for n in CAMARGO_FIGURES] + [
-        f"opencap4/figures/{n}.png" for n in ("kinematics", "spm")]
+        f"opencap4/figures/{n}.png" for n in ("kinematics", "spm")] + ["universal_progress.png"]
     assert {"summary.md", "camargo/report.md", "opencap4/report.md"} <= set(page.links)
     for target in page.images + page.links:
         assert (reports / target).is_file(), target
@@ -218,6 +219,19 @@ def test_reports_index_and_figures_resolve(reports):
     md = (reports / "camargo" / "report.md").read_text()
     for name in ("events", "kinematics_policy"):
         assert f"![{name}](figures/{name}.png)" in md
+
+
+def test_the_universal_policy_progress_is_plotted(reports):
+    """The committed run's progress record (data/policies/universal/progress.json): its figure and
+    its last gate, subject by subject, in the summary."""
+    progress = json.loads((POLICIES_ROOT / "universal" / "progress.json").read_text())
+    last = progress["checkpoints"][-1]
+    md = (reports / "summary.md").read_text()
+    assert "![training progress](universal_progress.png)" in md
+    assert f"{last['passed']} of {last['checks']} checks" in md
+    for subject, rows in last["gate"].items():
+        assert f"- {subject}: {sum(r['pass'] for r in rows.values())} of {len(rows)}" in md
+    assert mpimg.imread(reports / "universal_progress.png").shape[1] > 300
 
 
 def test_paper_values_are_shown_with_their_citation(reports):
@@ -380,7 +394,7 @@ def test_index_loads_in_headless_chromium(reports, tmp_path):
     match = re.search(r'data-result="([^"]*)"', run.stdout)
     assert match, run.stderr[-2000:]
     result = json.loads(html.unescape(match.group(1)))
-    assert result["images"] == len(page.images) == len(CAMARGO_FIGURES) + 2 and result["bad_images"] == []
+    assert result["images"] == len(page.images) == len(CAMARGO_FIGURES) + 3 and result["bad_images"] == []
     assert result["links"] >= 3 and result["bad_links"] == []
     assert len(result["rows"]) == page.tables and all(n > 0 for n in result["rows"])
 
