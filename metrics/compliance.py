@@ -60,24 +60,3 @@ def _stats(x: np.ndarray) -> tuple[float, float]:
     if len(x) == 0:
         return np.nan, np.nan
     return float(x.mean()), float(x.std(ddof=1)) if len(x) > 1 else np.nan
-
-
-def compliance_headline(robot: pd.DataFrame, exclude_locked: bool = True) -> dict[str, dict]:
-    """Per condition, the numbers a simulation run reports first: mean |e_x|, |e_y| (cm) and
-    harness force RMS (N) over the following samples, and the number of runs with a fall. The same
-    computation as Table I (`compliance_table`) and the harness table (`harness_table`, |f|)."""
-    from metrics.harness import harness_table
-
-    if robot.empty:
-        return {}
-    comp = compliance_table(robot, exclude_locked)
-    harness = harness_table(robot, exclude_locked)
-    force = harness[harness["quantity"] == "f_norm"].set_index(GROUP)["rms"]
-    out = {}
-    for row in comp.itertuples(index=False):
-        rms = float(force[tuple(getattr(row, g) for g in GROUP)])
-        out[str(row.condition)] = {"mean_abs_e_x_cm": round(float(row.mean_abs_ex_cm), 3),
-                                   "mean_abs_e_y_cm": round(float(row.mean_abs_ey_cm), 3),
-                                   "harness_force_rms_n": round(rms, 3),
-                                   "falls": int(round(row.fall_rate * row.n_trials))}
-    return out

@@ -6,7 +6,9 @@ human fell, and how it walked (mean speed and stride length of its kept strides)
 scores a controller on such rows against the same person walking free, with one procedure for
 every controller (the issue's "same budget and procedure"): the cost of Wang, Chan et al. (ICRA
 2025) Table I (|e_x| + |e_y|), plus the harness force (transparency), plus the gait change versus
-walking free (the paper's Tables II-III question), plus a penalty per fall.
+walking free (the paper's Tables II-III question), plus a penalty per fall. `compliance_headline` is a
+simulation run's headline per condition: Table I (`metrics.compliance`) and the harness |f| RMS
+(`metrics.harness`) together, so it lives above both.
 """
 
 from __future__ import annotations
@@ -16,7 +18,9 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from metrics.compliance import following, run_means
+from metrics.compliance import compliance_table, following, run_means
+from metrics.groups import GROUP
+from metrics.harness import harness_table
 
 ROW_COLUMNS = ["mean_abs_ex_cm", "mean_abs_ey_cm", "force_rms_n", "fell", "gait_speed_mps", "stride_length_m",
                "n_strides", "n_samples"]
@@ -80,4 +84,24 @@ def objective(rows: pd.DataFrame, free_speed_mps: float, w: ObjectiveWeights = O
     return float(costs(rows, free_speed_mps, w).mean())
 
 
-__all__ = ["ROW_COLUMNS", "ObjectiveWeights", "costs", "objective", "run_row", "walk_window"]
+def compliance_headline(robot: pd.DataFrame, exclude_locked: bool = True) -> dict[str, dict]:
+    """Per condition, the numbers a simulation run reports first: mean |e_x|, |e_y| (cm) and
+    harness force RMS (N) over the following samples, and the number of runs with a fall. The same
+    computation as Table I (`compliance_table`) and the harness table (`harness_table`, |f|)."""
+    if robot.empty:
+        return {}
+    comp = compliance_table(robot, exclude_locked)
+    harness = harness_table(robot, exclude_locked)
+    force = harness[harness["quantity"] == "f_norm"].set_index(GROUP)["rms"]
+    out = {}
+    for row in comp.itertuples(index=False):
+        rms = float(force[tuple(getattr(row, g) for g in GROUP)])
+        out[str(row.condition)] = {"mean_abs_e_x_cm": round(float(row.mean_abs_ex_cm), 3),
+                                   "mean_abs_e_y_cm": round(float(row.mean_abs_ey_cm), 3),
+                                   "harness_force_rms_n": round(rms, 3),
+                                   "falls": int(round(row.fall_rate * row.n_trials))}
+    return out
+
+
+__all__ = ["ROW_COLUMNS", "ObjectiveWeights", "compliance_headline", "costs", "objective", "run_row",
+           "walk_window"]

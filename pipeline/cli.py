@@ -175,7 +175,7 @@ def cmd_transfer(args: argparse.Namespace) -> int:
 
 
 def cmd_evaluate_policy(args: argparse.Namespace) -> int:
-    from pipeline.commands.evaluate_policy import evaluate_policy
+    from pipeline.runs.evaluate_policy import evaluate_policy
 
     root = args.policy_root or POLICIES_ROOT  # another policy's SPM figure goes beside it, not into reports/
     doc = evaluate_policy(args.subject, load_params(args.params), policy_root=root,

@@ -21,7 +21,7 @@ import time
 import ray
 
 from pipeline.params import Params, parse_params
-from pipeline.stages.simulate import policy_setup
+from pipeline.runs.jobs import policy_setup
 from pipeline.stages.sweep import _run_remote, sweep_jobs
 from sim.rollout.cluster import connect
 

@@ -20,7 +20,8 @@ from pathlib import Path
 
 from pipeline.params import Params
 from pipeline.paths import POLICIES_ROOT, PROCESSED_ROOT, policy_dir
-from pipeline.stages.transfer import choose_source, fine_tune_until_gate, required_checks, source_evaluation
+from pipeline.runs.gate import required_checks, source_evaluation
+from pipeline.stages.transfer import choose_source, fine_tune_until_gate
 from sim.errors import SimulationError
 
 TRANSFER_TARGETS = {"gate_passed": 1, "wall_s": 900.0}

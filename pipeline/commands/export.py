@@ -24,7 +24,7 @@ from ingest.robot_log import log_from_table
 from ingest.trial import Trial
 from pipeline import paths
 from pipeline.params import Params
-from pipeline.stages.simulate import policy_setup, replay_jobs, replay_setup, scenario_jobs
+from pipeline.runs.jobs import policy_setup, replay_jobs, replay_setup, scenario_jobs
 from sim.body.ground_reaction import GroundReactionProbe
 from sim.body.markers import trial_from_qpos
 from sim.errors import SimulationError

@@ -14,8 +14,8 @@ from pathlib import Path
 
 from pipeline import paths
 from pipeline.params import Params
+from pipeline.runs.jobs import policy_setup, replay_jobs, replay_setup, scenario_jobs
 from pipeline.stages.outputs import replacing
-from pipeline.stages.simulate import policy_setup, replay_jobs, replay_setup, scenario_jobs
 from sim.errors import SimulationError
 from sim.rollout.batch import Worker
 from sim.rollout.video import rollout_frames

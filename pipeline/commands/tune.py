@@ -38,8 +38,8 @@ from metrics.outcomes import ObjectiveWeights, costs, objective, run_row, walk_w
 from metrics.phases import mean_ci95
 from pipeline import paths
 from pipeline.params import Params, ParamsError
+from pipeline.runs.jobs import policy_setup, scenario_jobs
 from pipeline.stages.outputs import write_json
-from pipeline.stages.simulate import policy_setup, scenario_jobs
 from pipeline.stages.sweep import policy_digest
 from sim.body.variant import HEALTHY
 from sim.errors import SimulationError
@@ -119,7 +119,7 @@ def rollout_row(base: BatchSetup, setup: BatchSetup, job: RolloutJob, exclude_lo
     """`metrics.outcomes.run_row` of one job over the walk itself (`walk_window` of its scenario's
     commands), with the job's trial id and seed. A fall, or the arm's lock on one, counts when it
     happens before the walk's final quiet standing; one after it (`late_fall`) is counted apart and
-    not scored: there the policy human topples whatever the controller (README, "Per-subject
+    not scored: there the policy human topples whatever the controller (docs/robot.md, "Per-subject
     controller tuning"), so scoring it would score the human, not the gains."""
     o = trial_worker(base, setup).run(job, keep_result=True)
     commands = getattr(o.human.driver, "commands", None)

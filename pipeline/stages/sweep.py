@@ -36,8 +36,8 @@ from metrics.gait_symmetry import symmetry_row
 from metrics.outcomes import run_row
 from pipeline import paths
 from pipeline.params import NO_EVENT, Params, ParamsError, SweepSchema
+from pipeline.runs.jobs import policy_setup
 from pipeline.stages.outputs import write_outputs
-from pipeline.stages.simulate import policy_setup
 from pipeline.store import SWEEP_COLUMNS
 from sim.body.balance_loss import BalanceLoss
 from sim.errors import SimulationError

@@ -5,7 +5,7 @@ Picks the committed policy (params `train.subjects`) whose body and gait are nea
 fine-tunes it on the subject's scaled human and reference cycle (`sim.learn.train.train` with
 `init_from`, as `train --init-from` does) in chunks of `transfer.chunk_steps`, and gates it after
 each chunk, until it passes or `transfer.steps` / `transfer.max_wall_s` are spent. The gate is
-`evaluate-policy` (pipeline/commands/evaluate_policy.py) with `transfer.gate_seeds` walks per check,
+`evaluate-policy` (pipeline/runs/evaluate_policy.py) with `transfer.gate_seeds` walks per check,
 judged on its scenario checks (metrics/scenario_checks.py). `transfer.gate:
 source` requires every scenario check the source policy passes in its own `evaluation.json` (a
 transfer must not be worse than where it started; the committed policies fail the walk_10m, turn
@@ -15,8 +15,9 @@ required and all required ones pass.
 Outputs, all-or-nothing (built in a temporary folder beside it, then moved into place):
 `data/policies/<subject>/` as `train` writes it, plus `evaluation.json` (the gate's evaluate-policy
 result) and `transfer.json` (the gate record, `GATE_FILE`). A failed gate keeps the fine-tuned
-policy for inspection, but `simulate --human policy` does not use it (`usable_policy`): the subject
-keeps replay rows only, and the metrics stage turns the gate into `policy` quality rows.
+policy for inspection, but `simulate --human policy` does not use it (`usable_policy`; the gate and
+its records are `pipeline.runs.gate`): the subject keeps replay rows only, and the metrics stage
+turns the gate into `policy` quality rows.
 """
 
 from __future__ import annotations
@@ -32,37 +33,10 @@ from typing import TYPE_CHECKING
 
 from pipeline import paths
 from pipeline.params import Params
-from pipeline.stages.outputs import read_json
+from pipeline.runs.gate import EVALUATION_FILE, GATE_FILE, required_checks, run_gate, source_evaluation
 
 if TYPE_CHECKING:
     from sim.learn.transfer import BodyFeatures, NearestPolicy
-
-GATE_FILE = "transfer.json"          # in the policy folder: the gate record
-EVALUATION_FILE = "evaluation.json"  # in the policy folder: its evaluate-policy result
-SCENARIO_PREFIX = "scenario_"        # evaluate-policy's names of the scenario checks
-
-
-def read_gate(folder: Path) -> dict | None:
-    """The transfer gate record of a policy folder (None: no transfer, e.g. a committed policy)."""
-    return read_json(Path(folder) / GATE_FILE)
-
-
-def gate_failed(gate: dict | None) -> bool:
-    """A transfer gate record that did not pass (None, no transfer: False)."""
-    return gate is not None and not gate.get("pass")
-
-
-def usable_policy(folder: Path) -> bool:
-    """A policy the policy human may use: trained, and not one whose transfer gate failed."""
-    from sim.learn.train import POLICY_FILE
-
-    return (Path(folder) / POLICY_FILE).is_file() and not gate_failed(read_gate(folder))
-
-
-def gate_summary(gate: dict) -> dict:
-    """What the rollouts' summary (and so the quality rows) carries of a gate record."""
-    keys = ("source", "distance", "pass", "failed", "checks", "steps", "wall_s", "gate")
-    return {k: gate[k] for k in keys if k in gate}
 
 
 # -- choosing the source ----------------------------------------------------------------------------
@@ -119,51 +93,6 @@ def fine_tune(subject: str, params: Params, out_dir: Path, *, steps: int, max_wa
     return train(xml, load_reference(npz).cycle, params.train_params(), out_dir, total_steps=steps,
                  max_wall_s=max_wall_s, resume=init_from is None, init_from=init_from, progress=progress,
                  command=command)
-
-
-def gate_params(params: Params, seeds: int) -> Params:
-    """`params` with `seeds` walks per evaluate-policy check (free, controllers, push and scenarios)."""
-    ev = params.evaluate_policy
-    ev = ev.model_copy(update={"n_seeds": seeds,
-                               "scenario_checks": ev.scenario_checks.model_copy(update={"seeds": seeds})})
-    return params.model_copy(update={"evaluate_policy": ev})
-
-
-def required_checks(params: Params, source_evaluation: dict | None) -> set[str] | None:
-    """The scenario checks the gate requires: those the source passes (`transfer.gate: source`, when
-    its evaluation is known), else None (every scenario check)."""
-    if params.transfer.gate == "all" or source_evaluation is None:
-        return None
-    checks = source_evaluation.get("checks", {})
-    return {k for k, ok in checks.items() if k.startswith(SCENARIO_PREFIX) and ok}
-
-
-def judge(checks: dict[str, bool | None], required: set[str] | None) -> dict:
-    """The gate over evaluate-policy's `checks`: each scenario check with its result and whether it
-    is required; `failed` the required ones that did not pass; `pass` when at least one check is
-    required and none failed."""
-    judged = {name: {"pass": ok, "required": required is None or name in required}
-              for name, ok in checks.items() if name.startswith(SCENARIO_PREFIX)}
-    needed = [n for n, c in judged.items() if c["required"]]
-    failed = [n for n in needed if judged[n]["pass"] is not True]
-    return {"pass": bool(needed) and not failed, "failed": failed, "checks": judged,
-            "not_evaluated": sorted((required or set()) - set(judged))}
-
-
-def run_gate(subject: str, params: Params, policy_root: Path, required: set[str] | None, *,
-             root: Path = paths.PROCESSED_ROOT, reports: Path = paths.REPORTS_ROOT,
-             progress: bool = True) -> tuple[dict, dict]:
-    """(evaluate-policy's result with `transfer.gate_seeds` walks per check, the gate's verdict)."""
-    from pipeline.commands.evaluate_policy import evaluate_policy
-
-    doc = evaluate_policy(subject, gate_params(params, params.transfer.gate_seeds), root, policy_root,
-                          reports, progress)
-    return doc, judge(doc["checks"], required)
-
-
-def source_evaluation(folder: Path) -> dict | None:
-    """A policy folder's evaluate-policy result (`EVALUATION_FILE`), None when it has none."""
-    return read_json(folder / EVALUATION_FILE)
 
 
 @dataclass(frozen=True)
@@ -237,6 +166,5 @@ def run_transfer(subject: str, params: Params, root: Path = paths.PROCESSED_ROOT
     return record
 
 
-__all__ = ["EVALUATION_FILE", "GATE_FILE", "Tuned", "choose_source", "fine_tune", "fine_tune_until_gate",
-           "gate_failed", "gate_params", "gate_summary", "judge", "read_gate", "required_checks", "run_gate",
-           "run_transfer", "source_evaluation", "usable_policy"]
+__all__ = ["Tuned", "choose_source", "fine_tune", "fine_tune_until_gate", "policy_features", "run_transfer",
+           "subject_features"]

@@ -2,8 +2,9 @@
 
 `rollout` is a pure function of (world, human driver, controller, params, seed): it builds its own
 model (`sim.rollout.world`: the compiled world, the physics step grid, the robot's start state), so it
-can be called many times and in parallel processes. `RolloutParams` and `RolloutResult` are its input
-and output; its robot table has the columns of `ingest.robot.ROBOT_COLUMNS`.
+can be called many times and in parallel processes. `RolloutParams` (defined beside the world it
+builds, in `sim.rollout.world`) and `RolloutResult` are its input and output; its robot table has the
+columns of `ingest.robot.ROBOT_COLUMNS`.
 
 Timing: the controller, the fall rule and the drive act once per control tick (`control_rate_hz`,
 100 Hz as on a real mobile base: the command path of a differential drive); the human driver acts
@@ -40,31 +41,8 @@ from sim.motion.driver import HumanDriver
 from sim.robot.controllers.base import BaseCommand, Controller, RobotSensors
 from sim.robot.fall import FallDetector
 from sim.robot.harness import HarnessIndex, wrench_from_sensors
-from sim.robot.mrba import SENSOR_WIDTH, SENSORS, BaseDrive, RobotIndex, RobotParams, lock_arm
-from sim.rollout.world import build_world, initial_speed, place_robot, step_grid
-
-
-@dataclass(frozen=True)
-class RolloutParams:
-    """Everything a rollout needs besides the world, human driver, controller and seed."""
-
-    robot: RobotParams
-    sample_rate_hz: float = 100.0
-    max_physics_dt_s: float = 0.002
-    start_offset_m: float = 0.03
-    with_robot: bool = True
-    harness_body: str = "pelvis"
-    subject: str = ""
-    condition: str = ""
-    trial: str = ""
-    discard_s: float = 0.0  # lead-in simulated but not returned; returned time 0 is this instant
-    stop_after_fall_s: float | None = None  # a human that fell (its driver's `fall_time_s`) is simulated
-                                            # this much longer, then the rollout ends (None: to the end)
-
-    @property
-    def control_rate_hz(self) -> float:
-        """The robot's control rate (params `robot.base.control_rate_hz`)."""
-        return self.robot.base.control_rate_hz
+from sim.robot.mrba import SENSOR_WIDTH, SENSORS, BaseDrive, RobotIndex, lock_arm
+from sim.rollout.world import RolloutParams, build_world, initial_speed, place_robot, step_grid
 
 
 @dataclass(frozen=True)

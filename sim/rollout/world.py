@@ -1,5 +1,6 @@
-"""World assembly for rollouts: the physics step grid, the compiled world (human prepared by its
-driver, plus the robot), the robot constants a controller may model, and the robot's start state.
+"""World assembly for rollouts: what a rollout is built from (`RolloutParams`), the physics step
+grid, the compiled world (human prepared by its driver, plus the robot), the robot constants a
+controller may model, and the robot's start state.
 
 The physics step is the largest dt <= `max_physics_dt_s` that divides both the output sample period
 and the control period (`step_grid`), so samples and control ticks fall on physics steps. The robot
@@ -11,8 +12,8 @@ moving at the pelvis' initial speed along its heading.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from fractions import Fraction
-from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
@@ -24,8 +25,28 @@ from sim.robot.controllers.base import RobotInfo
 from sim.robot.harness import HarnessIndex
 from sim.robot.mrba import RobotIndex, RobotParams, attach_robot
 
-if TYPE_CHECKING:
-    from sim.rollout.loop import RolloutParams
+
+@dataclass(frozen=True)
+class RolloutParams:
+    """Everything a rollout needs besides the world, human driver, controller and seed."""
+
+    robot: RobotParams
+    sample_rate_hz: float = 100.0
+    max_physics_dt_s: float = 0.002
+    start_offset_m: float = 0.03
+    with_robot: bool = True
+    harness_body: str = "pelvis"
+    subject: str = ""
+    condition: str = ""
+    trial: str = ""
+    discard_s: float = 0.0  # lead-in simulated but not returned; returned time 0 is this instant
+    stop_after_fall_s: float | None = None  # a human that fell (its driver's `fall_time_s`) is simulated
+                                            # this much longer, then the rollout ends (None: to the end)
+
+    @property
+    def control_rate_hz(self) -> float:
+        """The robot's control rate (params `robot.base.control_rate_hz`)."""
+        return self.robot.base.control_rate_hz
 
 
 def _period(rate_hz: float) -> Fraction:
@@ -108,4 +129,5 @@ def initial_speed(human: HumanDriver, times_s: np.ndarray) -> float:
     return float(d @ np.array([np.cos(yaw), np.sin(yaw)]) / (times_s[k] - times_s[0]))
 
 
-__all__ = ["build_world", "initial_speed", "physics_steps", "place_robot", "robot_info", "step_grid"]
+__all__ = ["RolloutParams", "build_world", "initial_speed", "physics_steps", "place_robot", "robot_info",
+           "step_grid"]

@@ -15,7 +15,7 @@ import pytest
 
 from metrics.outcomes import walk_window
 from metrics.scenario_checks import stride_speed
-from pipeline.stages.simulate import policy_setup, scenario_jobs, scenario_profiles
+from pipeline.runs.jobs import policy_setup, scenario_jobs, scenario_profiles
 from sim.learn.train import load_body
 from sim.rollout.batch import RolloutOutcome, run_batch
 

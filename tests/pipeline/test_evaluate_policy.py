@@ -1,12 +1,12 @@
-"""`evaluate-policy` (pipeline/commands/evaluate_policy.py) on a cohort variant: its own policy on its
+"""`evaluate-policy` (pipeline/runs/evaluate_policy.py) on a cohort variant: its own policy on its
 own body at its own preferred speed, one walk per check (the transfer gate's reduced form)."""
 
 from __future__ import annotations
 
 import pytest
 
-from pipeline.commands.evaluate_policy import evaluate_policy
-from pipeline.stages.transfer import gate_params
+from pipeline.runs.evaluate_policy import evaluate_policy
+from pipeline.runs.gate import gate_params
 
 
 def test_a_cohort_variant_is_evaluated_at_its_own_speed(params, policies_root, camargo_model, tmp_path):

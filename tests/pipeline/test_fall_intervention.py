@@ -10,7 +10,7 @@ import pytest
 
 from metrics.fall_intervention import FallRuleParams, event_metrics
 from pipeline.params import parse_params
-from pipeline.stages.simulate import policy_setup
+from pipeline.runs.jobs import policy_setup
 from pipeline.stages.sweep import run_sweep
 from pipeline.store import SWEEP_COLUMNS, query, store_results
 from sim.body.balance_loss import BalanceLoss, body_geoms

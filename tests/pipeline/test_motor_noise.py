@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from pipeline.params import parse_params
-from pipeline.stages.simulate import policy_setup, scenario_jobs
+from pipeline.runs.jobs import policy_setup, scenario_jobs
 from sim.rollout.batch import run_batch
 
 SCENARIO = "short_start"

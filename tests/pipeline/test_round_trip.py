@@ -27,7 +27,7 @@ from pipeline.commands.add_subject import NewTrial, Registry, add_subject
 from pipeline.commands.export import run_export
 from pipeline.params import load_params
 from pipeline.paths import PARAMS_FILE, POLICIES_ROOT
-from pipeline.stages.simulate import policy_setup, scenario_jobs
+from pipeline.runs.jobs import policy_setup, scenario_jobs
 from sim.body.ground_reaction import GroundReactionProbe
 from sim.rollout.batch import Worker
 

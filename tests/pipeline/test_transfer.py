@@ -17,22 +17,12 @@ import yaml
 
 from metrics.quality import transfer_checks
 from pipeline.params import PARAMS_FILE, ParamsError, load_params
+from pipeline.runs.gate import EVALUATION_FILE, GATE_FILE, judge, read_gate, required_checks, usable_policy
 from pipeline.stages.metrics import quality_checks, run_metrics
 from pipeline.stages.report import ReportParams, run_report, transfer_lines
 from pipeline.stages.simulate import run_simulate_policy
 from pipeline.stages.store import load_results
-from pipeline.stages.transfer import (
-    EVALUATION_FILE,
-    GATE_FILE,
-    choose_source,
-    judge,
-    policy_features,
-    read_gate,
-    required_checks,
-    run_transfer,
-    subject_features,
-    usable_policy,
-)
+from pipeline.stages.transfer import choose_source, policy_features, run_transfer, subject_features
 from pipeline.store import StoreParams, query, store_results
 from sim.learn.train import BODY_FILE, CYCLE_FILE, NORM_FILE, POLICY_FILE, PROGRESS_FILE, policy_env
 from sim.learn.transfer import BodyFeatures, FeatureWeights, feature_distance, nearest_policy

@@ -1,4 +1,5 @@
-"""Command `evaluate-policy <subject>`: does the trained walking policy walk like its subject?
+"""evaluate-policy: does the trained walking policy walk like its subject? Called by the command
+`python -m pipeline evaluate-policy <subject>` and by the transfer gate (`pipeline.runs.gate`).
 
 Seeded walks of the policy human through the batch runner: free walking, walking with each
 controller of `rollout.conditions`, free walking with a lateral pelvis push, and every scenario
@@ -25,7 +26,7 @@ from ingest.canonical import load_trial
 from ingest.manifest import Manifest
 from ingest.process import walk_phases
 from ingest.subject import load_subject
-from metrics.compliance import compliance_headline
+from metrics.outcomes import compliance_headline
 from metrics.plots import policy_spm_figure
 from metrics.policy_checks import curves, enough, gait_check, spm_check
 from metrics.scenario_checks import (
@@ -40,14 +41,8 @@ from metrics.scenario_checks import (
 )
 from pipeline import paths
 from pipeline.params import Params
+from pipeline.runs.jobs import policy_job, policy_setup, require_inputs, scenario_jobs, scenario_profiles
 from pipeline.stages.outputs import write_figure
-from pipeline.stages.simulate import (
-    policy_job,
-    policy_setup,
-    require_inputs,
-    scenario_jobs,
-    scenario_profiles,
-)
 from sim.body.variant import HEALTHY
 from sim.learn.policy_human import PolicyWalk
 from sim.learn.train import load_body

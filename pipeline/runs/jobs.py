@@ -1,0 +1,116 @@
+"""The batch runner's setups and jobs (`sim.rollout.batch`) for a subject, built from params: the
+replay human's (`replay_setup`, `replay_jobs`: one job per straight bout of kept real strides,
+condition and seed) and the policy human's (`policy_setup`, `policy_job`, `scenario_jobs`: every
+scenario of params `scenarios` x condition x walk), and the scenarios' command profiles
+(`scenario_profiles`). The simulate stage, evaluate-policy, the sweep, tuning, render and export all
+build their rollouts here.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import pandas as pd
+
+from ingest.strides import kept_stride_runs
+from ingest.subject import load_subject
+from pipeline import paths
+from pipeline.params import Params
+from sim.body.variant import HEALTHY
+from sim.errors import SimulationError
+from sim.motion.reference import load_reference
+from sim.motion.replay import ReplaySegment, ReplaySource
+from sim.rollout.batch import BatchSetup, RolloutJob
+from sim.rollout.scenarios import CommandProfile, command_profile
+
+if TYPE_CHECKING:
+    from sim.learn.policy_human import PolicyWalk
+
+
+def require_inputs(*files: Path, what: str) -> None:
+    """`SimulationError` naming the first of `files` that does not exist (an earlier stage's output)."""
+    for f in files:
+        if not f.exists():
+            raise SimulationError(f, f"missing input of {what} (run the stage that makes it)")
+
+
+def replay_setup(subject: str, params: Params, root: Path = paths.PROCESSED_ROOT) -> BatchSetup:
+    """The batch runner's setup for `subject`'s replay human (scaled model and reference motion)."""
+    xml, npz = paths.human_xml(root, subject), paths.reference_npz(root, subject)
+    require_inputs(xml, npz, what=f"`simulate {subject}`")
+    r = params.rollout
+    source = ReplaySource(str(npz), r.replay.build(), r.lead_in_s, r.lead_in_ramp_s)
+    return params.batch_setup(subject, load_subject(subject).markerset, xml, source)
+
+
+def replay_jobs(subject: str, params: Params, root: Path = paths.PROCESSED_ROOT,
+                conditions: tuple[str, ...] | None = None, seeds: range | None = None) -> list[RolloutJob]:
+    """One job per straight bout, condition and seed (default: `rollout.conditions`, `n_seeds`)."""
+    r = params.rollout
+    strides_file = paths.real_dir(root, subject) / "strides.parquet"
+    require_inputs(strides_file, what=f"`simulate {subject}`")
+    strides = pd.read_parquet(strides_file)
+    ref = load_reference(paths.reference_npz(root, subject))
+    conditions = r.conditions if conditions is None else conditions
+    seeds = range(r.n_seeds) if seeds is None else seeds
+    jobs = []
+    for trial in sorted(set(ref.trial.tolist())):
+        kept = strides[(strides["trial"] == trial) & strides["kept"]]
+        stride_s = float(kept["stride_time_s"].median())
+        for b, (t0, t1) in enumerate(kept_stride_runs(strides, trial, r.bout_margin_s, r.bout_join_gap_s)):
+            segment = ReplaySegment(trial, t0, t1, stride_s)
+            jobs += [RolloutJob(c, s, f"{trial}_bout{b}_seed{s}", segment) for c in conditions for s in seeds]
+    if not jobs:
+        raise SimulationError(strides_file, f"no straight bout (kept strides) in the retargeted trials of "
+                              f"{subject}")
+    return jobs
+
+
+def policy_setup(subject: str, params: Params, root: Path = paths.PROCESSED_ROOT,
+                 policy_root: Path = paths.POLICIES_ROOT, variant: str = HEALTHY) -> BatchSetup:
+    """The batch runner's setup for `subject`'s trained walking policy (or cohort `variant`'s
+    fine-tuned one, on the variant's body), sampled at `rollout.policy_sample_rate_hz` (its physics
+    step must be the training timestep)."""
+    from sim.learn.policy_human import PolicySource  # torch and SB3: only for the policy human
+    from sim.learn.train import BODY_FILE, CYCLE_FILE, POLICY_FILE
+
+    folder = paths.policy_dir(policy_root, subject, variant)
+    for f in (POLICY_FILE, BODY_FILE, CYCLE_FILE):
+        if not (folder / f).exists():
+            how = f"train {subject}" + ("" if variant == HEALTHY else f" --variant {variant}")
+            raise SimulationError(folder / f, f"no trained policy: run `python -m pipeline {how}`")
+    scenarios = {name: tuple(segs) for name, segs in params.scenarios.build().items()}
+    source = PolicySource(str(folder), params.train_params(variant).env, params.rollout.policy_sample_rate_hz,
+                          params.evaluate_policy.fall_height_fraction, scenarios,
+                          params.scenarios.profile.build(), params.rollout.policy_motor_noise)
+    return params.batch_setup(subject, load_subject(subject).markerset, folder / BODY_FILE, source)
+
+
+def policy_job(condition: str, seed: int, walk: PolicyWalk, tag: str = "") -> RolloutJob:
+    """A policy-human job; its trial id names the condition (or `tag`) and the seed."""
+    return RolloutJob(condition, seed, f"policy_{tag or condition}_seed{seed}", walk)
+
+
+def scenario_jobs(params: Params, conditions: tuple[str, ...] | None = None,
+                  walks: int | None = None, scenarios: tuple[str, ...] | None = None) -> list[RolloutJob]:
+    """One policy-human job per scenario x condition x walk (default: every scenario,
+    `rollout.conditions`, `scenarios.walks(name)` walks); trial id `<scenario>_<condition>_seed<k>`."""
+    from sim.learn.policy_human import PolicyWalk
+
+    sc = params.scenarios
+    conditions = params.rollout.conditions if conditions is None else conditions
+    names = tuple(sc.commands) if scenarios is None else scenarios
+    return [RolloutJob(c, k, f"{name}_{c}_seed{k}", PolicyWalk(scenario=name))
+            for name in names for c in conditions for k in range(walks or sc.walks(name))]
+
+
+def scenario_profiles(params: Params, speed_mps: float, rate_hz: float) -> dict[str, CommandProfile]:
+    """Every scenario's command profile for a person whose preferred speed is `speed_mps`."""
+    profile = params.scenarios.profile.build()
+    return {name: command_profile(name, segs, speed_mps, rate_hz, profile)
+            for name, segs in params.scenarios.build().items()}
+
+
+__all__ = ["policy_job", "policy_setup", "replay_jobs", "replay_setup", "require_inputs", "scenario_jobs",
+           "scenario_profiles"]
