@@ -11,7 +11,7 @@ export MPLBACKEND := Agg
 # imports about a fifth of them. That needs bytecode to be written (a shell may forbid it).
 unexport PYTHONDONTWRITEBYTECODE
 
-.PHONY: run test lint bench videos clean-venv render-deps browser-deps
+.PHONY: run test docs lint bench videos clean-venv render-deps browser-deps
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -39,6 +39,10 @@ run: $(STAMP) render-deps
 test: $(STAMP) render-deps browser-deps
 	$(BIN)/ruff check .
 	$(BIN)/python -m pytest
+
+# The manual (docs/, mkdocs.yml) as a static site in build/docs/ (git-ignored); --strict: a broken link fails.
+docs: $(STAMP)
+	$(BIN)/mkdocs build --strict --site-dir build/docs
 
 bench: $(STAMP)
 	PATH="$(CURDIR)/$(BIN):$$PATH" $(BIN)/dvc repro bench

@@ -1,4 +1,4 @@
-"""Committed files stay small (README, "Committed policies stay small"): everything git tracks totals
+"""Committed files stay small (docs/policies.md, "Committed policies"): everything git tracks totals
 at most 40 MiB, as `git ls-files -z | xargs -0 du -cb` counts it. Committed policies keep what
 rollouts need (weights and observation statistics), not optimizer or discriminator state; experiment
 checkpoints under data/candidates leave git (their JSON records stay)."""

@@ -1,7 +1,7 @@
 """Stage `ingest <subject>`: a subject's raw trials -> events, strides and cycles tables.
 
 Outputs in `<out_root>/<subject>/real/`: `events.parquet`, `strides.parquet`, `cycles.parquet`
-(columns in README.md), `robot.parquet` (the robot logs of robot-assisted trials as robot tables,
+(columns in docs/data.md), `robot.parquet` (the robot logs of robot-assisted trials as robot tables,
 `ingest.robot`; empty without) and `summary.json`, a small DVC metrics file.
 """
 
