@@ -1,12 +1,15 @@
 """Quality gates: numbers that can be wrong without any stage failing, graded ok / warn / fail.
 
 Each check is one row of `QUALITY_COLUMNS`: the subject, the stage whose output it judges, the check's
-name, its value, the warn and fail thresholds and the status. Most checks are worse the higher the
-value (`status = fail` above `fail_above`); cycle counts are worse the lower (below the thresholds;
-the note says so). A value that cannot be computed is graded `warn` with a note, never `ok`: a wrong
-number never flows silently. Thresholds: params.yaml `quality` (`QualityParams`; gaitloop's choices,
-documented there). A transferred walking policy's gate (`transfer_checks`) adds one `policy` row per
-scenario check, pass = 1.
+name, its value, the warn and fail thresholds, the status, its cause (why this status: the value
+against the limit it passed or kept, or why no value) and a note (what the check measures). Most
+checks are worse the higher the value (`status = fail` above `fail_above`); cycle counts are worse
+the lower (below the thresholds; the note says so). A check that cannot be computed (no IK file to
+compare with, no static trial, too few cycles for SPM) is `n/a` with its reason as the cause, never
+`ok` and never `fail`: `fail` is kept for a measured defect. `worst` ranks fail > warn > ok and
+leaves `n/a` out. Thresholds: params.yaml `quality` (`QualityParams`), each documented there with
+the spread of the bundled subjects' values. A transferred walking policy's gate (`transfer_checks`)
+adds one `policy` row per scenario check, pass = 1.
 """
 
 from __future__ import annotations
@@ -18,8 +21,10 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-QUALITY_COLUMNS = ["subject", "stage", "check", "value", "warn_above", "fail_above", "status", "note"]
+QUALITY_COLUMNS = ["subject", "stage", "check", "value", "warn_above", "fail_above", "status", "cause",
+                   "note"]
 STATUS_ORDER = {"ok": 0, "warn": 1, "fail": 2}
+NOT_COMPUTED = "n/a"  # a check without a value to grade: ranks nowhere in `worst`
 SIDES = ("left", "right")
 PAIRED_SEGMENTS = ("thigh", "shank", "foot", "upper_arm", "forearm", "hand")
 
@@ -60,6 +65,7 @@ class QualityCheck:
     warn_above: float
     fail_above: float
     status: str
+    cause: str
     note: str = ""
 
 
@@ -69,9 +75,9 @@ def _missing(value: float | None) -> bool:
 
 def grade(value: float | None, warn: float, fail: float, higher_is_worse: bool = True) -> str:
     """'fail' past `fail`, 'warn' past `warn`, else 'ok' (past: above, or below when lower is worse);
-    a missing value is 'warn'."""
+    a missing value is 'n/a'."""
     if _missing(value):
-        return "warn"
+        return NOT_COMPUTED
     v = float(value)
     if higher_is_worse:
         return "fail" if v > fail else "warn" if v > warn else "ok"
@@ -79,21 +85,43 @@ def grade(value: float | None, warn: float, fail: float, higher_is_worse: bool =
 
 
 def worst(statuses: Iterable[str]) -> str:
-    """The worst of `statuses` (fail > warn > ok); 'unknown' when there are none."""
+    """The worst of `statuses` (fail > warn > ok; `n/a` is not graded and left out); 'unknown' when
+    there are none."""
     found = [s for s in statuses if s in STATUS_ORDER]
     return max(found, key=STATUS_ORDER.__getitem__) if found else "unknown"
 
 
+def worst_check(q: pd.DataFrame) -> pd.Series | None:
+    """The row of the quality table `q` with the worst graded status (the first such row in the
+    table's order); None without a graded row."""
+    graded = q[q["status"].isin(list(STATUS_ORDER))]
+    if graded.empty:
+        return None
+    return graded.iloc[int(np.argmax(graded["status"].map(STATUS_ORDER).to_numpy()))]
+
+
+def cause(value: float, limits: Limits, status: str, higher_is_worse: bool = True) -> str:
+    """Why a graded `value` got `status`: the value against the limit it passed, or the one it kept."""
+    past, within = ("above", "at or below") if higher_is_worse else ("below", "at or above")
+    if status == "fail":
+        return f"{value:.4g} {past} the fail limit {limits.fail:g}"
+    if status == "warn":
+        return f"{value:.4g} {past} the warn limit {limits.warn:g}"
+    return f"{value:.4g} {within} the warn limit {limits.warn:g}"
+
+
 def check(subject: str, stage: str, name: str, value: float | None, limits: Limits, note: str = "",
-          higher_is_worse: bool = True) -> QualityCheck:
-    """A graded row; a missing value gets 'warn' and a note saying so."""
+          higher_is_worse: bool = True, missing: str = "") -> QualityCheck:
+    """A graded row with its cause; a missing value is `n/a` with `missing` (else `note`) as the
+    reason it cannot be computed."""
     status = grade(value, limits.warn, limits.fail, higher_is_worse)
     if _missing(value):
-        note = note or "value unavailable"
-    elif not higher_is_worse:
+        return QualityCheck(subject, stage, name, float("nan"), limits.warn, limits.fail, status,
+                            f"cannot be computed: {missing or note or 'value unavailable'}", note)
+    if not higher_is_worse:
         note = (note + "; " if note else "") + "lower is worse (thresholds are minima)"
-    return QualityCheck(subject, stage, name, float("nan") if _missing(value) else float(value),
-                        limits.warn, limits.fail, status, note)
+    return QualityCheck(subject, stage, name, float(value), limits.warn, limits.fail, status,
+                        cause(float(value), limits, status, higher_is_worse), note)
 
 
 def quality_table(checks: Iterable[QualityCheck]) -> pd.DataFrame:
@@ -127,7 +155,8 @@ def knee_alignment_check(subject: str, valgus_deg: Mapping[str, float] | None,
     sides = {s: float(v) for s, v in (valgus_deg or {}).items() if not _missing(v)}
     if not sides:
         return check(subject, "scale", "knee_alignment_deg", None, p.knee_alignment_deg,
-                     "not measured: no static_knee_valgus_deg in model.json (static: none stands the "
+                     "hip-knee-ankle in the static: not measured",
+                     missing="no static_knee_valgus_deg in model.json (static: none stands the "
                      "synthesised pose's legs straight)")
     side = max(sides, key=lambda s: abs(sides[s]))
     kind = "valgus" if sides[side] >= 0 else "varus"
@@ -155,7 +184,7 @@ def scale_checks(subject: str, model: Mapping | None, reference: Mapping | None,
                          "no reference.json"))
         return out
     out.append(check(subject, "reference", "retarget_marker_rms_m", reference.get("marker_rms_m"),
-                     p.marker_rms_m, "marker IK on the scaled model, all frames"))
+                     p.marker_rms_m, "marker IK on the scaled model, all frames" + worst_markers(reference)))
     angles = {k: v.get("rms_deg") for k, v in (reference.get("angles") or {}).items()
               if isinstance(v, Mapping) and not _missing(v.get("rms_deg"))}
     if angles:
@@ -164,8 +193,20 @@ def scale_checks(subject: str, model: Mapping | None, reference: Mapping | None,
                          f"retargeted vs the dataset's IK, largest: {joint}"))
     else:
         out.append(check(subject, "reference", "ik_angle_rms_deg", None, p.ik_angle_rms_deg,
-                         "no dataset IK angles to compare with"))
+                         "retargeted vs the dataset's IK", missing="no dataset IK angles to compare with"))
     return out
+
+
+def worst_markers(reference: Mapping, n: int = 3) -> str:
+    """'; largest: M1 4.9 cm, ...': the `n` markers of the largest RMS in any trial of `reference.json`
+    (`trials` -> `markers_rms_m`); '' without per-marker values."""
+    rms: dict[str, float] = {}
+    for trial in (reference.get("trials") or {}).values():
+        for name, v in ((trial or {}).get("markers_rms_m") or {}).items():
+            if not _missing(v):
+                rms[name] = max(rms.get(name, 0.0), float(v))
+    top = sorted(rms, key=rms.get, reverse=True)[:n]
+    return "; largest: " + ", ".join(f"{m} {rms[m] * 100:.1f} cm" for m in top) if top else ""
 
 
 # -- ingest ---------------------------------------------------------------------------------------
@@ -231,13 +272,24 @@ def ingest_checks(subject: str, events: pd.DataFrame, cycles: pd.DataFrame, span
                                  uncovered_samples(s.marker_t, t), p.span_samples,
                                  f"marker samples outside the {kind} file's span"))
     counts = kept_cycles(cycles) if not cycles.empty else pd.DataFrame(columns=["condition", "side", "n"])
-    limits = Limits(float(min_cycles), float(min_cycles))
     for cond in sorted(counts["condition"].unique()) if len(counts) else ["free"]:
         for side in SIDES:
             n = counts[(counts["condition"] == cond) & (counts["side"] == side)]["n"].sum()
-            out.append(check(subject, "ingest", f"spm_cycles:{cond}:{side}", float(n), limits,
-                             "real kept cycles", higher_is_worse=False))
+            out.append(spm_cycles_check(subject, f"spm_cycles:{cond}:{side}", int(n), min_cycles))
     return out
+
+
+def spm_cycles_check(subject: str, name: str, n: int, min_cycles: int) -> QualityCheck:
+    """Real kept cycles of one condition and side: `ok` with at least `min_cycles`, else `n/a` (too few
+    cycles for SPM: its tests of that group are skipped, which is not a measured defect)."""
+    limits = Limits(float(min_cycles), float(min_cycles))
+    note = "real kept cycles; lower is worse (thresholds are minima)"
+    if n >= min_cycles:
+        return QualityCheck(subject, "ingest", name, float(n), limits.warn, limits.fail, "ok",
+                            cause(float(n), limits, "ok", higher_is_worse=False), note)
+    return QualityCheck(subject, "ingest", name, float(n), limits.warn, limits.fail, NOT_COMPUTED,
+                        f"too few cycles for SPM: {n} kept, {min_cycles} needed (its SPM tests are skipped)",
+                        note)
 
 
 # -- simulate -------------------------------------------------------------------------------------
@@ -275,21 +327,25 @@ def non_steady_share(strides: pd.DataFrame) -> float:
 
 def sim_checks(subject: str, real_strides: pd.DataFrame, sims: Mapping[str, pd.DataFrame],
                policy_table_strides: pd.DataFrame | None, p: QualityParams,
-               policy_walks: pd.DataFrame | None = None) -> list[QualityCheck]:
+               policy_walks: pd.DataFrame | None = None,
+               rollouts: Mapping[str, int] | None = None) -> list[QualityCheck]:
     """Sim vs real free-walking speed and sides, per human mode in `sims` (mode -> strides: 'replay'
     the sim/ human, 'policy' the policy human's free strides of its table scenario); the share of
     the policy strides entering the tables outside steady walking; and the share of the table
     scenario's walks that repeat another of their condition (`policy_walks`:
     `metrics.sampling.repeated_walks`; copies are left out of the tables, so the tables rest on
-    fewer walks than asked)."""
+    fewer walks than asked). `rollouts`: mode -> how many rollouts ran (the simulation's summary.json),
+    to tell a simulation that kept no stride from none at all."""
     out = []
     for mode, strides in sims.items():
-        note = "" if not strides.empty else f"no {mode} simulation"
+        ran = (rollouts or {}).get(mode) or 0
+        why = ("no kept free-walking strides, real or simulated" if not strides.empty
+               else f"its {ran} {mode} rollouts kept no stride" if ran else f"no {mode} simulation")
         out.append(check(subject, "simulate", f"speed_gap_pct:{mode}", speed_gap_pct(real_strides, strides),
-                         p.speed_gap_pct, note or "free walking, kept strides"))
+                         p.speed_gap_pct, "free walking, kept strides", missing=why))
         value = missing_sides(real_strides, strides) if not strides.empty else None
         out.append(check(subject, "simulate", f"missing_sides:{mode}", value, p.missing_sides,
-                         note or "sides with real but without simulated free strides"))
+                         "sides with real but without simulated free strides", missing=why))
     if policy_table_strides is not None:
         share = non_steady_share(policy_table_strides)
         out.append(check(subject, "simulate", "non_steady_share:policy", share, p.non_steady_share,
@@ -314,7 +370,7 @@ def transfer_checks(subject: str, gate: Mapping | None) -> list[QualityCheck]:
     """One `policy` row per scenario check of a transferred policy's gate (`pipeline.stages.transfer`:
     `checks` name -> {pass, required}): value 1 passed, 0 failed; a failed required check is `fail`,
     a failed one the gate does not require (its source policy fails it too) `warn`, an unjudged one
-    `warn`. No gate (a committed policy, or none at all): no rows."""
+    `n/a`. No gate (a committed policy, or none at all): no rows."""
     if not gate:
         return []
     source = (f"fine-tuned from {gate.get('source')} (distance {gate.get('distance')}, "
@@ -325,7 +381,8 @@ def transfer_checks(subject: str, gate: Mapping | None) -> list[QualityCheck]:
         value = None if ok is None else float(bool(ok))
         limits = GATE_LIMITS_REQUIRED if c.get("required") else GATE_LIMITS_OPTIONAL
         what = "required by the transfer gate" if c.get("required") else "not required (its source fails it)"
-        out.append(check(subject, "policy", name, value, limits, f"{source}; {what}", higher_is_worse=False))
+        out.append(check(subject, "policy", name, value, limits, f"{source}; {what}", higher_is_worse=False,
+                         missing="the gate did not judge it"))
     if not out:
         out.append(check(subject, "policy", "transfer_gate", float(bool(gate.get("pass"))),
                          GATE_LIMITS_REQUIRED, f"{source}; no scenario check judged", higher_is_worse=False))

@@ -117,7 +117,8 @@ TUNING_DDL = ("version_id BIGINT NOT NULL, subject VARCHAR, variant VARCHAR, con
               "content_hash VARCHAR, run_id BIGINT, created_at TIMESTAMP, search_rollouts BIGINT, "
               "search_falls BIGINT")
 QUALITY_DDL = ('run_id BIGINT NOT NULL, subject VARCHAR NOT NULL, stage VARCHAR, "check" VARCHAR, '
-               "value DOUBLE, warn_above DOUBLE, fail_above DOUBLE, status VARCHAR, note VARCHAR")
+               "value DOUBLE, warn_above DOUBLE, fail_above DOUBLE, status VARCHAR, note VARCHAR, "
+               "cause VARCHAR")
 # a sweep walk's summary: two walks with the same one are the same walk (a deterministic walk from
 # standing repeats itself in every seed); the fall time tells apart walks that fell before a stride
 WALK_SUMMARY = "(gait_speed_mps, stride_length_m, stride_time_cv_pct, n_strides, fell, human_fall_s, walk_s)"
@@ -441,6 +442,7 @@ def ensure_schema(con: duckdb.DuckDBPyConnection) -> None:
     for col in ("search_rollouts", "search_falls"):  # stores from before these columns
         con.execute(f"ALTER TABLE tuned_gains ADD COLUMN IF NOT EXISTS {col} BIGINT")
     con.execute(f"CREATE TABLE IF NOT EXISTS quality ({QUALITY_DDL})")
+    con.execute("ALTER TABLE quality ADD COLUMN IF NOT EXISTS cause VARCHAR")  # stores from before it
     con.execute("CREATE TABLE IF NOT EXISTS subjects (subject VARCHAR PRIMARY KEY, round_trip_of VARCHAR, "
                 "run_id BIGINT NOT NULL)")
     con.execute("CREATE TABLE IF NOT EXISTS run_groups (run_id BIGINT NOT NULL, subject VARCHAR NOT NULL, "
@@ -561,7 +563,7 @@ def store_results(path: Path, results: list[SubjectResults], params: StoreParams
 
 def _store_quality(con: duckdb.DuckDBPyConnection, res: SubjectResults, run_id: int) -> None:
     """The subject's quality rows of this run (`quality_latest` shows the last run's)."""
-    columns = ["subject", "stage", "check", "value", "warn_above", "fail_above", "status", "note"]
+    columns = ["subject", "stage", "check", "value", "warn_above", "fail_above", "status", "cause", "note"]
     missing = [c for c in columns if c not in res.quality.columns]
     if missing:
         raise StoreError(f"{res.subject}/quality", f"table lacks columns {missing}")

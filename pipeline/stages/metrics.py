@@ -198,11 +198,13 @@ def quality_checks(subject: str, params: Params, root: Path = PROCESSED_ROOT,
         table_strides = paper_strides(scenario, paper.cycles_per_walk, walks=walks)
     sims["policy"] = table_strides if table_strides is not None else policy
     policy_summary = read_json(sim_policy_dir(root, subject) / "summary.json") or {}
+    replay_summary = read_json(sim_dir(root, subject) / "summary.json") or {}
+    rollouts = {"replay": replay_summary.get("rollouts"), "policy": policy_summary.get("rollouts")}
     checks = [*scale_checks(subject, model, reference, q),
               *ingest_checks(subject, real["events"], real["cycles"],
                              spans if spans is not None else trial_spans(subject),
                              params.metrics.spm.min_cycles, q),
-              *sim_checks(subject, real["strides"], sims, table_strides, q, walks),
+              *sim_checks(subject, real["strides"], sims, table_strides, q, walks, rollouts),
               *transfer_checks(subject, policy_summary.get("transfer"))]
     return quality_table(checks)
 

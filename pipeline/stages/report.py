@@ -50,7 +50,7 @@ from metrics.plots import (
     training_progress_figure,
     tuning_figure,
 )
-from metrics.quality import worst
+from metrics.quality import NOT_COMPUTED, worst, worst_check
 from pipeline.params import ReportParams
 from pipeline.paths import PAPER_FILE, POLICIES_ROOT, REPORTS_ROOT, policy_dir, report_dir
 from pipeline.stages.outputs import read_json, replacing, write_figure
@@ -383,19 +383,29 @@ PAPER_TABLES = ("table1", "table2", "table3")
 
 
 NO_GATES = "No quality gates stored for this subject (run `python -m pipeline metrics` and `store`)."
-STATUS_COLOURS = {"ok": "#c8e6c9", "warn": "#ffe08a", "fail": "#f4a6a6", "unknown": "#e0e0e0"}
+STATUS_COLOURS = {"ok": "#c8e6c9", "warn": "#ffe08a", "fail": "#f4a6a6", NOT_COMPUTED: "#eeeeee",
+                  "unknown": "#e0e0e0"}
 
 
 def quality_rows(q: pd.DataFrame) -> tuple[list[str], list[list[str]]]:
-    """The quality gates of one subject, failed first, then warned, then ok."""
-    header = ["Check", "Value", "Warn above", "Fail above", "Status", "Note"]
+    """The quality gates of one subject, failed first, then warned, not computed (`n/a`), ok."""
+    header = ["Check", "Value", "Warn above", "Fail above", "Status", "Cause", "Note"]
     if q.empty:
         return header, []
-    q = q.assign(_order=q["status"].map({"fail": 0, "warn": 1, "ok": 2}).fillna(3))
+    q = q.assign(_order=q["status"].map({"fail": 0, "warn": 1, NOT_COMPUTED: 2, "ok": 3}).fillna(4))
     q = q.sort_values(["_order", "stage", "check"], kind="stable")
     rows = [[f"{r.stage}/{r.check}", _num(r.value, 4), _num(r.warn_above, 4), _num(r.fail_above, 4), r.status,
-             r.note or ""] for r in q.itertuples(index=False)]
+             getattr(r, "cause", None) or "", r.note or ""] for r in q.itertuples(index=False)]
     return header, rows
+
+
+def worst_check_text(q: pd.DataFrame) -> str:
+    """'stage/check: cause' of a subject's worst graded check (`metrics.quality.worst_check`); '' when
+    none is graded."""
+    row = worst_check(q) if not q.empty else None
+    if row is None:
+        return ""
+    return f"{row['stage']}/{row['check']}: {row.get('cause') or row['note'] or ''}".rstrip(": ")
 
 
 def transfer_lines(q: pd.DataFrame) -> list[str]:
@@ -512,7 +522,8 @@ def subject_report(subject: str, data: dict[str, pd.DataFrame], reports: Path = 
     header, rows = quality_rows(_of(data["quality"], subject))
     gates = [md_table(header, rows)] if rows else [NO_GATES, ""]
     lines += ["## Quality gates", "", *gates,
-              f"Worst status: **{worst(r[4] for r in rows)}**.", "",
+              f"Worst status: **{worst(r[4] for r in rows)}**"
+              + (f" ({worst_check_text(_of(data['quality'], subject))})." if rows else "."), "",
               "Built from the results store (`data/results.duckdb`, latest version of each subject, "
               "condition, source and human mode). Real = recorded mocap; Sim = the human digital twin "
               "walking with the MRBA twin (`replay` or `policy` human).", ""]
@@ -938,9 +949,10 @@ def summary_report(subjects: list[str], data: dict[str, pd.DataFrame], reports: 
                      for v in videos]
             md += ["Videos, walk_10m: " + ", ".join(f"[{v.stem}]({s}/{v.name})" for v in videos), ""]
             body.append("<p>Videos of the policy human in walk_10m: " + ", ".join(links) + "</p>")
-    sh = ["Subject", "Quality", "Conditions", "Sources", "Versions", "Real strides", "Sim strides",
-          "SPM tests", "SPM significant", "Last change"]
-    srows = [[r.subject, worst(_of(data["quality"], r.subject)["status"]), r.conditions, r.sources,
+    sh = ["Subject", "Quality", "Worst check", "Conditions", "Sources", "Versions", "Real strides",
+          "Sim strides", "SPM tests", "SPM significant", "Last change"]
+    srows = [[r.subject, worst(_of(data["quality"], r.subject)["status"]),
+              worst_check_text(_of(data["quality"], r.subject)), r.conditions, r.sources,
               str(r.n_versions), _num(r.real_strides, 0), _num(r.sim_strides, 0), str(r.spm_tests),
               str(r.spm_significant), str(r.last_change)[:19]]
              for r in data["summary"].itertuples(index=False)]

@@ -23,6 +23,7 @@ from metrics.quality import (
     speed_gap_pct,
     uncovered_samples,
     worst,
+    worst_check,
 )
 from sim.body.scaling import knee_valgus_deg
 
@@ -40,10 +41,11 @@ def test_grade_and_worst():
     assert grade(0.03, 0.02, 0.04) == "warn"
     assert grade(0.05, 0.02, 0.04) == "fail"
     assert grade(0.02, 0.02, 0.04) == "ok"  # at the threshold is still within it
-    assert grade(float("nan"), 0.02, 0.04) == "warn" and grade(None, 1, 2) == "warn"
+    assert grade(float("nan"), 0.02, 0.04) == "n/a" and grade(None, 1, 2) == "n/a"
     assert grade(1, 2, 2, higher_is_worse=False) == "fail" and grade(2, 2, 2, higher_is_worse=False) == "ok"
     assert worst(["ok", "warn", "ok"]) == "warn" and worst(["warn", "fail"]) == "fail"
     assert worst(["ok"]) == "ok" and worst([]) == "unknown"
+    assert worst(["ok", "n/a"]) == "ok" and worst(["n/a"]) == "unknown"  # n/a is not graded
 
 
 def test_knee_alignment_is_the_frontal_angle_between_thigh_and_shank():
@@ -62,7 +64,7 @@ def test_knee_alignment_is_the_frontal_angle_between_thigh_and_shank():
     row = knee_alignment_check("s", {"l": 3.0, "r": -11.0}, P)
     assert (row.status, row.value) == ("fail", 11.0) and "varus 11.0 deg (r)" in row.note
     assert knee_alignment_check("s", {"l": 6.0, "r": 1.0}, P).status == "warn"
-    assert knee_alignment_check("s", None, P).status == "warn"  # an older model.json without it
+    assert knee_alignment_check("s", None, P).status == "n/a"  # an older model.json without it
 
 
 def test_scale_checks_grade_marker_rms_and_asymmetry():
@@ -76,7 +78,8 @@ def test_scale_checks_grade_marker_rms_and_asymmetry():
     assert status["segment_asymmetry_pct"] == "warn"  # 9.5 %
     assert status["retarget_marker_rms_m"] == "fail" and status["ik_angle_rms_deg"] == "ok"
     missing = quality_table(scale_checks("s", None, None, P))
-    assert set(missing["status"]) == {"warn"} and missing["note"].str.contains("no ").all()
+    assert set(missing["status"]) == {"n/a"}
+    assert missing["cause"].str.startswith("cannot be computed: no ").all()
 
 
 def test_ingest_checks_edges_spans_and_cycles():
@@ -94,9 +97,9 @@ def test_ingest_checks_edges_spans_and_cycles():
     assert rows.loc["angles_span_samples:t", "status"] == "fail"
     assert rows.loc["grf_span_samples:t", "value"] == 0
     assert tuple(rows.loc["spm_cycles:free:left", ["value", "status"]]) == (2, "ok")
-    assert tuple(rows.loc["spm_cycles:free:right", ["value", "status"]]) == (1, "fail")
+    assert tuple(rows.loc["spm_cycles:free:right", ["value", "status"]]) == (1, "n/a")
     no_raw = quality_table(ingest_checks("s", events, cycles, None, 2, P)).set_index("check")
-    assert no_raw.loc["edge_heel_strike_share", "status"] == "warn"
+    assert no_raw.loc["edge_heel_strike_share", "status"] == "n/a"
 
 
 def test_sim_checks_speed_sides_and_phases():
@@ -116,5 +119,35 @@ def test_sim_checks_speed_sides_and_phases():
     assert tuple(rows.loc["repeated_walks:policy", ["value", "status"]]) == (3 / 8, "warn")
     assert "free: 1 of 4, pid: 4 of 4" in rows.loc["repeated_walks:policy", "note"]
     empty = quality_table(sim_checks("s", real, {"replay": pd.DataFrame()}, None, P)).set_index("check")
-    assert empty.loc["speed_gap_pct:replay", "status"] == "warn"
-    assert "no replay simulation" in empty.loc["speed_gap_pct:replay", "note"]
+    assert empty.loc["speed_gap_pct:replay", "status"] == "n/a"
+    assert empty.loc["speed_gap_pct:replay", "cause"] == "cannot be computed: no replay simulation"
+    ran = quality_table(sim_checks("s", real, {"replay": pd.DataFrame()}, None, P, rollouts={"replay": 27}))
+    assert set(ran["cause"]) == {"cannot be computed: its 27 replay rollouts kept no stride"}
+
+
+def test_every_status_has_its_cause_and_cannot_be_computed_is_not_a_failure():
+    """A 4.9 cm marker RMS fails naming its value, the limit and the worst markers; too few cycles for
+    SPM and a missing IK file are `n/a` with that reason, not `fail`; `worst_check` names the failure."""
+    reference = {"marker_rms_m": 0.049, "angles": {},
+                 "trials": {"t1": {"markers_rms_m": {"LTHI": 0.12, "RTHI": 0.11, "LASI": 0.01, "C7": 0.005}},
+                            "t2": {"markers_rms_m": {"LTHI": 0.10, "RASI": 0.2}}}}
+    model = {"segment_lengths_m": {"thigh_l": 0.40, "thigh_r": 0.40}}
+    cycles = pd.DataFrame({"condition": "free", "trial": "t", "side": ["left", "right", "right"],
+                           "stride": [0, 0, 1], "pct": 0})
+    events = pd.DataFrame({"trial": ["t"], "event": ["heel_strike"], "time_s": [1.0]})
+    q = quality_table([*scale_checks("s", model, reference, P),
+                       *ingest_checks("s", events, cycles, None, 2, P)]).set_index("check")
+    assert q["cause"].str.len().gt(0).all()
+    rms = q.loc["retarget_marker_rms_m"]
+    assert rms["status"] == "fail" and rms["cause"] == "0.049 above the fail limit 0.04"
+    assert rms["note"].endswith("largest: RASI 20.0 cm, LTHI 12.0 cm, RTHI 11.0 cm")
+    assert q.loc["ik_angle_rms_deg", "status"] == "n/a"
+    assert q.loc["ik_angle_rms_deg", "cause"] == "cannot be computed: no dataset IK angles to compare with"
+    left = q.loc["spm_cycles:free:left"]
+    assert (left["value"], left["status"]) == (1.0, "n/a")
+    assert left["cause"].startswith("too few cycles for SPM: 1 kept, 2 needed")
+    assert q.loc["spm_cycles:free:right", "status"] == "ok"
+    assert q.loc["segment_asymmetry_pct", "cause"] == "0 at or below the warn limit 5"
+    top = worst_check(q.reset_index())
+    assert (top["check"], top["status"]) == ("retarget_marker_rms_m", "fail")
+    assert worst_check(q.reset_index().query("status == 'n/a'")) is None

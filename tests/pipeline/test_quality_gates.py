@@ -51,6 +51,7 @@ def test_a_failing_subject_fails_its_gates_everywhere(tmp_path):
         assert not rows.empty and set(rows["quality"]) == {"fail"}, view
     latest = query(db, "SELECT * FROM quality_latest")
     assert len(latest) == len(q) and "fail" in set(latest["status"])
+    assert latest.set_index("check").loc["retarget_marker_rms_m", "cause"] == "0.05 above the fail limit 0.04"
 
     reports = tmp_path / "reports"
     run_report(["camargo"], ["camargo"], db, reports, p=params.report.build())
@@ -59,5 +60,28 @@ def test_a_failing_subject_fails_its_gates_everywhere(tmp_path):
     first = next(line for line in head if line.startswith("| reference/") or line.startswith("| simulate/"))
     assert "fail" in first  # failed gates come first
     summary = (reports / "summary.md").read_text()
-    assert "| camargo | fail |" in summary
+    assert "| camargo | fail | reference/retarget_marker_rms_m: 0.05 above the fail limit 0.04 |" in summary
     assert 'class="q-fail"' in (reports / "index.html").read_text()
+
+
+def test_bundled_subjects_gates_name_their_cause_and_too_few_cycles_is_not_a_failure(tmp_path):
+    """opencap4's 1.3-1.45 s walks hold no complete left cycle and lenhart2015's one walk one: too few
+    cycles for SPM, which used to `fail` like a 12 cm marker error. In the store's quality table every
+    row with a status has a cause, those rows are `n/a` saying so, and neither subject's worst status
+    is `fail` (here without model and simulation, whose checks are `n/a`: cannot be computed)."""
+    params = load_params()
+    processed, metrics = tmp_path / "processed", tmp_path / "metrics"
+    subjects = ("opencap4", "lenhart2015")
+    for s in subjects:
+        run_ingest(s, params, processed, progress=False)
+        run_metrics(s, params, processed, metrics)
+    db = tmp_path / "results.duckdb"
+    store_results(db, [load_results(s, metrics) for s in subjects], StoreParams())
+    q = query(db, "SELECT * FROM quality_latest")
+    assert set(q["subject"]) == set(subjects) and q["status"].notna().all()
+    assert q["cause"].fillna("").str.len().gt(0).all()
+    few = q[q["check"].str.startswith("spm_cycles:") & (q["value"] < params.metrics.spm.min_cycles)]
+    assert set(few["subject"]) == set(subjects) and set(few["status"]) == {"n/a"}
+    assert few["cause"].str.startswith("too few cycles for SPM").all()
+    assert "cannot be computed: no reference.json" in set(q["cause"])
+    assert "fail" not in set(query(db, "SELECT quality FROM quality_worst")["quality"])
