@@ -154,12 +154,15 @@ def _why_not(signals: dict[str, np.ndarray], keep: np.ndarray, rate_hz: float, p
 
 
 def _signals_of(table: MarkerTable, subject: Subject, origin: str, p: StaticCheckParams):
-    """Up axis (declared or detected, and checked against the body) and the standing signals."""
+    """Up axis (declared or detected, and checked against the body) and the standing signals, from the
+    file's markers and the marker set's derived ones (PSIS from a sacral marker, ...)."""
     up, _ = resolve_up_axis(table.xyz_m, table.names, subject.markerset, subject.format, origin)
     xyz = up_to_z(table.xyz_m, up)
-    _check_body_scale({n: xyz[:, j] for j, n in enumerate(table.names)}, subject.markerset, origin, up,
-                      table.declared_unit)
-    return up, standing_signals(xyz, table.names, subject.markerset, table.rate_hz, p, origin)
+    markers = with_derived({n: xyz[:, j] for j, n in enumerate(table.names)}, subject.markerset)
+    _check_body_scale(markers, subject.markerset, origin, up, table.declared_unit)
+    names = tuple(markers)
+    return up, standing_signals(np.stack([markers[n] for n in names], axis=1), names, subject.markerset,
+                                table.rate_hz, p, origin)
 
 
 def check_static(path: Path, subject: Subject, window_s: tuple[float, float] | None,
@@ -234,10 +237,14 @@ def scaling_roles(subject: Subject, directory: Path = SCALING_ROLES_DIR) -> dict
 
 def static_markers(path: Path, subject: Subject) -> dict[str, np.ndarray]:
     """Median marker positions of the static file `path` over the subject's static window, Z up
-    (lab axes otherwise); markers without a finite median are left out."""
+    (lab axes otherwise), with the marker set's derived markers; markers without a finite median are
+    left out."""
     table = read_markers(path)
     up, _ = resolve_up_axis(table.xyz_m, table.names, subject.markerset, subject.format, str(path))
     xyz = up_to_z(table.xyz_m, up)
+    derived = with_derived({n: xyz[:, j] for j, n in enumerate(table.names)}, subject.markerset)
+    names = tuple(derived)
+    xyz = np.stack([derived[n] for n in names], axis=1)
     if subject.static.window_s is not None:
         t0, t1 = subject.static.window_s
         keep = (table.time_s >= t0) & (table.time_s <= t1)
@@ -247,7 +254,7 @@ def static_markers(path: Path, subject: Subject) -> dict[str, np.ndarray]:
     with np.errstate(all="ignore"), warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         med = np.nanmedian(xyz, axis=0)
-    return {n: med[j] for j, n in enumerate(table.names) if np.isfinite(med[j]).all()}
+    return {n: med[j] for j, n in enumerate(names) if np.isfinite(med[j]).all()}
 
 
 def static_ik_angles(path: Path, subject: Subject) -> dict[str, float]:

@@ -9,11 +9,19 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
 from ingest.errors import IngestError, SubjectError
 from ingest.manifest import Manifest
+from ingest.markersets import load_markerset
 from ingest.readers.trc import read_trc, write_trc
-from ingest.static import StaticCheckParams, check_static, find_standing_window, read_static_trial
+from ingest.static import (
+    StaticCheckParams,
+    check_static,
+    find_standing_window,
+    read_static_trial,
+    static_markers,
+)
 from ingest.subject import StaticSpec, load_subject
 
 OC_WALK = "opencap_labval_subject4/MarkerData/walking1.trc"
@@ -98,3 +106,30 @@ def test_auto_without_standing_names_the_subject(manifest):
     opencap = load_subject("opencap4")
     with pytest.raises(SubjectError, match="opencap4.yaml: static auto: no 0.5 s of quiet standing"):
         read_static_trial(dataclasses.replace(opencap, static=StaticSpec("auto")), manifest)
+
+
+def test_a_sacral_marker_set_can_use_its_static_trial(tmp_path, manifest):
+    """opencap4's static with its PSIS replaced by one sacral marker (their midpoint) and a marker set
+    deriving the PSIS from it: the quiet-standing check runs on the derived PSIS (it used to fail with
+    'markers missing for psis_left') and the static carries them, within 3 cm of the real ones."""
+    opencap = load_subject("opencap4")
+    path = manifest.resolve(opencap.static.markers)
+    table = read_trc(path)
+    psis = [opencap.markerset["psis_left"], opencap.markerset["psis_right"]]
+    index = {n: j for j, n in enumerate(table.names)}
+    keep = [j for n, j in index.items() if n not in psis]
+    sacr = table.xyz_m[:, [index[n] for n in psis]].mean(axis=1, keepdims=True)
+    trc = write_trc(tmp_path / "static_sacr.trc", table.time_s, [table.names[j] for j in keep] + ["SACR"],
+                    np.concatenate([table.xyz_m[:, keep], sacr], axis=1), unit="m")
+    sacral = {"derive": "sacral", "marker": "SACR"}
+    doc = {**opencap.markerset, "psis_left": sacral, "psis_right": sacral}
+    (tmp_path / "opencap_sacr.yaml").write_text(yaml.safe_dump(doc))
+    subject = dataclasses.replace(opencap, markerset=load_markerset(str(tmp_path / "opencap_sacr.yaml")),
+                                  static=StaticSpec(markers=str(trc)))
+    window = check_static(trc, subject, None)
+    assert window.duration_s > 4.5  # as with its real PSIS
+    static = static_markers(trc, subject)
+    real = static_markers(path, opencap)
+    for role in ("psis_left", "psis_right"):
+        error = np.linalg.norm(static[subject.markerset[role]] - real[opencap.markerset[role]])
+        assert error < 0.03, (role, error)
