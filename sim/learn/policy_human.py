@@ -29,6 +29,8 @@ import numpy as np
 
 from sim.body.balance_loss import BalanceLoss, BalanceLossRun, add_trip_constraints, steady_onset
 from sim.errors import SimulationError
+from sim.learn.bodies import body_observation
+from sim.learn.pool import UNIVERSAL_OBS_SIZE
 from sim.learn.steering import command_at
 from sim.learn.walk_env import (
     AMP_SIZE,
@@ -183,8 +185,9 @@ class PolicyHuman(HumanDriver):
 
 
 def check_policy_io(folder: str, n_obs: int, n_act: int) -> None:
-    """A policy fits the steered walking human (`OBS_SIZE` observations, 21 actions)."""
-    if n_obs != OBS_SIZE or n_act != 21:
+    """A policy fits the steered walking human: `OBS_SIZE` observations (a body-conditioned one
+    `UNIVERSAL_OBS_SIZE`, `BodyConditioned`), 21 actions."""
+    if n_obs not in (OBS_SIZE, UNIVERSAL_OBS_SIZE) or n_act != 21:
         hint = " (a straight walker from before steering: retrain with `--init-from`)" \
             if n_obs == LEGACY_OBS_SIZE else ""
         raise SimulationError(folder, f"policy expects {n_obs} observations / {n_act} actions, the "
@@ -238,6 +241,18 @@ class ActorMlp:
 
 
 @dataclass(frozen=True)
+class BodyConditioned:
+    """A body-conditioned policy (sim/learn/universal.py) on one body: the walking human's
+    observation followed by that body's `body_observation`."""
+
+    policy: ActorMlp
+    body: np.ndarray
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        return self.policy(np.concatenate([obs, self.body]))
+
+
+@dataclass(frozen=True)
 class PolicyWalk:
     """One policy-human job: a walk of `duration_s` from a random phase (the seed's), or the
     scenario `scenario` (its commands set the length), optionally with a lateral pelvis push of
@@ -279,8 +294,11 @@ class PolicySource:
         check_policy_io(self.policy_dir, model.observation_space.shape[0], model.action_space.shape[0])
         body_xml, cycle = load_body(self.policy_dir)
         env = policy_env(self.policy_dir, self.env)  # the speed law it was trained under
-        ref = make_walk_env(str(body_xml), cycle, env).ref
+        walk_env = make_walk_env(str(body_xml), cycle, env)
+        ref = walk_env.ref
         policy = ActorMlp.from_sb3(model, norm)
+        if model.observation_space.shape[0] == UNIVERSAL_OBS_SIZE:
+            policy = BodyConditioned(policy, body_observation(walk_env.model, cycle))
 
         def make(walk: PolicyWalk, seed: int) -> HumanRun:
             rng = np.random.default_rng(seed)

@@ -36,6 +36,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMoni
 
 from sim.body.variant import Variant
 from sim.learn.amp import AMP, AMPCallback, AMPParams
+from sim.learn.steering import CommandSampling
 from sim.learn.walk_env import (
     AMP_SIZE,
     LEGACY_OBS_SIZE,
@@ -275,15 +276,7 @@ def train(model_path: str | Path, cycle: ReferenceCycle, p: TrainParams, out_dir
 
     def save() -> dict:
         save_body(out, model_path, cycle)
-        c = p.env.commands
-        law = {"stride_speed_exponent": c.stride_speed_exponent, "full_gait_fraction": c.full_gait_fraction}
-        if c.min_cadence is not None:  # written only when set: the files of earlier policies stay as they are
-            law["min_cadence"] = c.min_cadence
-        if c.turn_lean is not None:
-            law |= {"turn_lean": c.turn_lean, **{k: getattr(c, k) for k in LEAN_LAW}}
-        if c.heading_lead_deg is not None:
-            law["heading_lead_deg"] = c.heading_lead_deg
-        (out / STEERING_FILE).write_text(json.dumps(law) + "\n")
+        save_steering(out, p.env.commands)
         model.save(str(out / POLICY_FILE))
         venv.save(str(out / NORM_FILE))
         torch.save(amp.state_dict(), out / AMP_FILE)
@@ -379,6 +372,18 @@ def load_norm(folder: Path) -> VecNormalize:
         return pickle.load(f)
 
 
+def save_steering(out_dir: str | Path, c: CommandSampling) -> None:
+    """The speed law a policy is trained under (`STEERING_FILE`, read by `policy_env`)."""
+    law = {"stride_speed_exponent": c.stride_speed_exponent, "full_gait_fraction": c.full_gait_fraction}
+    if c.min_cadence is not None:  # written only when set: the files of earlier policies stay as they are
+        law["min_cadence"] = c.min_cadence
+    if c.turn_lean is not None:
+        law |= {"turn_lean": c.turn_lean, **{k: getattr(c, k) for k in LEAN_LAW}}
+    if c.heading_lead_deg is not None:
+        law["heading_lead_deg"] = c.heading_lead_deg
+    (Path(out_dir) / STEERING_FILE).write_text(json.dumps(law) + "\n")
+
+
 def save_body(out_dir: str | Path, model_path: str | Path, cycle: ReferenceCycle) -> None:
     """Keep the human model and reference cycle a policy was trained on beside it: a policy is bound
     to that body (joint frames, segment lengths) and is evaluated on it."""
@@ -423,4 +428,5 @@ def load_policy(out_dir: str | Path) -> tuple[PPO, VecNormalize | None]:
 
 __all__ = ["AMP_FILE", "BODY_FILE", "CYCLE_FILE", "NORM_FILE", "POLICY_FILE", "PROGRESS_FILE",
            "STEERING_FILE", "Budget", "MetricsLog", "TrainParams", "load_body", "load_norm", "load_policy",
-           "make_vec_env", "new_ppo", "policy_env", "save_body", "train", "variant_cycle", "widen_policy"]
+           "make_vec_env", "new_ppo", "policy_env", "save_body", "save_steering", "train", "variant_cycle",
+           "widen_policy"]

@@ -26,6 +26,7 @@ import argparse
 import json
 import math
 import os
+import shutil
 import sys
 import time
 from dataclasses import replace
@@ -51,12 +52,14 @@ from sim.learn.train import (
     load_norm,
     new_ppo,
     ppo_settings,
+    save_body,
+    save_steering,
 )
 from sim.learn.walk_env import AMP_SIZE, OBS_SIZE, WalkEnvParams, motion_amp_pairs
 from sim.motion.reference import load_reference, mirrored_motion
 from sim.rollout.scenarios import ProfileParams, Segment, command_profile
 
-BODY_FILE_JSON = "body.json"  # a subject's policy folder from the universal one: its body observation
+UNIVERSAL_FILE = "universal.json"  # in a subject's policy folder exported from the universal one
 
 
 def amp_reference_sampler(pool: MultiBodyEnv, up: UniversalParams, dt_s: float, seed: int):
@@ -295,6 +298,23 @@ def _to_device(model: PPO, venv: VecNormalize, p: TrainParams, device: str) -> P
     return moved
 
 
+def export_subject(universal_dir: str | Path, src: Source, p: WalkEnvParams, out_dir: str | Path) -> Path:
+    """A subject's policy folder from the universal policy, as `sim.learn.train.train` lays one out
+    (policy, observation statistics, body, cycle, speed law), so the policy human, evaluate-policy and
+    the rollout stages use it unchanged (`sim.learn.policy_human.BodyConditioned` adds the body);
+    `universal.json` names the checkpoint it came from."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    src_dir = Path(universal_dir)
+    for name in (POLICY_FILE, NORM_FILE):
+        shutil.copyfile(src_dir / name, out / name)
+    save_body(out, src.xml, load_reference(src.reference_npz).cycle)
+    save_steering(out, p.commands)
+    rec = json.loads((src_dir / PROGRESS_FILE).read_text())
+    (out / UNIVERSAL_FILE).write_text(json.dumps({"universal": str(src_dir), "steps": rec["steps"]}) + "\n")
+    return out
+
+
 # -- command line: reads params.yaml and data/processed directly (no pipeline imports) -------------
 
 def sources_of(subjects: tuple[str, ...], processed: Path) -> tuple[Source, ...]:
@@ -338,8 +358,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--device", default="auto", help="auto | cpu | cuda (the PPO and AMP updates)")
     ap.add_argument("--threads", type=int, default=1, help="torch threads of the update")
     ap.add_argument("--checkpoint-steps", type=int, default=None)
+    ap.add_argument("--export-to", type=Path, default=None, help="write every subject's policy folder from "
+                    "the policy in --out into this root (<root>/<subject>/) and stop")
     args = ap.parse_args(argv)
     p, up, scenarios = params_from_yaml(args.params)
+    if args.export_to is not None:
+        for src in sources_of(up.subjects, args.processed):
+            print(export_subject(args.out, src, p.env, args.export_to / src.name))
+        return 0
     if args.checkpoint_steps:
         p = replace(p, checkpoint_steps=args.checkpoint_steps)
     resume = args.resume and (args.out / PROGRESS_FILE).exists()

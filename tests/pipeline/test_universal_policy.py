@@ -1,0 +1,39 @@
+"""A subject's policy folder exported from the committed universal policy walks through the same
+rollout machinery as a single-body policy (sim.learn.universal.export_subject, PolicySource with
+`BodyConditioned`)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pipeline.runs.jobs import policy_setup, scenario_jobs
+from sim.learn.bodies import body_observation
+from sim.learn.policy_human import ActorMlp, BodyConditioned
+from sim.learn.pool import UNIVERSAL_OBS_SIZE, Source
+from sim.learn.train import load_body, load_policy
+from sim.learn.universal import UNIVERSAL_FILE, export_subject
+from sim.learn.walk_env import OBS_SIZE, make_walk_env
+from sim.rollout.batch import run_batch
+
+
+def test_an_exported_subject_policy_walks_its_own_body(params, camargo_model, policies_root, tmp_path):
+    universal = policies_root / "universal"
+    src = Source("camargo", str(camargo_model / "human.xml"), str(camargo_model / "reference.npz"))
+    p = params.train_params()
+    folder = export_subject(universal, src, p.env, tmp_path / "camargo")
+    assert (folder / UNIVERSAL_FILE).is_file()
+    model, norm = load_policy(folder)
+    assert model.observation_space.shape == (UNIVERSAL_OBS_SIZE,)
+
+    # the body the policy is told about is the folder's own
+    xml, cycle = load_body(folder)
+    env = make_walk_env(xml, cycle, p.env)
+    body = body_observation(env.model, cycle)
+    actor = ActorMlp.from_sb3(model, norm)
+    obs = np.random.default_rng(0).normal(size=OBS_SIZE)
+    np.testing.assert_array_equal(BodyConditioned(actor, body)(obs), actor(np.concatenate([obs, body])))
+
+    setup = policy_setup("camargo", params, camargo_model.parents[1], tmp_path)
+    outcomes = run_batch(setup, scenario_jobs(params, ("free",), 1, ("steady",)), 1, "", False)
+    assert len(outcomes) == 1 and outcomes[0].stable
+    assert len(outcomes[0].pelvis_xy) > 100
