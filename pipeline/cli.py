@@ -1,6 +1,7 @@
 """Command line: `python -m pipeline <command>`; each command parses params, calls the library
-and writes or prints its outputs. Any `GaitloopError` ends the run with one line on stderr
-(`error: <message>`) and exit status 2."""
+and writes or prints its outputs. Any `GaitloopError`, and any error of the system (`OSError`: disk
+full, permission denied, ...), ends the run with one line on stderr (`error: <message>`, `error: <what>
+(<file>)`) and exit status 2; Ctrl-C with `error: interrupted (<command>)` and exit status 130."""
 
 from __future__ import annotations
 
@@ -31,6 +32,7 @@ if TYPE_CHECKING:
     import pandas
 
 EXIT_ERROR = 2
+EXIT_INTERRUPTED = 130  # 128 + SIGINT, as a shell reports a job ended by Ctrl-C
 
 
 def cmd_ingest(args: argparse.Namespace) -> int:
@@ -516,10 +518,23 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def system_error_text(exc: OSError) -> str:
+    """`<what> (<file>)` of an error of the system: `No space left on device (data/results.duckdb)`."""
+    files = [str(f) for f in (exc.filename, exc.filename2) if f is not None]
+    what = exc.strerror or str(exc)
+    return f"{what} ({' -> '.join(files)})" if files else what
+
+
 def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
     args = build_parser().parse_args(argv)
     try:
         return args.func(args)
     except GaitloopError as exc:
-        print(f"error: {' '.join(str(exc).split())}", file=sys.stderr)
-        return EXIT_ERROR
+        problem, status = str(exc), EXIT_ERROR
+    except KeyboardInterrupt:
+        problem, status = f"interrupted (python -m pipeline {' '.join(argv)})", EXIT_INTERRUPTED
+    except OSError as exc:  # disk full, permissions, a file that vanished: what and which file
+        problem, status = system_error_text(exc), EXIT_ERROR
+    print(f"error: {' '.join(problem.split())}", file=sys.stderr)
+    return status

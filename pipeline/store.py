@@ -37,7 +37,7 @@ import shutil
 import subprocess
 import time
 from collections.abc import Callable, Iterator
-from contextlib import ExitStack, contextmanager
+from contextlib import ExitStack, contextmanager, suppress
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -555,8 +555,11 @@ def store_results(path: Path, results: list[SubjectResults], params: StoreParams
             con.execute("INSERT INTO store_runs VALUES (?, ?, ?, ?, ?, ?)",
                         [run_id, now, rev, ",".join(r.subject for r in results), n_groups, len(new)])
             con.execute("COMMIT")
-        except BaseException:
-            con.execute("ROLLBACK")
+        except BaseException as exc:
+            with suppress(duckdb.Error):  # a failed COMMIT has ended it; the copy is deleted anyway
+                con.execute("ROLLBACK")
+            if isinstance(exc, duckdb.Error):  # e.g. IO Error: ... No space left on device
+                raise StoreError(path, f"cannot write the store ({' '.join(str(exc).split())})") from None
             raise
     return StoreReport(run_id, n_groups, tuple(new), time.perf_counter() - start)
 

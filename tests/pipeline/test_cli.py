@@ -2,6 +2,8 @@
 
 import json
 import os
+import re
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -92,6 +94,48 @@ def test_events_force_with_a_nan_vertical_force_is_an_error(tmp_path, capsys):
 def test_missing_params_file_is_one_line_error(tmp_path, capsys):
     assert main(["--params", str(tmp_path / "none.yaml"), "ingest", "camargo"]) == 2
     assert "none.yaml" in capsys.readouterr().err
+
+
+def read_only_folder(tmp_path: Path) -> Path:
+    """A folder this process cannot write in: a chmod 555 one, or for root, who writes in those,
+    sysfs's root (read-only for everyone)."""
+    folder = tmp_path / "read_only"
+    folder.mkdir()
+    folder.chmod(0o555)
+    return folder if not os.access(folder, os.W_OK) else Path("/sys")
+
+
+def test_a_read_only_output_folder_is_one_line_error(tmp_path, capsys):
+    """Issue 34 case 15: a permission error ends in `error: <what> (<file>)`, not a traceback."""
+    folder = read_only_folder(tmp_path)
+    assert main(["ingest", "camargo", "--out-root", str(folder)]) == 2
+    last = capsys.readouterr().err.replace("\r", "\n").strip().splitlines()[-1]  # after the progress bar
+    what = "(Permission denied|Operation not permitted)"
+    assert re.fullmatch(rf"error: {what} \({re.escape(str(folder))}/camargo\)", last), last
+
+
+def test_ctrl_c_is_one_line_error(tmp_path):
+    """Issue 34 case 15: SIGINT (Ctrl-C) during a stage ends in `error: interrupted (<command>)` and exit
+    130, not a KeyboardInterrupt traceback."""
+    command = ["ingest", "camargo", "--out-root", str(tmp_path)]
+    run = subprocess.Popen([sys.executable, "-m", "pipeline", *command], cwd=ROOT, stderr=subprocess.PIPE,
+                           text=True, start_new_session=True)  # its own process group, as a terminal's job
+    try:
+        seen = ""
+        while "ingest camargo:" not in seen:  # its progress bar: at work in the stage
+            char = run.stderr.read(1)
+            assert char, seen
+            seen += char
+        os.killpg(run.pid, signal.SIGINT)
+        err = run.communicate(timeout=60)[1]
+    finally:
+        if run.poll() is None:
+            os.killpg(run.pid, signal.SIGKILL)
+            run.wait()
+    assert run.returncode == 130 and "Traceback" not in err, err
+    last = err.replace("\r", "\n").strip().splitlines()[-1]
+    assert last == f"error: interrupted (python -m pipeline {' '.join(command)})"
+    assert not (tmp_path / "camargo" / "real").exists() or not any((tmp_path / "camargo" / "real").iterdir())
 
 
 def test_ingest_writes_documented_tables_reproducibly(tmp_path):

@@ -1,15 +1,22 @@
 """The versioned DuckDB store: idempotence, new versions, busy writer, crash midway, views, CLI."""
 
+import errno
 import json
+import os
+import re
+import shutil
 import signal
 import subprocess
 import sys
 import time
+from contextlib import contextmanager
 from pathlib import Path
 
 import duckdb
 import pytest
+import yaml
 
+import pipeline.store
 from pipeline.cli import main
 from pipeline.params import load_params, parse_params
 from pipeline.stages.ingest import run_ingest
@@ -170,6 +177,60 @@ def test_readers_holding_the_store_open_never_block_the_writer(processed, tmp_pa
     revs = query(db, "select code_rev, count(*) as n from versions group by 1 order by 1")
     assert revs.to_dict("list") == {"code_rev": ["after", "before"], "n": [4, 1]}
     assert sorted(p.name for p in tmp_path.iterdir()) == ["results.duckdb", "results.duckdb.lock"]
+
+
+class FullDiskAtCommit:
+    """A store connection whose COMMIT fails as DuckDB's does when the disk is full: the transaction
+    has ended when the error comes."""
+
+    def __init__(self, con):
+        self.con = con
+
+    def __getattr__(self, name):
+        return getattr(self.con, name)
+
+    def execute(self, sql, *args):
+        if sql == "COMMIT":
+            self.con.execute("ROLLBACK")
+            raise duckdb.IOException('IO Error: Could not write file "results.duckdb.wal": '
+                                     "No space left on device")
+        return self.con.execute(sql, *args)
+
+
+def test_a_full_disk_is_named_and_the_store_keeps_its_state(processed, tmp_path, monkeypatch, capsys):
+    """Issue 34 case 15: the disk filling up during the commit ended in DuckDB's `cannot rollback - no
+    transaction is active`, which hid the cause, and a full disk while copying the store in a
+    traceback; both now end in one line naming the cause and the file, the store as it was."""
+    db = tmp_path / "results.duckdb"
+    store_results(db, results(processed)[:1], FAST, rev="before")
+    real_open = pipeline.store.open_store
+
+    @contextmanager
+    def full_at_commit(path, read_only=False, *args):
+        with real_open(path, read_only, *args) as con:
+            yield con if read_only else FullDiskAtCommit(con)
+
+    monkeypatch.setattr(pipeline.store, "open_store", full_at_commit)
+    with pytest.raises(StoreError, match=rf"^{re.escape(str(db))}: cannot write the store \(IO Error: "
+                       r"Could not write file .*No space left on device\)$"):
+        store_results(db, results(processed), FAST, rev="full")
+    monkeypatch.undo()
+
+    def full_while_copying(src, dst):
+        Path(dst).write_bytes(Path(src).read_bytes()[:4096])
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(dst))
+
+    monkeypatch.setattr(shutil, "copyfile", full_while_copying)
+    doc = load_params().document()
+    doc["subjects"] = list(SUBJECTS)
+    params = tmp_path / "params.yaml"
+    params.write_text(yaml.safe_dump(doc))
+    assert main(["--params", str(params), "store", "--root", str(processed), "--db", str(db)]) == 2
+    err = capsys.readouterr().err.replace("\r", "\n").strip().splitlines()[-1]
+    assert err == f"error: No space left on device ({db}.{os.getpid()}.tmp)"
+    monkeypatch.undo()
+    assert query(db, "select code_rev from versions")["code_rev"].tolist() == ["before"]
+    assert not list(tmp_path.glob("*.tmp*"))
 
 
 CRASH = """
