@@ -19,11 +19,12 @@ from multiprocessing import get_context
 import mujoco
 import numpy as np
 import torch
-from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
+from stable_baselines3.common.vec_env import DummyVecEnv
 
 from sim.learn.pool import MultiBodyEnv, Source, UniversalParams
 from sim.learn.train import TrainParams
 from sim.learn.universal import train_universal
+from sim.learn.vec import GroupedSubprocVecEnv
 from sim.rollout.scenarios import Segment
 
 
@@ -53,11 +54,11 @@ def _pool_env(sources: tuple[Source, ...], up: UniversalParams, p: TrainParams, 
 
 
 def env_step_rate(sources: tuple[Source, ...], up: UniversalParams, p: TrainParams, n_envs: int,
-                  steps: int) -> float:
-    """Env steps per second of `n_envs` pools of bodies (one process each when more than one),
-    random actions, resets included."""
+                  steps: int, workers: int | None = None) -> float:
+    """Env steps per second of `n_envs` pools of bodies (in `workers` processes, default one per
+    env, when more than one), random actions, resets included."""
     fns = [partial(_pool_env, sources, up, p, 100 + i) for i in range(n_envs)]
-    venv = SubprocVecEnv(fns, start_method="fork") if n_envs > 1 else DummyVecEnv(fns)
+    venv = GroupedSubprocVecEnv(fns, workers or n_envs) if n_envs > 1 else DummyVecEnv(fns)
     rng = np.random.default_rng(0)
     venv.reset()
     venv.step(rng.uniform(-1, 1, (n_envs, 21)).astype(np.float32))
@@ -74,31 +75,33 @@ Scenarios = dict[str, list[Segment]]
 
 
 def train_step_rate(sources: tuple[Source, ...], up: UniversalParams, p: TrainParams, scenarios: Scenarios,
-                    n_envs: int, steps: int, device: str, init_from: str | None) -> float:
-    """Training env steps per second (PPO + AMP updates) with `n_envs` envs (one process each when
-    more than one), from `init_from` as the run does, no gate."""
+                    n_envs: int, steps: int, device: str, init_from: str | None,
+                    workers: int | None = None) -> float:
+    """Training env steps per second (PPO + AMP updates) with `n_envs` envs (in `workers`
+    processes, default one per env, when more than one), from `init_from` as the run does, no gate."""
     with tempfile.TemporaryDirectory() as tmp:
         rec = train_universal(sources, replace(p, checkpoint_steps=10 ** 12), up, tmp, scenarios,
                               init_from=init_from, total_steps=steps, n_envs=n_envs, subprocess=n_envs > 1,
-                              device=device, gate=False)
+                              device=device, gate=False, workers=workers)
     return float(rec["runs"][-1]["steps_per_s"])
 
 
 def measure(sources: tuple[Source, ...], up: UniversalParams, p: TrainParams, scenarios: Scenarios, *,
             n_envs: int | None = None, device: str = "auto", init_from: str | None = None,
-            env_steps: int = 4000, train_steps: int = 8192) -> dict:
-    """The three rates on 1 and on `n_envs` (default: every core) envs / processes (module docstring)."""
+            env_steps: int = 4000, train_steps: int = 8192, envs_per_worker: int = 1) -> dict:
+    """The three rates on 1 env and on `n_envs` (default: every core) worker processes of
+    `envs_per_worker` envs each (module docstring)."""
     cores = os.cpu_count() or 1
     n = n_envs or cores
     up = replace(up, refresh_probability=0.0)
-    out: dict = {"cpu_count": cores, "n_envs": n, "device": device,
+    out: dict = {"cpu_count": cores, "workers": n, "envs_per_worker": envs_per_worker, "device": device,
                  "cuda": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None}
-    for label, k in (("one", 1), ("all", n)):
+    for label, k, envs in (("one", 1, 1), ("all", n, n * envs_per_worker)):
         out[f"mj_step_per_s_{label}"] = round(raw_step_rate(sources[0].xml, k), 1)
-        out[f"env_steps_per_s_{label}"] = round(env_step_rate(sources, up, p, k, env_steps * k), 1)
+        out[f"env_steps_per_s_{label}"] = round(env_step_rate(sources, up, p, envs, env_steps * envs, k), 1)
         out[f"train_steps_per_s_{label}"] = round(
-            train_step_rate(sources, up, p, scenarios, k, max(train_steps * k, p.n_steps * k * 2), device,
-                            init_from), 1)
+            train_step_rate(sources, up, p, scenarios, envs, max(train_steps * envs, p.n_steps * envs * 2),
+                            device, init_from, k), 1)
         ratio = out[f"train_steps_per_s_{label}"] / out[f"env_steps_per_s_{label}"]
         out[f"train_to_env_{label}"] = round(ratio, 3)
     out["env_scaling"] = round(out["env_steps_per_s_all"] / out["env_steps_per_s_one"], 2)
@@ -120,11 +123,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--n-envs", type=int, default=None)
     ap.add_argument("--device", default="auto")
     ap.add_argument("--train-steps", type=int, default=8192)
+    ap.add_argument("--envs-per-worker", type=int, default=1)
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args(argv)
     p, up, scenarios = params_from_yaml(args.params)
     doc = measure(sources_of(up.subjects, args.processed), up, p, scenarios, n_envs=args.n_envs,
-                  device=args.device, init_from=args.init_from, train_steps=args.train_steps)
+                  device=args.device, init_from=args.init_from, train_steps=args.train_steps,
+                  envs_per_worker=args.envs_per_worker)
     text = json.dumps(doc, indent=1)
     print(text, flush=True)
     if args.out is not None:

@@ -37,7 +37,7 @@ import numpy as np
 import torch
 from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList
-from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor, VecNormalize
+from stable_baselines3.common.vec_env import DummyVecEnv, VecMonitor, VecNormalize
 
 from sim.learn.amp import AMP, AMPCallback
 from sim.learn.pool import UNIVERSAL_OBS_SIZE, MultiBodyEnv, Source, UniversalParams, make_body
@@ -55,6 +55,7 @@ from sim.learn.train import (
     save_body,
     save_steering,
 )
+from sim.learn.vec import GroupedSubprocVecEnv
 from sim.learn.walk_env import AMP_SIZE, OBS_SIZE, WalkEnvParams, motion_amp_pairs
 from sim.motion.reference import load_reference, mirrored_motion
 from sim.rollout.scenarios import ProfileParams, Segment, command_profile
@@ -199,16 +200,18 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
                     scenarios: dict[str, list[Segment]], *, init_from: str | Path | None = None,
                     resume: bool = False, total_steps: int | None = None, n_envs: int | None = None,
                     subprocess: bool = False, max_wall_s: float | None = None, device: str = "auto",
-                    threads: int = 1, command: str = "", progress: bool = False, gate: bool = True) -> dict:
+                    threads: int = 1, command: str = "", progress: bool = False, gate: bool = True,
+                    workers: int | None = None) -> dict:
     """Train (or resume) the universal policy into `out_dir` (module docstring); returns the
-    progress record. `gate`: False skips `quick_gate` at the checkpoints (throughput runs)."""
+    progress record. `subprocess`: the envs in `workers` processes (default one per env,
+    `sim.learn.vec.GroupedSubprocVecEnv`); `gate`: False skips `quick_gate` at the checkpoints."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     device = device_of(device)
     torch.set_num_threads(threads)
     n_envs = n_envs or p.n_envs
     fns = [partial(_make_env, sources, up, p.env, p.seed * 1000 + 37 * i) for i in range(n_envs)]
-    vec = SubprocVecEnv(fns, start_method="fork") if subprocess and n_envs > 1 else DummyVecEnv(fns)
+    vec = GroupedSubprocVecEnv(fns, workers or n_envs) if subprocess and n_envs > 1 else DummyVecEnv(fns)
     venv = VecMonitor(vec)
     prior = json.loads((out / PROGRESS_FILE).read_text()) if resume and (out / PROGRESS_FILE).exists() else {}
     pool = MultiBodyEnv(sources, replace(up, refresh_probability=0.0), p.env, p.seed)  # AMP references, stats
@@ -260,6 +263,7 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
                "subjects": [s.name for s in sources], "obs_size": UNIVERSAL_OBS_SIZE,
                "obs_stats_frozen": frozen,
                "runs": runs + [{"command": command, "n_envs": n_envs, "subprocess": subprocess,
+                                "workers": workers,
                                 "device": device, "threads": threads, "cpu_count": os.cpu_count(),
                                 "steps": run_steps,
                                 "wall_s": round(run_wall, 1), "gate_wall_s": round(gate_wall[0], 1),
@@ -354,7 +358,9 @@ def main(argv: list[str] | None = None) -> int:
                     "(default train.total_steps)")
     ap.add_argument("--max-wall-s", type=float, default=None)
     ap.add_argument("--n-envs", type=int, default=None)
-    ap.add_argument("--subprocess", action="store_true", help="one process per env")
+    ap.add_argument("--subprocess", action="store_true", help="envs in worker processes")
+    ap.add_argument("--workers", type=int, default=None,
+                    help="with --subprocess: processes (default one per env)")
     ap.add_argument("--device", default="auto", help="auto | cpu | cuda (the PPO and AMP updates)")
     ap.add_argument("--threads", type=int, default=1, help="torch threads of the update")
     ap.add_argument("--checkpoint-steps", type=int, default=None)
@@ -373,8 +379,8 @@ def main(argv: list[str] | None = None) -> int:
     command = "python -m sim.learn.universal " + " ".join(sys.argv[1:] if argv is None else argv)
     rec = train_universal(sources_of(up.subjects, args.processed), p, up, args.out, scenarios, init_from=init,
                           resume=resume, total_steps=args.steps, n_envs=args.n_envs,
-                          subprocess=args.subprocess, max_wall_s=args.max_wall_s, device=args.device,
-                          threads=args.threads, command=command, progress=True)
+                          subprocess=args.subprocess, workers=args.workers, max_wall_s=args.max_wall_s,
+                          device=args.device, threads=args.threads, command=command, progress=True)
     last = rec["checkpoints"][-1]
     print(f"{rec['steps']} steps in {rec['wall_s']} s; gate {last['passed']}/{last['checks']}")
     return 0

@@ -165,10 +165,45 @@ def test_throughput_is_measured_against_the_physics(universal, camargo):
     p, up, scenarios = universal
     doc = measure((camargo[0],), up, replace(p, n_steps=64, batch_size=128), scenarios, n_envs=2,
                   device="cpu", init_from="data/policies/camargo", env_steps=100, train_steps=128)
-    assert doc["cpu_count"] >= 1 and doc["n_envs"] == 2
+    assert doc["cpu_count"] >= 1 and doc["workers"] == 2
     for label in ("one", "all"):
         # an env step is 15 physics steps (30 ms policy, 2 ms physics) plus the env's own work
         assert 0 < doc[f"env_steps_per_s_{label}"] < doc[f"mj_step_per_s_{label}"] / 10
         assert 0 < doc[f"train_steps_per_s_{label}"]
         assert doc[f"train_to_env_{label}"] == pytest.approx(
             doc[f"train_steps_per_s_{label}"] / doc[f"env_steps_per_s_{label}"], abs=1e-3)
+
+
+def test_grouped_workers_step_as_one_process_does(universal, camargo):
+    from functools import partial
+
+    from sim.learn.vec import GroupedSubprocVecEnv
+
+    p, up, _ = universal
+    fns = [partial(MultiBodyEnv, (camargo[0],), replace(up, drawn=1), p.env, 10 + i) for i in range(5)]
+    one, grouped = DummyVecEnv(fns), GroupedSubprocVecEnv(fns, 2)
+    try:
+        assert [len(g) for g in grouped.groups] == [2, 3]
+        for v in (one, grouped):
+            v.seed(3)
+        a, b = one.reset(), grouped.reset()
+        np.testing.assert_array_equal(a, b)
+        rng = np.random.default_rng(0)
+        ended = 0
+        for _ in range(60):  # long enough for some episodes to end and reset
+            act = rng.uniform(-1, 1, (5, 21)).astype(np.float32)
+            (oa, ra, da, ia), (ob, rb, db, ib) = one.step(act), grouped.step(act)
+            np.testing.assert_array_equal(oa, ob)
+            np.testing.assert_array_equal(ra, rb)
+            np.testing.assert_array_equal(da, db)
+            for x, y in zip(ia, ib, strict=True):
+                if "terminal_observation" in x:
+                    np.testing.assert_array_equal(x["terminal_observation"], y["terminal_observation"])
+            ended += int(da.sum())
+        assert ended > 0
+        assert grouped.get_attr("current", [3])[0].source == "camargo"
+        grouped.set_attr("marker", 7, [1, 4])
+        assert grouped.get_attr("marker", [1, 4]) == [7, 7]
+    finally:
+        one.close()
+        grouped.close()
