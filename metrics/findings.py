@@ -8,6 +8,10 @@ comparison of two conditions decided from means and 95 % confidence intervals: `
 or `no difference` when the intervals overlap; a comparison without intervals (Table III has one
 SD per condition) is decided on the means and says so. Which controller wins is reported as
 measured: nothing here is a target.
+
+The responsiveness study (`sensitivity` view: the twin's drive lag, command latency and PID gains moved one
+at a time) says where each tracking finding holds: `responsiveness_comparisons` compares adaptive against
+pid at each level, `region_text` names the twin's own point and the levels where adaptive is below pid.
 """
 
 from __future__ import annotations
@@ -45,6 +49,7 @@ class Finding:
     measured: str    # ours: mean +- 95 % CI (or +- nothing) of `a` vs `b`
     result: str      # `compare`'s answer for ours
     ci: bool = True  # False: decided on the means alone
+    region: str = "not in the responsiveness study"  # where on the twin's responsiveness it holds
 
     @property
     def verdict(self) -> str:
@@ -74,10 +79,13 @@ def _mean_ci(row, col: str) -> tuple[float, float]:
 
 
 def compliance_findings(phases: pd.DataFrame, scenario: str, phases_shown: tuple[str, ...],
-                        paper_sim: dict[str, tuple[float, float]]) -> list[Finding]:
+                        paper_sim: dict[str, tuple[float, float]],
+                        regions: dict[str, str] | None = None) -> list[Finding]:
     """Adaptive below PID in mean |e_x| and |e_y|, per phase of `scenario` (rows of the
     `phase_compliance` view of one subject and human mode: mean and 95 % CI over walks);
-    `paper_sim`: condition -> the paper's simulated (|e_x|, |e_y|) in cm."""
+    `paper_sim`: condition -> the paper's simulated (|e_x|, |e_y|) in cm; `regions`: axis (`e_x`,
+    `e_y`) -> `region_text` of the responsiveness study."""
+    regions = regions or {}
     out = []
     for phase in phases_shown:
         rows = phases[(phases["scenario"] == scenario) & (phases["phase"] == phase)]
@@ -87,8 +95,62 @@ def compliance_findings(phases: pd.DataFrame, scenario: str, phases_shown: tuple
             paper = (f"{paper_sim['adaptive'][i]:.2f} vs {paper_sim['pid'][i]:.2f} cm (whole walks)"
                      if "adaptive" in paper_sim and "pid" in paper_sim else "–")
             out.append(Finding(f"adaptive below pid: mean abs {axis}, {scenario} {phase}", "lower", paper,
-                               _pair(a, b, 2, "cm"), compare(*a, *b)))
+                               _pair(a, b, 2, "cm"), compare(*a, *b),
+                               region=regions.get(axis, "not in the responsiveness study")))
     return out
+
+
+# factor -> (label, unit, multiplier to that unit) of the responsiveness study (sim.robot.responsiveness)
+FACTOR_UNITS = {"drive_tau_s": ("drive tau", "ms", 1000.0), "latency_s": ("latency", "ms", 1000.0),
+                "pid_gain_scale": ("PID gains", "x", 1.0)}
+COMPARISON_COLUMNS = ["factor", "level", "twin", "adaptive_mean", "adaptive_ci95", "pid_mean", "pid_ci95",
+                      "falls_adaptive", "falls_pid", "n", "result"]
+
+
+def responsiveness_comparisons(sens: pd.DataFrame, col: str) -> pd.DataFrame:
+    """Adaptive against pid at each (factor, level) of the responsiveness study (rows of the
+    `sensitivity` view of one subject, variant and scenario; `col`: `mean_abs_ex_cm` or
+    `mean_abs_ey_cm`, with its `_ci95`): both means and CIs, falls, the smaller n of the two and
+    `compare(adaptive, pid)` (`lower`: adaptive below pid). A level without both controllers is left out."""
+    rows = []
+    for (factor, level), g in sens.groupby(["factor", "level"], sort=True):
+        by = {r.condition: r for r in g.itertuples(index=False)}
+        if "adaptive" not in by or "pid" not in by:
+            continue
+        a, b = by["adaptive"], by["pid"]
+        am, ac = float(getattr(a, col)), float(getattr(a, f"{col}_ci95"))
+        pm, pc = float(getattr(b, col)), float(getattr(b, f"{col}_ci95"))
+        rows.append([factor, float(level), bool(b.twin), am, ac, pm, pc, int(a.falls), int(b.falls),
+                     int(min(a.n, b.n)), compare(am, ac, pm, pc)])
+    return pd.DataFrame(rows, columns=COMPARISON_COLUMNS)
+
+
+def level_text(factor: str, level: float) -> str:
+    """`200 ms`, `0.25x` (`FACTOR_UNITS`)."""
+    _, unit, k = FACTOR_UNITS.get(factor, (factor, "", 1.0))
+    return f"{level * k:g}x" if unit == "x" else f"{level * k:g} {unit}"
+
+
+def region_text(comparisons: pd.DataFrame) -> str:
+    """Where on the twin's responsiveness adaptive is below pid (`responsiveness_comparisons` of one
+    axis): the twin's point, then per factor the levels where adaptive is lower (95 % CIs apart), or
+    that there are none; plain text for a markdown cell."""
+    if comparisons.empty:
+        return "not in the responsiveness study"
+    twin = comparisons[comparisons["twin"]].drop_duplicates("factor")
+    point = ", ".join(f"{FACTOR_UNITS.get(r.factor, (r.factor,))[0]} {level_text(r.factor, r.level)}"
+                      for r in twin.itertuples(index=False))
+    words = {"lower": "adaptive below pid", "higher": "adaptive above pid",
+             "no difference": "no difference", "not measured": "not measured"}
+    head = f"twin ({point}): {words[twin['result'].iloc[0]]}" if not twin.empty else "twin: not measured"
+    parts = []
+    for factor, g in comparisons.groupby("factor", sort=True):
+        label = FACTOR_UNITS.get(factor, (factor, "", 1.0))[0]
+        below = [level_text(factor, v) for v in g.loc[g["result"] == "lower", "level"]]
+        span = f"{level_text(factor, g['level'].min())}-{level_text(factor, g['level'].max())}"
+        parts.append(f"{label} {', '.join(below)}" if below else f"{label} never ({span})")
+    return f"{head}; adaptive below pid at " + "; ".join(parts)
+
 
 
 def speed_findings(table2: pd.DataFrame, paper_sim_speed: dict[str, float]) -> list[Finding]:
@@ -128,4 +190,5 @@ def variability_findings(table3: pd.DataFrame, paper_sim_sd: dict[str, dict[str,
     return out
 
 
-__all__ = ["Finding", "compare", "compliance_findings", "speed_findings", "variability_findings"]
+__all__ = ["COMPARISON_COLUMNS", "FACTOR_UNITS", "Finding", "compare", "compliance_findings", "level_text",
+           "region_text", "responsiveness_comparisons", "speed_findings", "variability_findings"]

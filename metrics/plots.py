@@ -404,3 +404,55 @@ def training_progress_figure(progress: dict,
     fig.suptitle(title)
     fig.tight_layout()
     return fig
+
+
+# -- the twin's follow-me responsiveness (issue 34, view `sensitivity`) -------------------------------
+
+SENSITIVITY_COLUMNS = ("pid_gain_scale", "drive_tau_s", "latency_s")  # factor order, left to right
+SENSITIVITY_AXES = {"pid_gain_scale": ("PID gains (x twin's)", 1.0, "log"),
+                    "drive_tau_s": ("base drive time constant (ms)", 1000.0, "log"),
+                    "latency_s": ("command latency (ms)", 1000.0, "linear")}
+SENSITIVITY_COLORS = {"pid": "tab:orange", "adaptive": "tab:blue"}
+
+
+def sensitivity_figure(sens: pd.DataFrame, paper_sim: dict[str, tuple[float, float]], title: str) -> Figure:
+    """Mean |e_x| (top) and |e_y| (bottom) against each responsiveness factor (columns), one line per
+    controller with its 95 % CI across walks (`sensitivity` view of one subject); the walks that fell
+    (human fall or arm lock) written over each point as falls/walks; the twin's level of each factor a
+    dotted vertical line; `paper_sim`: condition -> the paper's simulated (|e_x|, |e_y|) in cm, dashed
+    horizontal lines (their robot and participant, for orientation)."""
+    factors = [f for f in SENSITIVITY_COLUMNS if f in set(sens["factor"])] or list(SENSITIVITY_COLUMNS)
+    fig, axes = plt.subplots(2, len(factors), figsize=(4.0 * len(factors), 6.4), squeeze=False, sharey="row")
+    rows = (("mean_abs_ex_cm", "mean |e_x| (cm)"), ("mean_abs_ey_cm", "mean |e_y| (cm)"))
+    for j, factor in enumerate(factors):
+        label, scale, xscale = SENSITIVITY_AXES.get(factor, (factor, 1.0, "linear"))
+        sel = sens[sens["factor"] == factor]
+        for i, (col, ylabel) in enumerate(rows):
+            ax = axes[i][j]
+            for cond in ordered(set(sel["condition"]), ROBOT_CONDITIONS):
+                g = sel[sel["condition"] == cond].sort_values("level")
+                x = g["level"].astype(float) * scale
+                colour = SENSITIVITY_COLORS.get(cond, "0.3")
+                ax.errorbar(x, g[col].astype(float), yerr=g[f"{col}_ci95"].astype(float).fillna(0.0),
+                            color=colour, marker="o", ms=4, capsize=3, label=f"{cond} (this twin)")
+                for xi, y, falls, n in zip(x, g[col], g["falls"], g["n"], strict=True):
+                    if falls > 0:
+                        ax.annotate(f"{int(falls)}/{int(n)}", (xi, y), xytext=(3, 3),
+                                    textcoords="offset points", fontsize=6, color=colour)
+            for cond, values in paper_sim.items():
+                ax.axhline(values[i], color=SENSITIVITY_COLORS.get(cond, "0.3"), linestyle="--",
+                           linewidth=0.9, label=f"{cond}, paper sim ({values[i]:.2f} cm)")
+            twin = sel.loc[sel["twin"].astype(bool) & (sel["condition"] == "pid"), "level"]
+            for level in twin:
+                ax.axvline(float(level) * scale, color="0.5", linestyle=":", linewidth=0.9)
+            ax.set_xscale(xscale)
+            ax.grid(alpha=0.3)
+            if i == 1:
+                ax.set_xlabel(label)
+            if j == 0:
+                ax.set_ylabel(ylabel)
+    handles, labels = axes[0][0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=4, fontsize=8)
+    fig.suptitle(title)
+    fig.tight_layout(rect=(0, 0.07, 1, 1))
+    return fig

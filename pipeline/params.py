@@ -827,6 +827,20 @@ class FallInterventionSchema(SweepSchema):
                               fall_drop_m + self.caught_margin_m)
 
 
+class SensitivitySchema(SweepSchema):
+    """The responsiveness study (`sim.robot.responsiveness`): each factor's levels, one factor at a time
+    around the twin's point (the others at the twin's values)."""
+
+    pid_gain_scale: tuple[Annotated[float, Field(gt=0.0)], ...]
+    drive_tau_s: tuple[Annotated[float, Field(gt=0.0)], ...]
+    latency_s: tuple[Annotated[float, Field(ge=0.0)], ...]
+
+    def levels(self) -> dict[str, tuple[float, ...]]:
+        """factor -> its levels (`sim.robot.responsiveness.FACTORS`)."""
+        return {"pid_gain_scale": self.pid_gain_scale, "drive_tau_s": self.drive_tau_s,
+                "latency_s": self.latency_s}
+
+
 class VariantSchema(Schema):
     torque_scale: dict[str, Annotated[float, Field(gt=0.0)]] = {}
     speed_scale: Annotated[float, Field(gt=0.0)] = 1.0
@@ -934,6 +948,7 @@ class Params(Schema):
     tune: TuneSchema
     cohort: CohortSchema
     fall_intervention: FallInterventionSchema
+    sensitivity: SensitivitySchema
     transfer: TransferSchema
     universal: dict[str, Any]  # the schema is `sim.learn.pool.UniversalParams` (`_universal_keys`)
 
@@ -959,7 +974,8 @@ class Params(Schema):
             for cond in conditions:
                 if cond != "free" and cond not in controllers:
                     raise ValueError(f"{key}: {cond!r} is neither free nor a controller in robot.controllers")
-        for key, study in (("sweep", self.sweep), ("fall_intervention", self.fall_intervention)):
+        for key, study in (("sweep", self.sweep), ("fall_intervention", self.fall_intervention),
+                           ("sensitivity", self.sensitivity)):
             for variant in study.variants:
                 if variant != HEALTHY and variant not in self.cohort.variants:
                     raise ValueError(f"{key}.variants: no variant {variant!r} in cohort.variants")
@@ -974,6 +990,10 @@ class Params(Schema):
                     raise ValueError(f"{key}.scenarios: no scenario {name!r} in scenarios.commands")
         if self.sweep.study == self.fall_intervention.study:
             raise ValueError("sweep.study and fall_intervention.study must differ")
+        if self.sensitivity.study in (self.sweep.study, self.fall_intervention.study):
+            raise ValueError("sensitivity.study must differ from sweep.study and fall_intervention.study")
+        if "free" in self.sensitivity.conditions:
+            raise ValueError("sensitivity.conditions: 'free' has no robot to make responsive")
         for name in self.tune.search:
             if name not in controllers:
                 raise ValueError(f"tune.search.{name}: no controller {name!r} in robot.controllers")

@@ -24,7 +24,7 @@ so a condition that a subject no longer has drops out of the latest views while 
 stay queryable. `quality` holds each subject's quality gates (`metrics.quality`) of every store run
 (`quality_latest`: its last run's; each paper-table row carries its subject's worst status).
 `paper_table1..3`, `phase_compliance`, `event_aligned`, `spm_clusters`,
-`subject_summary` are described in README.md.
+`subject_summary` are described in README.md; `sensitivity` (the responsiveness study) in docs/robot.md.
 """
 
 from __future__ import annotations
@@ -116,6 +116,12 @@ TUNING_DDL = ("version_id BIGINT NOT NULL, subject VARCHAR, variant VARCHAR, con
               "tuned_mean DOUBLE, tuned_ci95 DOUBLE, tuned_falls BIGINT, n_heldout BIGINT, "
               "content_hash VARCHAR, run_id BIGINT, created_at TIMESTAMP, search_rollouts BIGINT, "
               "search_falls BIGINT")
+# The responsiveness study's design (`pipeline.stages.sweep.sensitivity_jobs`): which (factor, level) cells
+# each of its jobs stands in, `twin` when the job's robot is the twin's. Each study's latest design only
+# (its rows in sweep_results keep every job ever stored).
+DESIGN_COLUMNS = ["study", "job_key", "factor", "level", "twin"]
+DESIGN_DDL = ("study VARCHAR NOT NULL, job_key VARCHAR NOT NULL, factor VARCHAR NOT NULL, "
+              "level DOUBLE NOT NULL, twin BOOLEAN, PRIMARY KEY (study, job_key, factor, level)")
 QUALITY_DDL = ('run_id BIGINT NOT NULL, subject VARCHAR NOT NULL, stage VARCHAR, "check" VARCHAR, '
                "value DOUBLE, warn_above DOUBLE, fail_above DOUBLE, status VARCHAR, note VARCHAR, "
                "cause VARCHAR")
@@ -263,6 +269,14 @@ def open_store(path: Path, read_only: bool = False, busy_timeout_s: float = 10.0
         con.close()
 
 
+def _t95() -> str:
+    """A `(n, t)` VALUES list: the two-sided 95 % Student t quantile for a mean over n samples (n - 1
+    degrees of freedom), n = 2..200; the views use 1.96 beyond."""
+    from scipy import stats
+
+    return ", ".join(f"({n}, {float(stats.t.ppf(0.975, n - 1))!r})" for n in range(2, 201))
+
+
 def _views() -> list[str]:
     key = " AND ".join(f"w.{c} = v.{c}" for c in GROUP)
     views = [
@@ -338,8 +352,32 @@ def _views() -> list[str]:
         "JOIN sweep_current USING (study, job_key) "
         "GROUP BY ALL ORDER BY study, subject, variant, scenario, event, condition",
         # every rollout of the studies' current jobs once (a job in two studies is the same rollout)
+        # (a robot moved away from the twin in the responsiveness study is not the twin: left out)
         "CREATE OR REPLACE VIEW sweep_rollouts AS SELECT DISTINCT ON (job_key) r.* EXCLUDE (study, run_id) "
-        "FROM sweep_results r JOIN sweep_current c USING (study, job_key) ORDER BY job_key, study",
+        "FROM sweep_results r JOIN sweep_current c USING (study, job_key) WHERE (r.study, r.job_key) NOT IN "
+        "(SELECT (study, job_key) FROM sensitivity_design WHERE NOT twin) ORDER BY job_key, study",
+        # the responsiveness study per subject, variant, scenario, factor, level and controller: mean and
+        # 95 % CI (Student t across walks) of the walks' mean |e_x|, |e_y| (cm, samples before an arm lock)
+        # and harness force RMS (N); falls (a human fall, an arm lock or an unstable run), arm locks (the
+        # fall rule fired: deflection, drop) and human falls counted apart
+        "CREATE OR REPLACE VIEW sensitivity AS WITH r AS (SELECT d.factor, d.level, d.twin, s.* "
+        "FROM sweep_results s JOIN sweep_current USING (study, job_key) "
+        "JOIN sensitivity_design d USING (study, job_key)), "
+        f"t AS (SELECT * FROM (VALUES {_t95()}) v(n, t95)), "
+        "g AS (SELECT study, subject, variant, scenario, factor, level, condition, bool_and(twin) AS twin, "
+        "count(*) AS n, sum(fell::INT) AS falls, count(robot_fall_s) AS arm_locks, "
+        "count(human_fall_s) AS human_falls, "
+        "avg(mean_abs_ex_cm) AS mean_abs_ex_cm, stddev_samp(mean_abs_ex_cm) AS sd_ex, "
+        "avg(mean_abs_ey_cm) AS mean_abs_ey_cm, stddev_samp(mean_abs_ey_cm) AS sd_ey, "
+        "avg(force_rms_n) AS force_rms_n, stddev_samp(force_rms_n) AS sd_f, "
+        "avg(gait_speed_mps) AS gait_speed_mps FROM r GROUP BY ALL) "
+        "SELECT g.study, g.subject, g.variant, g.scenario, g.factor, g.level, g.condition, g.twin, g.n, "
+        "g.falls, g.arm_locks, g.human_falls, "
+        "g.mean_abs_ex_cm, coalesce(t.t95, 1.96) * g.sd_ex / sqrt(g.n) AS mean_abs_ex_cm_ci95, "
+        "g.mean_abs_ey_cm, coalesce(t.t95, 1.96) * g.sd_ey / sqrt(g.n) AS mean_abs_ey_cm_ci95, "
+        "g.force_rms_n, coalesce(t.t95, 1.96) * g.sd_f / sqrt(g.n) AS force_rms_n_ci95, g.gait_speed_mps "
+        "FROM g LEFT JOIN t ON t.n = g.n "
+        "ORDER BY g.study, g.subject, g.variant, g.scenario, g.factor, g.level, g.condition",
         # balance loss x controller x variant: was it caught? (metrics.fall_intervention)
         "CREATE OR REPLACE VIEW fall_intervention AS " + EVENTS_FREE
         + "SELECT e.subject, e.variant, e.event, e.condition, count(*) AS rollouts, "
@@ -438,6 +476,7 @@ def ensure_schema(con: duckdb.DuckDBPyConnection) -> None:
                 "PRIMARY KEY (study, job_key))")
     for col, kind in SWEEP_EVENT_DDL.items():
         con.execute(f"ALTER TABLE sweep_results ADD COLUMN IF NOT EXISTS {col} {kind}")
+    con.execute(f"CREATE TABLE IF NOT EXISTS sensitivity_design ({DESIGN_DDL})")
     con.execute(f"CREATE TABLE IF NOT EXISTS tuned_gains ({TUNING_DDL})")
     for col in ("search_rollouts", "search_falls"):  # stores from before these columns
         con.execute(f"ALTER TABLE tuned_gains ADD COLUMN IF NOT EXISTS {col} BIGINT")
@@ -540,11 +579,18 @@ def store_results(path: Path, results: list[SubjectResults], params: StoreParams
                     new.append(next_id)
                     next_id += 1
             for sweep in sweeps:  # a job's rows once, however often it ran (older rows lack newer columns)
-                con.register("incoming", sweep.reindex(columns=SWEEP_COLUMNS).assign(run_id=run_id))
+                rows = sweep.reindex(columns=SWEEP_COLUMNS).drop_duplicates(["study", "job_key"])
+                con.register("incoming", rows.assign(run_id=run_id))
                 con.execute("INSERT OR IGNORE INTO sweep_results BY NAME SELECT * FROM incoming")
                 con.execute("DELETE FROM sweep_current WHERE study IN (SELECT DISTINCT study FROM incoming)")
                 con.execute("INSERT INTO sweep_current SELECT DISTINCT study, job_key FROM incoming")
                 con.unregister("incoming")
+                if "factor" in sweep.columns:  # the responsiveness study: its design replaces the last one
+                    con.register("incoming", sweep.reindex(columns=DESIGN_COLUMNS))
+                    con.execute("DELETE FROM sensitivity_design "
+                                "WHERE study IN (SELECT DISTINCT study FROM incoming)")
+                    con.execute("INSERT INTO sensitivity_design BY NAME SELECT * FROM incoming")
+                    con.unregister("incoming")
             for tuning in tunings:
                 _store_tuning(con, tuning, run_id, now)
             for res in results:  # what each subject is, as of its last store run

@@ -33,7 +33,14 @@ from matplotlib.figure import Figure
 from pydantic import BaseModel, ConfigDict, Field, RootModel, ValidationError, model_validator
 
 from ingest.errors import GaitloopError
-from metrics.findings import compliance_findings, speed_findings, variability_findings
+from metrics.findings import (
+    compliance_findings,
+    level_text,
+    region_text,
+    responsiveness_comparisons,
+    speed_findings,
+    variability_findings,
+)
 from metrics.plots import (
     EVENT_ORDER,
     ROBOT_CONDITIONS,
@@ -45,6 +52,7 @@ from metrics.plots import (
     harness_figure,
     kinematics_figure,
     ordered,
+    sensitivity_figure,
     spm_figure,
     tracking_figure,
     training_progress_figure,
@@ -220,6 +228,7 @@ QUERIES = {
     "false_alarms": "SELECT * FROM false_alarms ORDER BY subject, variant, condition",
     "cohort_gait": "SELECT * FROM cohort_gait ORDER BY subject, variant, scenario",
     "cohort_controllers": "SELECT * FROM cohort_controllers ORDER BY subject, variant, scenario, condition",
+    "sensitivity": "SELECT * FROM sensitivity ORDER BY subject, variant, scenario, factor, level, condition",
 }
 # Every figure a report can have, in the order the index shows them, with its caption.
 FIGURES = {
@@ -241,6 +250,10 @@ FIGURES = {
                          "share caught of the events that fell walking free), onset-to-lock latency, "
                          "pelvis drop at the lock (triangles: worst; dashed: caught threshold) and peak "
                          "harness force",
+    "sensitivity": "The twin's follow-me responsiveness (one factor at a time, the others at the twin's "
+                   "values, dotted): mean |e_x| and |e_y| per controller (policy human in the paper's walk, "
+                   "mean and 95 % CI across walks; falls/walks where any fell), the paper's simulated values "
+                   "dashed (their robot and participant)",
 }
 
 # Columns the report reads from views that have grown over time: a store file whose views predate
@@ -447,6 +460,7 @@ def subject_figures(subject: str, data: dict[str, pd.DataFrame], p: ReportParams
     statistic = "F" if (tests["test"] == "anova1").all() else "t"
     tuning = _of(data["tuning"], subject)
     cohort, fall = _of(data["cohort_controllers"], subject), _of(data["fall"], subject)
+    sens = paper_sensitivity(_of(data.get("sensitivity", pd.DataFrame()), subject), p.paper_scenario)
     figures = {
         "events": lambda: event_figure(events, list(p.event_scenarios),
                                        f"{subject}: around the commanded events (mean, 95 % CI across runs)"),
@@ -462,10 +476,14 @@ def subject_figures(subject: str, data: dict[str, pd.DataFrame], p: ReportParams
         "cohort": lambda: cohort_heatmap(cohort, f"{subject}: virtual cohort with each controller"),
         "fall_intervention": lambda: fall_intervention_figure(
             fall, f"{subject}: scripted balance losses per controller", p.caught_drop_m),
+        "sensitivity": lambda: sensitivity_figure(
+            sens, paper_compliance(load_paper(PAPER_FILE)),
+            f"{subject}: follow-me responsiveness, {p.paper_scenario} (mean, 95 % CI across walks)"),
     }
     present = {"events": not events.empty, "kinematics_policy": not policy.empty,
                "tracking": not tracking.empty, "harness": not harness.empty, "tuning": not tuning.empty,
-               "cohort": not cohort.empty, "fall_intervention": (fall["condition"] != "free").any()}
+               "cohort": not cohort.empty, "fall_intervention": (fall["condition"] != "free").any(),
+               "sensitivity": not sens.empty}
     return {name: draw for name, draw in figures.items() if present.get(name, True)}
 
 
@@ -539,8 +557,9 @@ def subject_report(subject: str, data: dict[str, pd.DataFrame], reports: Path = 
             lines += ["No robot data for this subject yet (Table I needs simulated robot tables).", ""]
     lines += [paper.note(), ""]
 
+    sens = paper_sensitivity(_of(data.get("sensitivity", pd.DataFrame()), subject), p.paper_scenario)
     lines += findings_lines(_of(data["phases"], subject), _of(data["table2"], subject),
-                            _of(data["table3"], subject), paper, p.paper_scenario)
+                            _of(data["table3"], subject), paper, p.paper_scenario, sens)
     title, build = TABLES["phases"]
     lines += [f"## {title}", "", md_table(*build(_of(data["phases"], subject), paper))]
     lines += ["## Policy human checks (evaluate-policy)", "", *policy_check_lines(evaluation)]
@@ -560,6 +579,7 @@ def subject_report(subject: str, data: dict[str, pd.DataFrame], reports: Path = 
     lines += fall_lines(_of(data["fall"], subject), _of(data["not_caught"], subject),
                         _of(data["false_alarms"], subject), "fall_intervention" in figures, p.caught_drop_m,
                         p.detection_window_s)
+    lines += sensitivity_lines(sens, paper, p.paper_scenario, "sensitivity" in figures)
     path = folder / "report.md"
     with replacing(path) as (temp,):
         temp.write_text("\n".join(lines))
@@ -569,26 +589,82 @@ def subject_report(subject: str, data: dict[str, pd.DataFrame], reports: Path = 
 FINDING_PHASES = ("start", "steady", "stop")  # the walk_10m phases the compliance findings are read in
 
 
+def paper_compliance(paper: PaperValues) -> dict[str, tuple[float, float]]:
+    """condition -> the paper's simulated (mean |e_x|, mean |e_y|) in cm (Table I)."""
+    return {c: (v["sim"].mean_abs_ex_cm, v["sim"].mean_abs_ey_cm)
+            for c, v in paper.table1.items() if "sim" in v}
+
+
+def paper_sensitivity(sens: pd.DataFrame, scenario: str) -> pd.DataFrame:
+    """The responsiveness study's rows (`sensitivity` view, one subject) of the subject's own policy
+    human in the paper's scenario."""
+    if sens.empty:
+        return sens
+    return sens[(sens["variant"] == "healthy") & (sens["scenario"] == scenario)]
+
+
 def findings_lines(phases: pd.DataFrame, table2: pd.DataFrame, table3: pd.DataFrame, paper: PaperValues,
-                   scenario: str) -> list[str]:
+                   scenario: str, sens: pd.DataFrame | None = None) -> list[str]:
     """The paper's findings beside this subject's simulation (metrics/findings.py): the policy human
-    where it has rows, else the replay human; each with the paper's simulated numbers."""
+    where it has rows, else the replay human; each with the paper's simulated numbers and, for the
+    tracking findings, where on the twin's responsiveness it holds (`sens`: `paper_sensitivity` rows;
+    the study runs the policy human)."""
     modes = set(phases["human_mode"]) | set(table2["sim_human_mode"].dropna())
     mode = "policy" if "policy" in modes else "replay"
-    paper_ex = {c: (v["sim"].mean_abs_ex_cm, v["sim"].mean_abs_ey_cm) for c, v in paper.table1.items()
-                if "sim" in v}
+    paper_ex = paper_compliance(paper)
     paper_speed = {c: v["sim"].gait_speed_mps[0] for c, v in paper.table2.items() if "sim" in v}
     paper_sd = {c: v["sim"] for c, v in paper.table3.items() if "sim" in v}
-    found = [*compliance_findings(phases[phases["human_mode"] == mode], scenario, FINDING_PHASES, paper_ex),
+    sens = pd.DataFrame() if sens is None else sens
+    axes = (("e_x", "mean_abs_ex_cm"), ("e_y", "mean_abs_ey_cm"))
+    regions = {axis: region_text(responsiveness_comparisons(sens, col)) for axis, col in axes if len(sens)}
+    found = [*compliance_findings(phases[phases["human_mode"] == mode], scenario, FINDING_PHASES, paper_ex,
+                                  regions),
              *speed_findings(table2[table2["sim_human_mode"] == mode], paper_speed),
              *variability_findings(table3[table3["sim_human_mode"] == mode], paper_sd)]
-    rows = [[f.claim, f.paper, f.measured, f.verdict] for f in found]
+    rows = [[f.claim, f.paper, f.measured, f.verdict, f.region] for f in found]
     return [f"## The paper's findings beside this simulation ({mode} human)", "",
             "Each finding of the paper (its own participant, simulated) against this subject's simulation: "
             f"compliance per phase of {scenario} (mean ± 95 % CI over walks), gait speed over kept strides "
             "(± 1.96 SD / sqrt(n), strides taken as independent), inter-cycle SD on the means alone. "
-            "Reported as measured; nothing was tuned toward them.", "",
-            md_table(["Finding (paper)", "Paper sim", "This simulation (a vs b)", "Verdict"], rows)]
+            "Reported as measured; nothing was tuned toward them. *Responsiveness region*: the twin's own "
+            "point and where adaptive is below pid (95 % CIs apart, whole walks) when the twin's base drive "
+            "lag, command latency or PID gains are moved one at a time (section Follow-me responsiveness).",
+            "", md_table(["Finding (paper)", "Paper sim", "This simulation (a vs b)", "Verdict",
+                          "Responsiveness region"], rows)]
+
+
+def _versus(c) -> str:
+    """`pid ± ci vs adaptive ± ci` of a `responsiveness_comparisons` row."""
+    return f"{_mean_sd(c.pid_mean, c.pid_ci95, 2)} vs {_mean_sd(c.adaptive_mean, c.adaptive_ci95, 2)}"
+
+
+def sensitivity_lines(sens: pd.DataFrame, paper: PaperValues, scenario: str, figure: bool) -> list[str]:
+    """The "Follow-me responsiveness" section: per factor and level, pid and adaptive mean |e_x| and
+    |e_y| (± 95 % CI across walks), which is lower, and the walks that fell (`sensitivity` view)."""
+    lines = ["## Follow-me responsiveness", ""]
+    if sens.empty:
+        return lines + ["No responsiveness study for this subject yet (`python -m pipeline sweep --study "
+                        "responsiveness`, then `store`).", ""]
+    ex, ey = (responsiveness_comparisons(sens, c) for c in ("mean_abs_ex_cm", "mean_abs_ey_cm"))
+    rows = []
+    for a, b in zip(ex.itertuples(index=False), ey.itertuples(index=False), strict=True):
+        rows.append([f"{a.factor}{' (twin)' if a.twin else ''}", level_text(a.factor, a.level),
+                     _versus(a), a.result, _versus(b), b.result,
+                     f"{a.falls_pid}/{a.n} vs {a.falls_adaptive}/{a.n}"])
+    paper_ex = paper_compliance(paper)
+    cited = ", ".join(f"{c} {v[0]:.2f} / {v[1]:.2f}" for c, v in paper_ex.items())
+    lines += [f"The policy human in {scenario} with the robot twin's responsiveness moved one factor at a "
+              "time (the others at the twin's values; params `sensitivity`, sim/robot/responsiveness.py): "
+              "base drive time constant (drive gain = base mass / tau), command latency, PID gains x a scale "
+              "(adaptive does not read them: its rows there are the twin's). Mean ± 95 % CI (Student t) "
+              "across walks of each walk's mean |e_x|, |e_y| in cm over the samples before an arm lock; "
+              "*adaptive vs pid*: `lower` when adaptive is below pid with the CIs apart. Falls: a human fall "
+              f"or an arm lock. The paper's simulated e_x / e_y (cm): {cited} (their robot and "
+              "participant).", "",
+              md_table(["Factor", "Level", "e_x pid vs adaptive (cm)", "adaptive vs pid",
+                        "e_y pid vs adaptive (cm)", "adaptive vs pid", "Falls pid vs adaptive"], rows),
+              f"e_x: {region_text(ex)}.", "", f"e_y: {region_text(ey)}.", ""]
+    return lines + (_image("sensitivity") if figure else [])
 
 
 def _gains(doc) -> str:

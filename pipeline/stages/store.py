@@ -1,7 +1,7 @@
 """Stage `store`: every subject's metric tables -> new versions in the results store.
 
 Reads `<root>/<subject>/<table>.parquet` (root: data/metrics), `quality.parquet` and `provenance.json`
-for each subject in params.yaml, the rows of the sweep and fall-intervention studies
+for each subject in params.yaml, the rows of the sweep, fall-intervention and responsiveness studies
 (data/sweeps/<study>/results.parquet) and the
 tuning results (data/tuning) and adds them to `data/results.duckdb` in one transaction (`pipeline.store`).
 """
@@ -55,8 +55,8 @@ def load_tunings(root: Path = TUNING_ROOT) -> list[dict]:
 def run_store(params: Params, root: Path = METRICS_ROOT, db: Path | None = None,
               progress: bool = True, sweeps_root: Path = SWEEPS_ROOT, tuning_root: Path = TUNING_ROOT
               ) -> StoreReport:
-    """Store the metrics of every subject in params `subjects`, the rows of the params' sweep study
-    and every tuning result."""
+    """Store the metrics of every subject in params `subjects`, the rows of the params' studies (`sweep`,
+    `fall_intervention`, `sensitivity`) and every tuning result."""
     p = params.store.build()
     subjects = list(params.subjects)
     results = [load_results(s, root) for s in subjects]
@@ -64,7 +64,8 @@ def run_store(params: Params, root: Path = METRICS_ROOT, db: Path | None = None,
     try:
         return store_results(db or p.path, results, p, progress=lambda _: bar.update(),
                              sweeps=[*load_sweep(params.sweep.study, sweeps_root),
-                                     *load_sweep(params.fall_intervention.study, sweeps_root)],
+                                     *load_sweep(params.fall_intervention.study, sweeps_root),
+                                     *load_sweep(params.sensitivity.study, sweeps_root)],
                              tunings=load_tunings(tuning_root))
     finally:
         bar.close()

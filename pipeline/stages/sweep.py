@@ -1,5 +1,7 @@
 """Stage `sweep`: a study of subjects x variants x conditions x scenarios x balance-loss events x
-seeds on Ray (params `sweep`, or `fall_intervention` with `--study fall_intervention`).
+seeds on Ray (params `sweep`, or `fall_intervention` with `--study fall_intervention`); and the
+responsiveness study (params `sensitivity`, `--study responsiveness`): subjects x controllers x the
+robot twin's responsiveness (`sim.robot.responsiveness`), one factor at a time around the twin's point.
 
 Each job is one policy-human rollout, a pure function of (subject, variant and its policy file,
 condition and its gains, scenario, event and its definition, seed, params hash); its key is the hash
@@ -12,8 +14,9 @@ died or it raised, and a job that still fails is reported with its error while t
 Outputs in `<root>/<study>/` (root: data/sweeps): `jobs/<key>.parquet` (one row per finished job,
 written as results come back: an interrupted study resumes where it stopped), `results.parquet`
 (the rows of the current jobs: identity, `metrics.outcomes.run_row`, the event's
-`metrics.fall_intervention.event_metrics` and `metrics.gait_symmetry.symmetry_row`) and `summary.json`. The
-store stage adds the rows to `sweep_results`, once per (study, job key).
+`metrics.fall_intervention.event_metrics` and `metrics.gait_symmetry.symmetry_row`; in the responsiveness
+study one row per job and design cell it belongs to, `DESIGN_COLUMNS`) and `summary.json`. The store stage
+adds the rows to `sweep_results`, once per (study, job key), and the design to `sensitivity_design`.
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -35,13 +39,14 @@ from metrics.fall_intervention import FallRuleParams, event_metrics
 from metrics.gait_symmetry import symmetry_row
 from metrics.outcomes import run_row
 from pipeline import paths
-from pipeline.params import NO_EVENT, Params, ParamsError, SweepSchema
+from pipeline.params import NO_EVENT, Params, ParamsError, SensitivitySchema, SweepSchema
 from pipeline.runs.jobs import policy_setup
 from pipeline.stages.outputs import write_outputs
-from pipeline.store import SWEEP_COLUMNS
+from pipeline.store import DESIGN_COLUMNS, SWEEP_COLUMNS
 from sim.body.balance_loss import BalanceLoss
 from sim.errors import SimulationError
 from sim.learn.policy_human import PolicyWalk
+from sim.robot.responsiveness import Responsiveness, for_controller, twin_responsiveness, with_responsiveness
 from sim.rollout.batch import BatchSetup, RolloutJob, Worker
 from sim.rollout.cluster import cached_worker, completed, connect
 
@@ -64,6 +69,7 @@ class SweepJob:
     event: BalanceLoss | None = None  # None: normal walking
     onset_jitter_s: float = 0.0
     policy_hash: str = ""             # sha256 (16 hex) of the policy file the job runs
+    responsiveness: Responsiveness | None = None  # None: the robot as params `robot` has it
 
     @property
     def event_name(self) -> str:
@@ -79,6 +85,8 @@ class SweepJob:
                self.params_hash, self.policy_hash]
         if self.event is not None:  # normal-walking keys stay as they were before events existed
             doc += [dataclasses.asdict(self.event), self.onset_jitter_s]
+        if self.responsiveness is not None:  # the twin's own point keeps the key of a plain job
+            doc += [dataclasses.asdict(self.responsiveness)]
         return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()[:20]
 
     def rollout_job(self) -> RolloutJob:
@@ -103,23 +111,21 @@ def policy_digest(folder: Path) -> str:
 
 
 def study_params(params: Params, study: str | None = None) -> SweepSchema:
-    """The study named `study`: params `sweep` (default) or `fall_intervention`."""
+    """The study named `study`: params `sweep` (default), `fall_intervention` or `sensitivity`."""
     if study is None or study == params.sweep.study:
         return params.sweep
-    if study == params.fall_intervention.study:
-        return params.fall_intervention
-    raise ParamsError(params.path, f"no study {study!r} (sweep.study {params.sweep.study!r} or "
-                                   f"fall_intervention.study {params.fall_intervention.study!r})")
+    for sw in (params.fall_intervention, params.sensitivity):
+        if study == sw.study:
+            return sw
+    raise ParamsError(params.path, f"no study {study!r} (sweep.study {params.sweep.study!r}, "
+                                   f"fall_intervention.study {params.fall_intervention.study!r} or "
+                                   f"sensitivity.study {params.sensitivity.study!r})")
 
 
-def sweep_jobs(params: Params, policy_root: Path = paths.POLICIES_ROOT,
-               sw: SweepSchema | None = None) -> tuple[list[SweepJob], list[str]]:
-    """The study's jobs (default params `sweep`), grouped by subject; and notes on what was left out
-    (a subject without a trained policy, a variant without its fine-tuned policy)."""
-    sw, controllers = sw or params.sweep, params.robot.controller_specs()
-    events = params.fall_intervention.events_of(sw.events)
-    digest = rollout_params_hash(params)
-    jobs, notes = [], []
+def _policies(sw: SweepSchema, policy_root: Path, notes: list[str]) -> list[tuple[str, str, str]]:
+    """(subject, variant, policy digest) of the study's subjects and variants that have a policy; a note
+    in `notes` for each left out (a subject without a trained policy, a variant without its own)."""
+    out = []
     for subject in sw.subjects:
         if not (paths.policy_dir(policy_root, subject) / "policy.zip").is_file():
             notes.append(f"{subject}: no trained policy in {paths.policy_dir(policy_root, subject)}")
@@ -130,13 +136,67 @@ def sweep_jobs(params: Params, policy_root: Path = paths.POLICIES_ROOT,
                 notes.append(f"{subject}/{variant}: no fine-tuned policy in {folder} "
                              f"(`python -m pipeline train {subject} --variant {variant}`)")
                 continue
-            policy = policy_digest(folder)
-            for condition in sw.conditions:
-                gains = {} if condition == "free" else dict(controllers[condition].get("gains", {}))
-                jobs += [SweepJob(sw.study, subject, variant, condition, gains, scenario, seed, digest, event,
-                                  sw.onset_jitter_s if event is not None else 0.0, policy)
-                         for scenario in sw.scenarios for event in events for seed in range(sw.seeds)]
+            out.append((subject, variant, policy_digest(folder)))
+    return out
+
+
+def sweep_jobs(params: Params, policy_root: Path = paths.POLICIES_ROOT,
+               sw: SweepSchema | None = None) -> tuple[list[SweepJob], list[str]]:
+    """The study's jobs (default params `sweep`), grouped by subject; and notes on what was left out
+    (a subject without a trained policy, a variant without its fine-tuned policy)."""
+    sw, controllers = sw or params.sweep, params.robot.controller_specs()
+    if isinstance(sw, SensitivitySchema):
+        jobs, _, notes = sensitivity_jobs(params, policy_root, sw)
+        return jobs, notes
+    events = params.fall_intervention.events_of(sw.events)
+    digest = rollout_params_hash(params)
+    jobs, notes = [], []
+    for subject, variant, policy in _policies(sw, policy_root, notes):
+        for condition in sw.conditions:
+            gains = {} if condition == "free" else dict(controllers[condition].get("gains", {}))
+            jobs += [SweepJob(sw.study, subject, variant, condition, gains, scenario, seed, digest, event,
+                              sw.onset_jitter_s if event is not None else 0.0, policy)
+                     for scenario in sw.scenarios for event in events for seed in range(sw.seeds)]
     return jobs, notes
+
+
+def sensitivity_jobs(params: Params, policy_root: Path = paths.POLICIES_ROOT,
+                     sw: SensitivitySchema | None = None) -> tuple[list[SweepJob], pd.DataFrame, list[str]]:
+    """The responsiveness study's jobs (default params `sensitivity`), its design and notes.
+
+    One factor at a time: each level of each factor (`sim.robot.responsiveness.FACTORS`) with the other
+    two at the twin's values (`twin_responsiveness` of params `robot`), the twin's own value of each
+    factor included, x subject x variant x controller x scenario x seed. A controller that does not read a
+    factor (adaptive: PID gains) runs the twin's robot at every level of it, and the twin's point is one job
+    whatever factor it is a level of. The design (`DESIGN_COLUMNS` but the study) has one row per job and
+    (factor, level) cell it belongs to; `twin`: the job's robot is the twin's.
+    """
+    sw = sw or params.sensitivity
+    robot, controllers = params.robot.build(), params.robot.controller_specs()
+    twin = twin_responsiveness(robot)
+    digest = rollout_params_hash(params)
+    cells: list[tuple[str, float, Responsiveness]] = []
+    for factor, levels in sw.levels().items():
+        values = sorted({*levels, getattr(twin, factor)})
+        values = [v for i, v in enumerate(values) if i == 0 or not math.isclose(v, values[i - 1])]
+        cells += [(factor, float(v), twin.moved(factor, v)) for v in values]
+    jobs: dict[str, SweepJob] = {}
+    design, notes = [], []
+    for subject, variant, policy in _policies(sw, policy_root, notes):
+        for condition in sw.conditions:
+            for factor, level, point in cells:
+                point = for_controller(point, controllers[condition])
+                at_twin = point.same(twin)
+                _, moved = with_responsiveness(robot, {condition: controllers[condition]}, point)
+                gains = dict(moved[condition].get("gains", {}))
+                for scenario in sw.scenarios:
+                    for seed in range(sw.seeds):
+                        job = SweepJob(sw.study, subject, variant, condition, gains, scenario, seed, digest,
+                                       policy_hash=policy, responsiveness=None if at_twin else point)
+                        jobs.setdefault(job.key, job)
+                        design.append({"job_key": job.key, "factor": factor, "level": level, "twin": at_twin})
+    frame = pd.DataFrame(design, columns=DESIGN_COLUMNS[1:]).drop_duplicates(["job_key", "factor", "level"])
+    return list(jobs.values()), frame.reset_index(drop=True), notes
 
 
 def job_row(worker: Worker, job: SweepJob, exclude_locked: bool,
@@ -144,6 +204,10 @@ def job_row(worker: Worker, job: SweepJob, exclude_locked: bool,
     """Run one job on an open world and return its row (`pipeline.store.SWEEP_COLUMNS`; a plain dict:
     cheaper for Ray to ship than a one-row frame)."""
     start = time.perf_counter()
+    if job.responsiveness is not None:  # the same open world, the job's robot and gains
+        setup = worker.setup
+        robot, controllers = with_responsiveness(setup.robot, setup.controllers, job.responsiveness)
+        worker = worker.with_setup(dataclasses.replace(setup, robot=robot, controllers=controllers))
     o = worker.run(job.rollout_job(), keep_result=job.event is not None)
     strides = o.tables.get("strides", pd.DataFrame(columns=["kept", "gait_speed_mps", "stride_length_m"]))
     events = o.tables.get("events", pd.DataFrame())
@@ -204,7 +268,11 @@ def run_sweep(params: Params, root: Path = paths.SWEEPS_ROOT, policy_root: Path 
     called after each finished job (tests use it to kill a worker mid-sweep); `study`: default the
     params' `sweep` study (`study_params`)."""
     sw = study_params(params, study)
-    jobs, notes = sweep_jobs(params, policy_root, sw)
+    design = None
+    if isinstance(sw, SensitivitySchema):
+        jobs, design, notes = sensitivity_jobs(params, policy_root, sw)
+    else:
+        jobs, notes = sweep_jobs(params, policy_root, sw)
     fall_rule = params.fall_intervention.rule(params.robot.fall.drop_m)
     folder = paths.sweep_dir(root, sw.study)
     job_dir = folder / "jobs"
@@ -233,6 +301,8 @@ def run_sweep(params: Params, root: Path = paths.SWEEPS_ROOT, policy_root: Path 
     files = [job_dir / f"{k}.parquet" for k in sorted(keys)]
     rows = [pd.read_parquet(f) for f in files if f.is_file()]
     results = pd.concat(rows, ignore_index=True) if rows else pd.DataFrame(columns=SWEEP_COLUMNS)
+    if design is not None:  # one row per job and design cell (the twin's jobs are in several)
+        results = results.merge(design, on="job_key", how="inner", validate="one_to_many")
     summary = {"study": sw.study, "jobs": len(jobs), "ran": len(todo) - len(failed),
                "resumed": len(jobs) - len(todo), "failed": failed, "notes": notes}
     ran = results[results["job_key"].isin({j.key for j in todo})]
@@ -242,5 +312,5 @@ def run_sweep(params: Params, root: Path = paths.SWEEPS_ROOT, policy_root: Path 
     return summary
 
 
-__all__ = ["SweepJob", "check_failed", "error_text", "job_label", "job_row", "run_sweep", "study_params",
-           "sweep_jobs"]
+__all__ = ["SweepJob", "check_failed", "error_text", "job_label", "job_row", "run_sweep",
+           "sensitivity_jobs", "study_params", "sweep_jobs"]

@@ -13,6 +13,7 @@ every rollout of the project is set up one way.
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import Any, Protocol
@@ -127,6 +128,16 @@ class Worker:
         self.spec = mujoco.MjSpec.from_file(setup.human_xml)
         self.human_model = mujoco.MjModel.from_xml_path(setup.human_xml)
         self.make_run = setup.drivers.open(self.spec)
+
+    def with_setup(self, setup: BatchSetup) -> Worker:
+        """This open world (spec, human model, driver source) under another setup of the same human: another
+        robot or other controller gains (a sweep's robot variations: `dataclasses.replace(worker.setup, ...)`,
+        the same driver source object), without reopening the world."""
+        if setup.human_xml != self.setup.human_xml or setup.drivers is not self.setup.drivers:
+            raise SimulationError(setup.human_xml, "with_setup: another human needs its own Worker")
+        other = copy.copy(self)
+        other.setup = setup
+        return other
 
     def prepare(self, job: RolloutJob) -> tuple[HumanRun, Controller | None, RolloutParams]:
         """The job's driver, controller (None for free walking) and rollout params."""
