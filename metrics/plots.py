@@ -439,13 +439,16 @@ def sensitivity_figure(sens: pd.DataFrame, paper_sim: dict[str, tuple[float, flo
                     if falls > 0:
                         ax.annotate(f"{int(falls)}/{int(n)}", (xi, y), xytext=(3, 3),
                                     textcoords="offset points", fontsize=6, color=colour)
-            for cond, values in paper_sim.items():
-                ax.axhline(values[i], color=SENSITIVITY_COLORS.get(cond, "0.3"), linestyle="--",
-                           linewidth=0.9, label=f"{cond}, paper sim ({values[i]:.2f} cm)")
+            for cond, (ex, ey) in paper_sim.items():
+                ax.axhline((ex, ey)[i], color=SENSITIVITY_COLORS.get(cond, "0.3"), linestyle="--",
+                           linewidth=0.9, label=f"{cond}, paper sim (e_x {ex:.2f}, e_y {ey:.2f} cm)")
             twin = sel.loc[sel["twin"].astype(bool) & (sel["condition"] == "pid"), "level"]
             for level in twin:
                 ax.axvline(float(level) * scale, color="0.5", linestyle=":", linewidth=0.9)
             ax.set_xscale(xscale)
+            ticks = sorted(set(sel["level"].astype(float)))
+            ax.set_xticks([t * scale for t in ticks], [f"{t * scale:g}" for t in ticks], fontsize=8)
+            ax.minorticks_off()
             ax.grid(alpha=0.3)
             if i == 1:
                 ax.set_xlabel(label)
