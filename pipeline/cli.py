@@ -501,7 +501,8 @@ def build_parser() -> argparse.ArgumentParser:
     sweep = commands.add_parser("sweep", help="run the study of params `sweep` on Ray (resumable; "
                                 "RAY_ADDRESS: on that cluster)")
     sweep.add_argument("--root", type=Path, help="default: data/sweeps")
-    sweep.add_argument("--study", help="params sweep.study (default) or fall_intervention.study")
+    sweep.add_argument("--study", help="params sweep.study (default), fall_intervention.study or "
+                       "sensitivity.study")
     sweep.set_defaults(func=cmd_sweep)
 
     tune = commands.add_parser("tune", help="tune a controller's gains for one subject on the policy-human "
