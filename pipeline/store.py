@@ -23,6 +23,8 @@ to; `latest_versions` (and every `latest_<name>` view) holds the groups of each 
 so a condition that a subject no longer has drops out of the latest views while its old versions
 stay queryable. `quality` holds each subject's quality gates (`metrics.quality`) of every store run
 (`quality_latest`: its last run's; each paper-table row carries its subject's worst status).
+`policy_checks` holds `evaluate-policy`'s checks of each subject's policy and cohort variant, a new
+version per (subject, variant) when they change (`policy_checks_latest`: the newest).
 `paper_table1..3`, `phase_compliance`, `event_aligned`, `spm_clusters`,
 `subject_summary` are described in README.md; `sensitivity` (the responsiveness study) in docs/robot.md.
 """
@@ -125,6 +127,14 @@ DESIGN_DDL = ("study VARCHAR NOT NULL, job_key VARCHAR NOT NULL, factor VARCHAR 
 QUALITY_DDL = ('run_id BIGINT NOT NULL, subject VARCHAR NOT NULL, stage VARCHAR, "check" VARCHAR, '
                "value DOUBLE, warn_above DOUBLE, fail_above DOUBLE, status VARCHAR, note VARCHAR, "
                "cause VARCHAR")
+# evaluate-policy's checks (`evaluation.json` of each policy folder): one row per check with its
+# measured value and the closed interval [low, high] it must lie in (NULL: open side; value, low,
+# high and unit NULL for an evaluation from before `check_rows`); a new version per (subject,
+# variant) when its rows change.
+POLICY_CHECK_COLUMNS = ["subject", "variant", "check", "passed", "value", "low", "high", "unit"]
+POLICY_CHECKS_DDL = ('version_id BIGINT NOT NULL, subject VARCHAR NOT NULL, variant VARCHAR NOT NULL, '
+                     '"check" VARCHAR NOT NULL, passed BOOLEAN, value DOUBLE, low DOUBLE, high DOUBLE, '
+                     "unit VARCHAR, content_hash VARCHAR, run_id BIGINT, created_at TIMESTAMP")
 # a sweep walk's summary: two walks with the same one are the same walk (a deterministic walk from
 # standing repeats itself in every seed); the fall time tells apart walks that fell before a stride
 WALK_SUMMARY = "(gait_speed_mps, stride_length_m, stride_time_cv_pct, n_strides, fell, human_fall_s, walk_s)"
@@ -296,6 +306,10 @@ def _views() -> list[str]:
         "CREATE OR REPLACE VIEW quality_latest AS SELECT q.* FROM quality q WHERE q.run_id = "
         "(SELECT max(u.run_id) FROM quality u WHERE u.subject = q.subject) "
         "ORDER BY subject, stage, \"check\"",
+        # the newest evaluation of each subject's policy and cohort variant, one row per check
+        "CREATE OR REPLACE VIEW policy_checks_latest AS SELECT c.* EXCLUDE (content_hash) "
+        "FROM policy_checks c WHERE c.version_id = (SELECT max(d.version_id) FROM policy_checks d "
+        "WHERE d.subject = c.subject AND d.variant = c.variant) ORDER BY subject, variant, \"check\"",
         "CREATE OR REPLACE VIEW quality_worst AS SELECT subject, CASE max(CASE status WHEN 'fail' THEN 2 "
         "WHEN 'warn' THEN 1 WHEN 'ok' THEN 0 END) WHEN 2 THEN 'fail' WHEN 1 THEN 'warn' WHEN 0 THEN 'ok' "
         "ELSE 'unknown' END AS quality FROM quality_latest GROUP BY subject",
@@ -482,6 +496,7 @@ def ensure_schema(con: duckdb.DuckDBPyConnection) -> None:
         con.execute(f"ALTER TABLE tuned_gains ADD COLUMN IF NOT EXISTS {col} BIGINT")
     con.execute(f"CREATE TABLE IF NOT EXISTS quality ({QUALITY_DDL})")
     con.execute("ALTER TABLE quality ADD COLUMN IF NOT EXISTS cause VARCHAR")  # stores from before it
+    con.execute(f"CREATE TABLE IF NOT EXISTS policy_checks ({POLICY_CHECKS_DDL})")
     con.execute("CREATE TABLE IF NOT EXISTS subjects (subject VARCHAR PRIMARY KEY, round_trip_of VARCHAR, "
                 "run_id BIGINT NOT NULL)")
     con.execute("CREATE TABLE IF NOT EXISTS run_groups (run_id BIGINT NOT NULL, subject VARCHAR NOT NULL, "
@@ -539,10 +554,12 @@ def content_hash(tables: dict[str, pd.DataFrame]) -> str:
 
 def store_results(path: Path, results: list[SubjectResults], params: StoreParams = StoreParams(),
                   rev: str | None = None, progress: Callable[[str], None] | None = None,
-                  sweeps: list[pd.DataFrame] = (), tunings: list[dict] = ()) -> StoreReport:
+                  sweeps: list[pd.DataFrame] = (), tunings: list[dict] = (),
+                  policy_checks: pd.DataFrame | None = None) -> StoreReport:
     """Add new versions for every changed group of `results`, all in one transaction; plus the rows
-    of `sweeps` (`SWEEP_COLUMNS`) not stored yet and a new version of each changed `tunings` result
-    (`TUNING_COLUMNS` keys)."""
+    of `sweeps` (`SWEEP_COLUMNS`) not stored yet, a new version of each changed `tunings` result
+    (`TUNING_COLUMNS` keys) and of each (subject, variant) whose `policy_checks` rows
+    (`POLICY_CHECK_COLUMNS`) changed."""
     start = time.perf_counter()
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -593,6 +610,8 @@ def store_results(path: Path, results: list[SubjectResults], params: StoreParams
                     con.unregister("incoming")
             for tuning in tunings:
                 _store_tuning(con, tuning, run_id, now)
+            if policy_checks is not None and not policy_checks.empty:
+                _store_policy_checks(con, policy_checks, run_id, now)
             for res in results:  # what each subject is, as of its last store run
                 con.execute("INSERT OR REPLACE INTO subjects VALUES (?, ?, ?)",
                             [res.subject, res.round_trip_of, run_id])
@@ -638,6 +657,28 @@ def _store_tuning(con: duckdb.DuckDBPyConnection, tuning: dict, run_id: int, now
     con.execute(f"INSERT INTO tuned_gains (version_id, {', '.join(TUNING_COLUMNS)}, content_hash, run_id, "
                 f"created_at) VALUES ({', '.join(['?'] * (len(TUNING_COLUMNS) + 4))})",
                 [version, *row.values(), digest, run_id, now])
+
+
+def _store_policy_checks(con: duckdb.DuckDBPyConnection, rows: pd.DataFrame, run_id: int,
+                         now: datetime) -> None:
+    """A new `policy_checks` version of each (subject, variant) whose rows differ from its latest."""
+    missing = [c for c in POLICY_CHECK_COLUMNS if c not in rows.columns]
+    if missing:
+        raise StoreError("policy_checks", f"rows lack columns {missing}")
+    for (subject, variant), group in rows.groupby(["subject", "variant"], sort=True):
+        records = [[None if pd.isna(x) else x.item() if isinstance(x, np.generic) else x for x in r]
+                   for r in group[POLICY_CHECK_COLUMNS].sort_values("check").itertuples(index=False)]
+        digest = hashlib.sha256(json.dumps(records).encode()).hexdigest()[:16]
+        latest = con.execute("SELECT content_hash FROM policy_checks WHERE subject = ? AND variant = ? "
+                             "ORDER BY version_id DESC LIMIT 1", [subject, variant]).fetchall()
+        if latest and latest[0][0] == digest:
+            continue
+        version = con.execute("SELECT coalesce(max(version_id), 0) + 1 FROM policy_checks").fetchall()[0][0]
+        columns = ", ".join(f'"{c}"' for c in POLICY_CHECK_COLUMNS)
+        marks = ", ".join(["?"] * (len(POLICY_CHECK_COLUMNS) + 4))
+        con.executemany(f"INSERT INTO policy_checks (version_id, {columns}, content_hash, run_id, "
+                        f"created_at) VALUES ({marks})",
+                        [[version, *r, digest, run_id, now] for r in records])
 
 
 def query(path: Path, sql: str, busy_timeout_s: float = 10.0) -> pd.DataFrame:

@@ -11,11 +11,16 @@ controller of `rollout.conditions`, free walking with a lateral pelvis push, and
 compare with the subject's recording, so for a variant built to walk differently they measure how
 far it is from its healthy twin, and its falls and scenario timing are what it is judged on
 (figure `policy_spm_<variant>.png`).
+
+The result's `checks` maps each check to its pass flag (the transfer gate and the report read it);
+`check_rows` holds the same checks with the measured value, its bound [low, high] and unit
+(`metrics.policy_checks.CheckRow`: each flag is its row's comparison).
 """
 
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import mujoco
@@ -28,7 +33,16 @@ from ingest.process import walk_phases
 from ingest.subject import load_subject
 from metrics.outcomes import compliance_headline
 from metrics.plots import policy_spm_figure
-from metrics.policy_checks import curves, enough, gait_check, spm_check
+from metrics.policy_checks import (
+    CheckRow,
+    bounded,
+    curves,
+    furthest,
+    gait_check,
+    share_row,
+    spm_check,
+    spm_row,
+)
 from metrics.scenario_checks import (
     ScenarioChecks,
     motion_onset_s,
@@ -88,14 +102,15 @@ def evaluate_policy(subject: str, params: Params, root: Path = paths.PROCESSED_R
     sim_cycles = free["cycles"]
     n_free_ok = sum(not o.fell for o in groups["free"])
     doc: dict = {"subject": subject, "variant": variant, "human_mode": "policy"}
-    doc["free"] = {"rollouts": len(groups["free"]), "no_fall": n_free_ok,
-                   "pass_no_fall": enough(n_free_ok, len(groups["free"]), checks.free_no_fall_fraction),
-                   "distance_m": [round(o.distance_m, 2) for o in groups["free"]],
-                   **gait_check(real_kept, sim_kept, real_free_cycles, sim_cycles, checks)}
+    rows = [share_row("free_no_fall", n_free_ok, len(groups["free"]), checks.free_no_fall_fraction)]
+    gait, gait_rows = gait_check(real_kept, sim_kept, real_free_cycles, sim_cycles, checks)
+    rows += gait_rows
+    doc["free"] = {"rollouts": len(groups["free"]), "no_fall": n_free_ok, "pass_no_fall": rows[0].passed,
+                   "distance_m": [round(o.distance_m, 2) for o in groups["free"]], **gait}
     for c in controllers:
         ok = sum(not o.fell for o in groups[c])
-        doc[c] = {"rollouts": len(groups[c]), "no_fall": ok,
-                  "pass_no_fall": enough(ok, len(groups[c]), checks.robot_no_fall_fraction),
+        rows.append(share_row(f"{c}_no_fall", ok, len(groups[c]), checks.robot_no_fall_fraction))
+        doc[c] = {"rollouts": len(groups[c]), "no_fall": ok, "pass_no_fall": rows[-1].passed,
                   "human_falls": sum(o.human_fall_s is not None for o in groups[c]),
                   "robot_fall_detections": sum(o.robot_fall_s is not None for o in groups[c])}
     robot = batch_tables([o for c in controllers for o in groups[c]])["robot"]
@@ -104,13 +119,13 @@ def evaluate_policy(subject: str, params: Params, root: Path = paths.PROCESSED_R
     own_start = own_start_s(subject, params)
     real_speed = float(real_kept["gait_speed_mps"].mean())
     speed = params.variant(variant).preferred_speed(cycle.speed_mps)
-    doc["scenarios"] = scenario_report(scenario_outcomes, scenario_profiles(params, speed,
-                                                                             setup.drivers.sample_rate_hz),
-                                       cycle.period_s, own_start, real_speed, sc)
+    doc["scenarios"], scenario_rows = scenario_report(
+        scenario_outcomes, scenario_profiles(params, speed, setup.drivers.sample_rate_hz), cycle.period_s,
+        own_start, real_speed, sc)
     recovered = sum(not o.fell for o in pushed)
+    rows.append(share_row("push", recovered, len(pushed), checks.push_recovered_fraction))
     doc["push"] = {"force_n": ev.push_n, "duration_s": ev.push_duration_s, "at_s": ev.push_time_s,
-                   "walk_s": push_s, "rollouts": len(pushed), "recovered": recovered,
-                   "pass": enough(recovered, len(pushed), checks.push_recovered_fraction)}
+                   "walk_s": push_s, "rollouts": len(pushed), "recovered": recovered, "pass": rows[-1].passed}
     xml, npz = paths.human_xml(root, subject), paths.reference_npz(root, subject)
     in_model = reference_cycles(mujoco.MjModel.from_xml_path(str(policy_body)), load_reference(npz), subject,
                                 load_subject(subject).markerset, params.ingest.build())
@@ -122,7 +137,8 @@ def evaluate_policy(subject: str, params: Params, root: Path = paths.PROCESSED_R
                       "vs_dataset_rollout_means": spm_check(dataset, means, checks),
                       "vs_dataset_all_cycles": spm_check(dataset, every, checks),
                       "model_vs_dataset": spm_check(dataset, model_real, checks)}
-        spm[joint]["pass"] = spm[joint]["primary"]["pass"]
+        rows.append(spm_row(f"spm_{joint}", spm[joint]["primary"], checks))
+        spm[joint]["pass"] = rows[-1].passed
         shown[joint] = {"real (dataset IK)": dataset, "real (same model)": model_real,
                         "policy (rollout means)": means}
     spm["primary_test"] = (f"real free walking retargeted onto the policy's body and processed like the "
@@ -138,13 +154,9 @@ def evaluate_policy(subject: str, params: Params, root: Path = paths.PROCESSED_R
     doc["figure"] = paths.repo_relative(png)
     doc["unstable_rollouts"] = sum(not o.stable for o in outcomes)
     doc["skipped"] = [f"{o.job.trial}: {o.skipped}" for o in outcomes if o.skipped]
-    free = doc["free"]
-    doc["checks"] = {
-        "free_no_fall": free["pass_no_fall"], "free_speed": free["pass_speed"],
-        "free_stride_length": free["pass_stride_length"], "free_knee_peak": free["pass_knee_peak"],
-        **{f"{c}_no_fall": doc[c]["pass_no_fall"] for c in controllers}, "push": doc["push"]["pass"],
-        **{f"spm_{j}": spm[j]["pass"] for j in SPM_JOINTS},
-        **{f"scenario_{k}": v for k, v in doc["scenarios"]["checks"].items()}}
+    rows += [replace(r, check=f"scenario_{r.check}") for r in scenario_rows]
+    doc["checks"] = {r.check: r.passed for r in rows}
+    doc["check_rows"] = [r.as_dict() for r in rows]
     doc["wall_s"] = round(time.perf_counter() - start, 1)
     return doc
 
@@ -173,9 +185,12 @@ def own_start_s(subject: str, params: Params) -> float | None:
 
 
 def scenario_report(outcomes: list[RolloutOutcome], profiles: dict[str, CommandProfile], stride_s: float,
-                    own_start: float | None, real_speed_mps: float, sc: ScenarioChecks) -> dict:
+                    own_start: float | None, real_speed_mps: float, sc: ScenarioChecks
+                    ) -> tuple[dict, list[CheckRow]]:
     """Per scenario and condition: walks, falls, and the scenario checks of issue 11 on the pelvis
-    path (metrics.scenario_checks); `checks` holds the pass flags."""
+    path (metrics.scenario_checks), with `checks` holding the pass flags; and the checks' rows. A
+    check over every walk of a scenario measures the walk furthest from its bound (the longest stop,
+    the start furthest outside the window); a walk that fell leaves it unmeasured (value None: fails)."""
     out: dict = {"own_start_s": None if own_start is None else round(own_start, 2)}
     if own_start is not None:
         tol = sc.start_tolerance_pct / 100
@@ -183,7 +198,7 @@ def scenario_report(outcomes: list[RolloutOutcome], profiles: dict[str, CommandP
     else:
         lo, hi = sc.start_range_s
     out["start_window_s"] = [round(lo, 2), round(hi, 2)]
-    checks: dict[str, bool] = {}
+    rows: list[CheckRow] = []
     by: dict[tuple[str, str], list[RolloutOutcome]] = {}
     for o in outcomes:
         by.setdefault((o.job.human.scenario, o.job.condition), []).append(o)
@@ -195,7 +210,7 @@ def scenario_report(outcomes: list[RolloutOutcome], profiles: dict[str, CommandP
                      # walks whose pelvis paths differ: a free walk from quiet standing is the same
                      # rollout in every seed (the seed sets only the start phase, which standing resets)
                      "distinct_walks": len({o.pelvis_xy.round(6).tobytes() for o in runs})}
-        checks[f"{name}_{cond}_no_fall"] = enough(len(runs) - falls, len(runs), sc.no_fall_fraction)
+        rows.append(share_row(f"{name}_{cond}_no_fall", len(runs) - falls, len(runs), sc.no_fall_fraction))
         starts, onsets, stops, steady, ends, changes, turns = [], [], [], [], [], [], []
         for o in runs:
             if o.human_fall_s is not None:
@@ -233,19 +248,21 @@ def scenario_report(outcomes: list[RolloutOutcome], profiles: dict[str, CommandP
             continue
         every = len(starts) == len(runs) > 0  # a walk that fell fails every check of its scenario
         if name == "walk_10m":
-            checks["walk_10m_standing_at_end"] = every and all(ends)
-            checks["walk_10m_start_time"] = every and all(x is not None and lo <= x <= hi for x in starts)
             err = 100 * (np.nanmedian(steady) / real_speed_mps - 1) if steady else float("nan")
             row["steady_speed_error_pct"] = round(float(err), 2)
-            checks["walk_10m_steady_speed"] = every and bool(abs(err) <= sc.steady_speed_tolerance_pct)
-            checks["walk_10m_stop_time"] = every and all(x is not None and x <= sc.stop_within_s
-                                                         for x in stops)
+            v_tol, stop_s = sc.steady_speed_tolerance_pct, sc.stop_within_s
+            rows += [bounded("walk_10m_standing_at_end", sum(ends) / len(runs) if every else None, 1.0, 1.0,
+                             "share of walks"),
+                     bounded("walk_10m_start_time", furthest(starts, lo, hi) if every else None, lo, hi, "s"),
+                     bounded("walk_10m_steady_speed", float(err) if every else None, -v_tol, v_tol, "%"),
+                     bounded("walk_10m_stop_time", furthest(stops, None, stop_s) if every else None, None,
+                             stop_s, "s")]
         if name == "speed_change":
-            checks["speed_change_reached"] = every and all(c["reached_after_s"] is not None and
-                                                           c["reached_after_s"] <= sc.speed_change_within_s
-                                                           for run in changes for c in run)
-    out["checks"] = checks
-    return out
+            reached = [c["reached_after_s"] for run in changes for c in run]
+            rows.append(bounded("speed_change_reached", furthest(reached, None, sc.speed_change_within_s)
+                                if every else None, None, sc.speed_change_within_s, "s"))
+    out["checks"] = {r.check: r.passed for r in rows}
+    return out, rows
 
 
 __all__ = ["evaluate_policy"]

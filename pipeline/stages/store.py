@@ -3,7 +3,9 @@
 Reads `<root>/<subject>/<table>.parquet` (root: data/metrics), `quality.parquet` and `provenance.json`
 for each subject in params.yaml, the rows of the sweep, fall-intervention and responsiveness studies
 (data/sweeps/<study>/results.parquet) and the
-tuning results (data/tuning) and adds them to `data/results.duckdb` in one transaction (`pipeline.store`).
+tuning results (data/tuning), and `evaluate-policy`'s checks of each subject's policy and cohort variant
+(`evaluation.json` in its policy folder, data/policies) and adds them to `data/results.duckdb` in one
+transaction (`pipeline.store`).
 """
 
 from __future__ import annotations
@@ -15,8 +17,26 @@ import pandas as pd
 from tqdm import tqdm
 
 from pipeline.params import Params
-from pipeline.paths import METRICS_ROOT, SWEEPS_ROOT, TUNING_ROOT, metrics_dir, sweep_dir
-from pipeline.store import TABLES, TUNING_COLUMNS, StoreError, StoreReport, SubjectResults, store_results
+from pipeline.paths import (
+    METRICS_ROOT,
+    POLICIES_ROOT,
+    SWEEPS_ROOT,
+    TUNING_ROOT,
+    metrics_dir,
+    policy_dir,
+    sweep_dir,
+)
+from pipeline.runs.gate import EVALUATION_FILE, source_evaluation
+from pipeline.store import (
+    POLICY_CHECK_COLUMNS,
+    TABLES,
+    TUNING_COLUMNS,
+    StoreError,
+    StoreReport,
+    SubjectResults,
+    store_results,
+)
+from sim.body.variant import HEALTHY
 
 
 def load_results(subject: str, root: Path = METRICS_ROOT) -> SubjectResults:
@@ -52,11 +72,40 @@ def load_tunings(root: Path = TUNING_ROOT) -> list[dict]:
     return out
 
 
+def evaluation_rows(doc: dict, subject: str, variant: str) -> list[dict]:
+    """One row per check of an `evaluate-policy` result (`POLICY_CHECK_COLUMNS`): its `check_rows`,
+    or for an evaluation from before them its `checks` with value, bound and unit None."""
+    if "check_rows" in doc:
+        return [{"subject": subject, "variant": variant, "check": r["check"], "passed": r["passed"],
+                 "value": r["value"], "low": r["bound"][0], "high": r["bound"][1], "unit": r["unit"]}
+                for r in doc["check_rows"]]
+    return [{"subject": subject, "variant": variant, "check": check, "passed": passed, "value": None,
+             "low": None, "high": None, "unit": None} for check, passed in doc["checks"].items()]
+
+
+def load_policy_checks(subjects: list[str], root: Path = POLICIES_ROOT) -> pd.DataFrame:
+    """The checks of every subject's policy (`<root>/<subject>/evaluation.json`) and cohort variant
+    (`<root>/<subject>/cohort/<variant>/evaluation.json`) that has been evaluated."""
+    rows = []
+    for subject in subjects:
+        own = policy_dir(root, subject)
+        folders = [(HEALTHY, own), *((f.name, f) for f in sorted((own / "cohort").glob("*")) if f.is_dir())]
+        for variant, folder in folders:
+            try:
+                doc = source_evaluation(folder)
+                rows += [] if doc is None else evaluation_rows(doc, subject, variant)
+            except (ValueError, KeyError, TypeError, IndexError) as exc:
+                raise StoreError(folder / EVALUATION_FILE,
+                                 f"not an evaluate-policy result ({exc!r})") from None
+    return pd.DataFrame(rows, columns=POLICY_CHECK_COLUMNS)
+
+
 def run_store(params: Params, root: Path = METRICS_ROOT, db: Path | None = None,
-              progress: bool = True, sweeps_root: Path = SWEEPS_ROOT, tuning_root: Path = TUNING_ROOT
-              ) -> StoreReport:
+              progress: bool = True, sweeps_root: Path = SWEEPS_ROOT, tuning_root: Path = TUNING_ROOT,
+              policies_root: Path = POLICIES_ROOT) -> StoreReport:
     """Store the metrics of every subject in params `subjects`, the rows of the params' studies (`sweep`,
-    `fall_intervention`, `sensitivity`) and every tuning result."""
+    `fall_intervention`, `sensitivity`) and every tuning result, and the
+    evaluate-policy checks of their policies."""
     p = params.store.build()
     subjects = list(params.subjects)
     results = [load_results(s, root) for s in subjects]
@@ -66,6 +115,7 @@ def run_store(params: Params, root: Path = METRICS_ROOT, db: Path | None = None,
                              sweeps=[*load_sweep(params.sweep.study, sweeps_root),
                                      *load_sweep(params.fall_intervention.study, sweeps_root),
                                      *load_sweep(params.sensitivity.study, sweeps_root)],
-                             tunings=load_tunings(tuning_root))
+                             tunings=load_tunings(tuning_root),
+                             policy_checks=load_policy_checks(subjects, policies_root))
     finally:
         bar.close()

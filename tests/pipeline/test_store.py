@@ -380,3 +380,49 @@ def test_a_tuning_whose_every_search_rollout_fell_is_marked_no_signal(tmp_path):
     assert all(("**no signal**" in ln) == ("hemiparetic_left" in ln) for ln in rows[2:]), rows
     healthy_pid = by[("healthy", "pid")]
     assert "96/96 **no signal**" in lines and f"{healthy_pid.search_falls}/96" in lines
+
+
+def test_policy_checks_come_from_each_policy_folders_evaluation(tmp_path):
+    """The committed camargo evaluation.json (from before `check_rows`) gives one row per check with
+    its pass flag and NULL value and bound; a cohort variant's evaluation with `check_rows` gives
+    their values and bounds. Unchanged evaluations add no version; a changed one adds one, and
+    `policy_checks_latest` holds the newest."""
+    from pipeline.paths import POLICIES_ROOT
+    from pipeline.stages.store import load_policy_checks
+
+    committed = json.loads((POLICIES_ROOT / "camargo" / "evaluation.json").read_text())
+    root = tmp_path / "policies"
+    (root / "camargo" / "cohort" / "slow").mkdir(parents=True)
+    (root / "camargo" / "cohort" / "weak").mkdir()  # a variant not evaluated: no rows
+    shutil.copy(POLICIES_ROOT / "camargo" / "evaluation.json", root / "camargo" / "evaluation.json")
+    rows = [{"check": c, "passed": p, "value": 0.5 if p else 2.0, "bound": [None, 1.0], "unit": "s"}
+            for c, p in committed["checks"].items()]
+    slow = {**committed, "variant": "slow", "check_rows": rows}
+    (root / "camargo" / "cohort" / "slow" / "evaluation.json").write_text(json.dumps(slow))
+    checks = load_policy_checks(["camargo", "opencap4"], root)  # opencap4: no policy folder here
+    db = tmp_path / "results.duckdb"
+    store_results(db, [], FAST, rev="rev1", policy_checks=checks)
+    stored = query(db, 'SELECT * FROM policy_checks_latest ORDER BY variant, "check"')
+    healthy, cohort = stored[stored["variant"] == "healthy"], stored[stored["variant"] == "slow"]
+    assert len(healthy) == len(cohort) == len(committed["checks"]) == 29
+    assert dict(zip(healthy["check"], healthy["passed"], strict=True)) == committed["checks"]
+    assert healthy[["value", "low", "high", "unit"]].isna().all().all()
+    assert dict(zip(cohort["check"], cohort["passed"], strict=True)) == committed["checks"]
+    assert (cohort["passed"] == (cohort["value"] <= cohort["high"])).all() and cohort["low"].isna().all()
+    assert set(stored["unit"].dropna()) == {"s"}
+    failing = query(db, 'SELECT "check" FROM policy_checks_latest WHERE subject = \'camargo\' '
+                        "AND variant = 'healthy' AND NOT passed")
+    assert set(failing["check"]) == {c for c, p in committed["checks"].items() if p is False}
+    store_results(db, [], FAST, rev="rev2", policy_checks=load_policy_checks(["camargo"], root))
+    assert count(db, "SELECT count(DISTINCT version_id) FROM policy_checks") == 2
+    slow["check_rows"][0] = {**rows[0], "value": 0.25}
+    (root / "camargo" / "cohort" / "slow" / "evaluation.json").write_text(json.dumps(slow))
+    store_results(db, [], FAST, rev="rev3", policy_checks=load_policy_checks(["camargo"], root))
+    assert count(db, "SELECT count(DISTINCT version_id) FROM policy_checks") == 3
+    assert count(db, "SELECT count(*) FROM policy_checks") == 3 * 29
+    newest = query(db, "SELECT value FROM policy_checks_latest WHERE variant = 'slow' AND \"check\" = "
+                       f"'{rows[0]['check']}'")
+    assert newest["value"].tolist() == [0.25]
+    (root / "camargo" / "evaluation.json").write_text("{}")
+    with pytest.raises(StoreError, match=r"camargo/evaluation.json: not an evaluate-policy result"):
+        load_policy_checks(["camargo"], root)
