@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from metrics.groups import CYCLE, GROUP, with_identity
+from metrics.groups import CYCLE, GROUP, independent_rows, with_identity
 
 CYCLE_COLUMNS = ("trial", "side", "stride", "pct", "joint", "angle_deg")
 BOTH = "both"
@@ -18,8 +18,9 @@ BAND_COLUMNS = [*GROUP, "side", "joint", "pct", "n_cycles", "mean_deg", "sd_deg"
 
 
 def tidy_cycles(cycles: pd.DataFrame) -> pd.DataFrame:
-    """Checked cycles table with `human_mode` and `seed` filled in."""
-    return with_identity(cycles, "cycles table", CYCLE_COLUMNS)
+    """Checked cycles table with `human_mode` and `seed` filled in, independent cycles only (a
+    replayed human's other seeds repeat its recorded strides: `metrics.groups.independent_rows`)."""
+    return independent_rows(with_identity(cycles, "cycles table", CYCLE_COLUMNS))
 
 
 def curve_groups(cycles: pd.DataFrame, pool_sides: bool) -> dict[tuple, pd.DataFrame]:

@@ -21,16 +21,18 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+NO_INTERVAL = "no interval"  # `compare`: a mean without a confidence interval is not judged
 Z95 = 1.96  # normal 95 % quantile, for a mean over many strides (Table II's SD / sqrt(n))
 
 
 def compare(a: float, a_ci: float, b: float, b_ci: float) -> str:
     """`lower` / `higher` when `a` +- `a_ci` and `b` +- `b_ci` do not overlap, else `no difference`;
-    `not measured` when a mean is missing; a missing interval counts as zero width."""
+    `not measured` when a mean is missing; `no interval` when an interval is (a single stride or walk
+    has no variance: nothing can be judged; pass 0.0 to decide on the means alone)."""
     if not (np.isfinite(a) and np.isfinite(b)):
         return "not measured"
-    a_ci = a_ci if np.isfinite(a_ci) else 0.0
-    b_ci = b_ci if np.isfinite(b_ci) else 0.0
+    if not (np.isfinite(a_ci) and np.isfinite(b_ci)):
+        return NO_INTERVAL
     if a + a_ci < b - b_ci:
         return "lower"
     if a - a_ci > b + b_ci:
@@ -55,6 +57,8 @@ class Finding:
     def verdict(self) -> str:
         if self.result == "not measured":
             return "not measured"
+        if self.result == NO_INTERVAL:
+            return "n/a: no 95 % CI (fewer than 2 independent strides or walks)"
         if self.result == "no difference":
             return "no difference within the 95 % CIs"
         agrees = "agrees" if self.result == self.expected else "disagrees"
@@ -190,5 +194,6 @@ def variability_findings(table3: pd.DataFrame, paper_sim_sd: dict[str, dict[str,
     return out
 
 
-__all__ = ["COMPARISON_COLUMNS", "FACTOR_UNITS", "Finding", "compare", "compliance_findings", "level_text",
-           "region_text", "responsiveness_comparisons", "speed_findings", "variability_findings"]
+__all__ = ["COMPARISON_COLUMNS", "FACTOR_UNITS", "NO_INTERVAL", "Finding", "compare", "compliance_findings",
+           "level_text", "region_text", "responsiveness_comparisons", "speed_findings",
+           "variability_findings"]

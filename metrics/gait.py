@@ -1,7 +1,8 @@
 """Gait (paper Table II): stride length and gait speed, mean ± SD over the kept strides.
 
 Only strides the ingest stage kept (steady, straight walking) count; both sides are pooled, as
-each stride is one observation of the person's gait.
+each stride is one observation of the person's gait; a replayed human's seeds repeat its recorded
+strides and count once (`metrics.groups.independent_rows`).
 """
 
 from __future__ import annotations
@@ -9,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from metrics.groups import GROUP, with_identity
+from metrics.groups import GROUP, independent_rows, with_identity
 
 STRIDE_COLUMNS = ("kept", "stride_length_m", "gait_speed_mps", "stride_time_s", "cadence_spm")
 COLUMNS = [*GROUP, "n_strides", "stride_length_m_mean", "stride_length_m_sd", "gait_speed_mps_mean",
@@ -20,7 +21,7 @@ def gait_table(strides: pd.DataFrame) -> pd.DataFrame:
     """One row per subject/source/human_mode/condition with at least one kept stride; SD is the
     sample SD (ddof 1), NaN for a single stride."""
     strides = with_identity(strides, "strides table", STRIDE_COLUMNS)
-    kept = strides[strides["kept"].astype(bool)]
+    kept = independent_rows(strides[strides["kept"].astype(bool)])
     rows = []
     for key, g in kept.groupby(GROUP, sort=True):
         rows.append((*key, len(g), *_mean_sd(g["stride_length_m"]), *_mean_sd(g["gait_speed_mps"]),

@@ -3,7 +3,9 @@
 Every metric groups its input by `GROUP` = subject, source, human_mode, condition. Real tables
 carry no `human_mode` (the person walked; nothing drove them), so it reads `none` there; simulated
 tables say `replay` or `policy`. A cycle is identified by `CYCLE` = trial, seed, side, stride;
-real tables have no `seed` and get 0.
+real tables have no `seed` and get 0. The seeds of a replayed human replay the same recorded strides
+(the same joint angles), so only one seed of them is an observation (`independent_rows`): counted
+once each, a subject with one kept stride is one stride, not three.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ from metrics.errors import MetricsError
 GROUP = ["subject", "source", "human_mode", "condition"]
 CYCLE = ["trial", "seed", "side", "stride"]
 REAL_HUMAN_MODE = "none"
+REPLAY_HUMAN_MODE = "replay"
 JOINTS = ("hip_flexion", "knee_flexion", "ankle_dorsiflexion")
 
 
@@ -34,3 +37,13 @@ def with_identity(table: pd.DataFrame, name: str, required: tuple[str, ...] = ()
     for col in ("subject", "source", "condition"):
         out[col] = out[col].astype(str)
     return out
+
+
+def independent_rows(table: pd.DataFrame) -> pd.DataFrame:
+    """The rows that are independent observations (module docstring): every row of real data and of
+    the policy human (each seed is its own walk), the lowest seed of each replayed stride (trial,
+    side, stride)."""
+    if "human_mode" not in table.columns or not (table["human_mode"] == REPLAY_HUMAN_MODE).any():
+        return table
+    first = table.groupby([*GROUP, "trial", "side", "stride"], sort=False)["seed"].transform("min")
+    return table[(table["human_mode"] != REPLAY_HUMAN_MODE) | (table["seed"] == first)]

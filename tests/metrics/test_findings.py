@@ -14,7 +14,8 @@ def test_compare_needs_separated_intervals():
     assert compare(2.0, 0.1, 1.0, 0.1) == "higher"
     assert compare(1.0, 0.6, 2.0, 0.6) == "no difference"
     assert compare(np.nan, 0.1, 2.0, 0.1) == "not measured"
-    assert compare(1.0, np.nan, 1.5, np.nan) == "lower"  # no interval: the means decide
+    assert compare(1.0, np.nan, 1.5, np.nan) == "no interval"  # one stride or walk: not judged
+    assert compare(1.0, 0.0, 1.5, 0.0) == "lower"  # zero-width intervals: the means decide
 
 
 def _phase(condition: str, ex: float, ex_ci: float, ey: float, ey_ci: float) -> dict:
