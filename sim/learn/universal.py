@@ -17,7 +17,8 @@ policy, the observation statistics, the discriminator and `progress.json`: steps
 steady speed within the bound) against steps.
 
 Run it with `python -m sim.learn.universal` (flags: `--help`); it needs numpy, torch, mujoco,
-gymnasium, stable-baselines3 and pyyaml only.
+gymnasium, stable-baselines3, pyyaml, and pandas and scipy for the scenarios' commands: no Ray,
+DuckDB or DVC.
 """
 
 from __future__ import annotations
@@ -97,8 +98,7 @@ def widen_for_body(old: PPO, old_norm: VecNormalize, venv, p: TrainParams, body_
     first layers of the policy and value networks get the body inputs with zero weights, the old
     inputs keep their weights and normalisation statistics, the body inputs are normalised by
     `body_mean`, `body_std` (the pool's), and the statistics stay fixed: updated by the other bodies'
-    observations, they would change what the old inputs mean to the network (a first run, updating
-    them, broke camargo's walk within 250 k steps)."""
+    observations, they would change what the old inputs mean to the network."""
     n_old = old.observation_space.shape[0]
     if n_old != OBS_SIZE:
         raise ValueError(f"the start policy has {n_old} observations, not the walking env's {OBS_SIZE}")
