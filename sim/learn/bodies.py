@@ -59,8 +59,8 @@ class BodyDraw:
     factor within +-`range` for lengths and another for mass, times a per-segment one within
     +-`segment_jitter`, each factor clipped to +-`range`."""
 
-    range: float = 0.15
-    segment_jitter: float = 0.05
+    range: float
+    segment_jitter: float
 
 
 def draw_scales(rng: np.random.Generator, p: BodyDraw) -> BodyScales:

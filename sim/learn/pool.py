@@ -8,7 +8,7 @@ drawn body is replaced by a new draw. No torch here: `pipeline.params` checks `U
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, fields
 
 import gymnasium as gym
 import mujoco
@@ -31,21 +31,21 @@ UNIVERSAL_OBS_SIZE = OBS_SIZE + BODY_OBS_SIZE
 
 @dataclass(frozen=True)
 class UniversalParams:
-    """The `universal` section of params.yaml (module docstring)."""
+    """The `universal` section of params.yaml, where the values and their units are (one place)."""
 
-    subjects: tuple[str, ...] = ()       # bundled subjects whose bodies and cycles it trains on
-    drawn: int = 6                       # drawn bodies in each env's pool
-    refresh_probability: float = 0.02    # chance, at each episode, that a drawn body is replaced
-    adaptive_share: float = 0.5          # share of episodes on bodies picked by their recent falls
-    fall_memory: float = 0.05            # weight of the newest episode in a body's fall rate
-    motion_share: float = 0.1            # discriminator references from the recordings (module docstring)
-    init_from: str = "camargo"           # the single-body policy the run starts from
-    critic_warmup_steps: int = 200_000   # from `init_from`: only the value network learns at first
-    gate_scenarios: tuple[str, ...] = ("walk_10m", "turn_90")
-    gate_seeds: int = 2
-    gate_speed_tolerance: float = 0.10   # steady speed within +- this of the cycle's
-    gate_standing_mps: float = 0.15      # standing at the end: pelvis slower than this over the last second
-    bodies: BodyDraw = field(default_factory=BodyDraw)
+    subjects: tuple[str, ...]            # bundled subjects whose bodies and cycles it trains on
+    drawn: int                           # drawn bodies in each env's pool
+    refresh_probability: float           # chance, at each episode, that a drawn body is replaced
+    adaptive_share: float                # share of episodes on bodies picked by their recent falls
+    fall_memory: float                   # weight of the newest episode in a body's fall rate
+    motion_share: float                  # discriminator references from the recordings (sim.learn.universal)
+    init_from: str                       # the single-body policy the run starts from
+    critic_warmup_steps: int             # from `init_from`: only the value network learns at first
+    gate_scenarios: tuple[str, ...]      # `sim.learn.universal.quick_gate`
+    gate_seeds: int
+    gate_speed_tolerance: float          # steady speed within +- this of the cycle's
+    gate_standing_mps: float             # standing at the end: pelvis slower than this over the last second
+    bodies: BodyDraw
 
     @classmethod
     def from_dict(cls, d: dict) -> UniversalParams:
@@ -55,9 +55,11 @@ class UniversalParams:
             if k not in known:
                 raise KeyError(f"universal: unknown key {k!r}")
             if k == "bodies":
-                extra = set(v) - {f.name for f in fields(BodyDraw)}
-                if extra:
-                    raise KeyError(f"universal.bodies: unknown key {sorted(extra)[0]!r}")
+                names = {f.name for f in fields(BodyDraw)}
+                if set(v) != names:
+                    bad = sorted(set(v) - names) or sorted(names - set(v))
+                    what = "unknown" if set(v) - names else "missing"
+                    raise KeyError(f"universal.bodies: {what} key {bad[0]!r}")
                 out[k] = BodyDraw(**{a: float(b) for a, b in v.items()})
             elif k in ("subjects", "gate_scenarios"):
                 out[k] = tuple(str(x) for x in v)
@@ -67,6 +69,9 @@ class UniversalParams:
                 out[k] = int(v)
             else:
                 out[k] = float(v)
+        missing = sorted(set(known) - set(out))
+        if missing:
+            raise KeyError(f"universal: missing key {missing[0]!r}")
         return cls(**out)
 
 

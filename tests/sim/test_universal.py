@@ -156,7 +156,11 @@ def test_the_universal_params_reject_unknown_keys():
     with pytest.raises(KeyError, match="universal: unknown key 'drwan'"):
         UniversalParams.from_dict({"drwan": 3})
     with pytest.raises(KeyError, match="universal.bodies: unknown key"):
-        UniversalParams.from_dict({"bodies": {"rnage": 0.1}})
+        UniversalParams.from_dict({"bodies": {"rnage": 0.1, "range": 0.1, "segment_jitter": 0.0}})
+    with pytest.raises(KeyError, match="universal.bodies: missing key 'segment_jitter'"):
+        UniversalParams.from_dict({"bodies": {"range": 0.1}})
+    with pytest.raises(KeyError, match="universal: missing key 'adaptive_share'"):
+        UniversalParams.from_dict({"subjects": ["camargo"]})
 
 
 def test_throughput_is_measured_against_the_physics(universal, camargo):
