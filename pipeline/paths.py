@@ -34,6 +34,7 @@ DATA_ROOT = REPO_ROOT / "data"
 PROCESSED_ROOT = DATA_ROOT / "processed"
 METRICS_ROOT = DATA_ROOT / "metrics"
 POLICIES_ROOT = DATA_ROOT / "policies"
+UNIVERSAL_DIR = DATA_ROOT / "universal"  # the universal walking policy's one run (sim/learn/universal.py)
 EXPORTS_ROOT = DATA_ROOT / "exports"      # `export`: simulated trials as OpenSim files (not versioned)
 PAPER_FILE = DATA_ROOT / "paper" / "wang2025.yaml"
 STORE_FILE = DATA_ROOT / "results.duckdb"

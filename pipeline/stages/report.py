@@ -60,7 +60,7 @@ from metrics.plots import (
 )
 from metrics.quality import NOT_COMPUTED, worst, worst_check
 from pipeline.params import ReportParams
-from pipeline.paths import PAPER_FILE, POLICIES_ROOT, REPORTS_ROOT, policy_dir, report_dir
+from pipeline.paths import PAPER_FILE, POLICIES_ROOT, REPORTS_ROOT, UNIVERSAL_DIR, policy_dir, report_dir
 from pipeline.stages.outputs import read_json, replacing, write_figure
 from pipeline.store import StoreError, open_store
 from sim.rollout.scenarios import PHASES
@@ -1075,6 +1075,6 @@ def run_report(subjects: list[str], all_subjects: list[str], db: Path, reports: 
     clinical = load_clinical_ranges(CLINICAL_FILE) if subjects else {}
     written = [subject_report(s, data, reports, p, paper, _evaluation(s), clinical) for s in subjects]
     if summary:
-        progress = read_json(policy_dir(POLICIES_ROOT, "universal") / "progress.json")
+        progress = read_json(UNIVERSAL_DIR / "progress.json")
         written += list(summary_report(all_subjects, data, reports, p, paper, progress))
     return written

@@ -350,7 +350,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m sim.learn.universal", description=__doc__.split("\n")[0])
     ap.add_argument("--params", type=Path, default=Path("params.yaml"))
     ap.add_argument("--processed", type=Path, default=Path("data/processed"))
-    ap.add_argument("--out", type=Path, default=Path("data/policies/universal"))
+    ap.add_argument("--out", type=Path, default=Path("data/universal"))
     ap.add_argument("--init-from", type=Path, default=None, help="single-body policy folder (default: "
                     "data/policies/<universal.init_from>)")
     ap.add_argument("--resume", action="store_true", help="continue the run in --out")

@@ -18,7 +18,7 @@ import pandas as pd
 import pytest
 
 from pipeline.params import load_params
-from pipeline.paths import POLICIES_ROOT
+from pipeline.paths import UNIVERSAL_DIR
 from pipeline.stages.ingest import run_ingest
 from pipeline.stages.metrics import run_metrics
 from pipeline.stages.report import ReportParams, run_report
@@ -222,9 +222,9 @@ def test_reports_index_and_figures_resolve(reports):
 
 
 def test_the_universal_policy_progress_is_plotted(reports):
-    """The committed run's progress record (data/policies/universal/progress.json): its figure and
+    """The committed run's progress record (data/universal/progress.json): its figure and
     its last gate, subject by subject, in the summary."""
-    progress = json.loads((POLICIES_ROOT / "universal" / "progress.json").read_text())
+    progress = json.loads((UNIVERSAL_DIR / "progress.json").read_text())
     last = progress["checkpoints"][-1]
     md = (reports / "summary.md").read_text()
     assert "![training progress](universal_progress.png)" in md

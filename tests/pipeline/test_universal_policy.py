@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from pipeline.paths import UNIVERSAL_DIR
 from pipeline.runs.jobs import policy_setup, scenario_jobs
 from sim.learn.bodies import body_observation
 from sim.learn.policy_human import ActorMlp, BodyConditioned
@@ -17,7 +18,7 @@ from sim.rollout.batch import run_batch
 
 
 def test_an_exported_subject_policy_walks_its_own_body(params, camargo_model, policies_root, tmp_path):
-    universal = policies_root / "universal"
+    universal = UNIVERSAL_DIR
     src = Source("camargo", str(camargo_model / "human.xml"), str(camargo_model / "reference.npz"))
     p = params.train_params()
     folder = export_subject(universal, src, p.env, tmp_path / "camargo")
