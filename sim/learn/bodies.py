@@ -84,7 +84,6 @@ def scale_spec(spec: mujoco.MjSpec, s: BodyScales) -> None:
     mass x its mass factor and its inertia x mass x length^2; motor gears (torque limits) x the
     whole body's mass factor x its mean leg length factor."""
     total = sum(b.mass for b in spec.bodies)
-    new_total = 0.0
     for b in spec.bodies:
         f = s.factor(b.name)
         if f is None:
@@ -102,7 +101,7 @@ def scale_spec(spec: mujoco.MjSpec, s: BodyScales) -> None:
         b.ipos = _scale3(b.ipos, fl)
         b.mass = float(b.mass) * fm
         b.inertia = _scale3(b.inertia, fm * fl * fl)
-        new_total += b.mass
+    new_total = sum(b.mass for b in spec.bodies)
     leg = 0.5 * (s.length[SEGMENTS.index("thigh")] + s.length[SEGMENTS.index("shank")])
     torque = (new_total / total if total > 0 else 1.0) * leg
     for act in spec.actuators:
