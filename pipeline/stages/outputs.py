@@ -1,12 +1,18 @@
 """Stage outputs written all-or-nothing: every file goes to a temp file beside its target and
 replaces it (`os.replace`) only once all of them are written, so a failure leaves no half-written
-output and keeps whatever was stored before. A writer killed outright (kill -9) cannot delete its
-temp files: the next writer into the folder deletes those whose writer is gone (`remove_stale_temps`)."""
+output and keeps whatever was stored before. A folder output (a report's figures) is replaced as a
+set (`replacing_folder`): written whole into a temp folder beside it that takes its place in one
+step, so a reader or DVC sees the earlier set or the new one, never a mix. A writer killed outright
+(kill -9) cannot delete its temp files: the next writer into the folder deletes those whose writer
+is gone (`remove_stale_temps`)."""
 
 from __future__ import annotations
 
+import ctypes
+import errno
 import json
 import os
+import shutil
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
@@ -24,15 +30,30 @@ def _alive(pid: int) -> bool:
     return True
 
 
+def _remove(path: Path) -> None:
+    if path.is_dir() and not path.is_symlink():
+        shutil.rmtree(path, ignore_errors=True)
+    else:
+        path.unlink(missing_ok=True)
+
+
 def remove_stale_temps(folder: Path) -> list[Path]:
-    """Delete the temp files `replacing` left in `folder` (`.<name>.<pid>.tmp`) whose writing process no
-    longer runs; returns them. A live writer's temp files are kept."""
+    """Delete the temp files and folders `replacing` and `replacing_folder` left in `folder`
+    (`.<name>.<pid>.tmp`) whose writing process no longer runs; returns them. A live writer's are
+    kept. An earlier set a killed writer had moved aside (`.<name>.<pid>.old.tmp`) before moving its
+    new one in is moved back to `<name>` when nothing took that place."""
     stale = []
     for temp in folder.glob(".*.tmp"):
-        pid = temp.name[:-len(".tmp")].rpartition(".")[2]
-        if pid.isdigit() and int(pid) != os.getpid() and not _alive(int(pid)):
-            temp.unlink(missing_ok=True)
-            stale.append(temp)
+        stem = temp.name[1:-len(".tmp")]
+        aside = stem.endswith(".old")
+        name, _, pid = stem.removesuffix(".old").rpartition(".")
+        if not pid.isdigit() or int(pid) == os.getpid() or _alive(int(pid)):
+            continue
+        if aside and not (folder / name).exists():
+            os.rename(temp, folder / name)
+            continue
+        _remove(temp)
+        stale.append(temp)
     return stale
 
 
@@ -54,6 +75,63 @@ def replacing(*targets: Path) -> Iterator[list[Path]]:
     finally:
         for temp in temps:
             temp.unlink(missing_ok=True)
+
+
+_AT_FDCWD, _RENAME_EXCHANGE = -100, 2  # linux/fcntl.h, linux/fs.h
+
+
+def _exchange(a: Path, b: Path) -> bool:
+    """Swap two existing paths in one step (Linux `renameat2(RENAME_EXCHANGE)`); False where the
+    system or its file system cannot."""
+    try:
+        renameat2 = ctypes.CDLL(None, use_errno=True).renameat2
+    except (OSError, AttributeError):
+        return False
+    if renameat2(_AT_FDCWD, os.fsencode(a), _AT_FDCWD, os.fsencode(b), _RENAME_EXCHANGE) == 0:
+        return True
+    code = ctypes.get_errno()
+    if code in (errno.EINVAL, errno.ENOSYS, errno.EOPNOTSUPP):
+        return False
+    raise OSError(code, os.strerror(code), str(a), None, str(b))
+
+
+def _swap_in(temp: Path, target: Path) -> Path | None:
+    """Put the folder `temp` in `target`'s place; returns where the earlier `target` now is (None:
+    there was none). Where the swap cannot be one step, the earlier set is first moved aside
+    (`.<name>.<pid>.old.tmp`), which `remove_stale_temps` moves back if the writer dies before
+    moving the new one in."""
+    if not target.exists():
+        os.rename(temp, target)
+        return None
+    if _exchange(temp, target):
+        return temp
+    aside = target.with_name(f".{target.name}.{os.getpid()}.old.tmp")
+    os.rename(target, aside)
+    os.rename(temp, target)
+    return aside
+
+
+@contextmanager
+def replacing_folder(target: Path, *files: Path) -> Iterator[tuple[Path, list[Path]]]:
+    """A temp folder beside the folder `target` (`.<name>.<pid>.tmp`) to write its whole new set of
+    files into, and temp paths for `files` beside theirs (as `replacing`). On a clean exit the temp
+    folder takes `target`'s place in one step, then each file replaces its target and the earlier
+    set is deleted: a file of the earlier set the new one lacks is gone. On an error the temps are
+    deleted and `target` and `files` stay as they were."""
+    target.parent.mkdir(parents=True, exist_ok=True)
+    remove_stale_temps(target.parent)
+    temp = target.with_name(f".{target.name}.{os.getpid()}.tmp")
+    _remove(temp)  # an earlier process of the same pid
+    temp.mkdir()
+    earlier = None
+    try:
+        with replacing(*files) as temps:
+            yield temp, temps
+            earlier = _swap_in(temp, target)
+    finally:
+        _remove(temp)
+        if earlier is not None:
+            _remove(earlier)
 
 
 def json_text(doc: dict) -> str:

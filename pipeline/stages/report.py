@@ -9,7 +9,8 @@ published values (`data/paper/wang2025.yaml`, `load_paper`), the published clini
   (Real, Sim and the paper's published columns), the per-phase compliance table, the policy checks,
   SPM clusters, controller tuning, the virtual cohort (each variant's gait beside the clinical
   ranges, and with each controller) and the fall intervention (scripted balance losses and false
-  alarms), with the figures of `subject_figures` in `reports/<subject>/figures/`;
+  alarms), with the figures of `subject_figures` in `reports/<subject>/figures/` (replaced as a set
+  with the report: a killed run leaves the earlier figures whole, no mix of old and new);
 - `reports/summary.md` and `reports/index.html`: every subject's figures first (`FIGURES`), then the
   tables side by side (the subjects' table with each one's worst quality status, coloured in the
   index), linking the per-subject reports.
@@ -61,7 +62,7 @@ from metrics.plots import (
 from metrics.quality import NOT_COMPUTED, worst, worst_check
 from pipeline.params import ReportParams
 from pipeline.paths import PAPER_FILE, POLICIES_ROOT, REPORTS_ROOT, UNIVERSAL_DIR, policy_dir, report_dir
-from pipeline.stages.outputs import read_json, replacing, write_figure
+from pipeline.stages.outputs import read_json, replacing, replacing_folder, write_figure
 from pipeline.store import StoreError, open_store
 from sim.rollout.scenarios import PHASES
 
@@ -520,7 +521,8 @@ def subject_report(subject: str, data: dict[str, pd.DataFrame], reports: Path = 
                    evaluation: dict | None = None, clinical: dict[str, ClinicalRange] | None = None) -> Path:
     """Write `reports/<subject>/report.md` and its figures; returns the report path. `evaluation`:
     the evaluate-policy result of its policy, if any; `clinical`: the clinical ranges (default: read
-    from `CLINICAL_FILE`)."""
+    from `CLINICAL_FILE`). The figures folder is replaced as a set, the report right after it
+    (`replacing_folder`): a killed run leaves the earlier figures and report whole."""
     paper = paper or load_paper(PAPER_FILE)
     clinical = load_clinical_ranges(CLINICAL_FILE) if clinical is None else clinical
     summary = _of(data["summary"], subject)
@@ -528,9 +530,19 @@ def subject_report(subject: str, data: dict[str, pd.DataFrame], reports: Path = 
         raise StoreError(subject, "no stored results for this subject: run `python -m pipeline store`")
     folder = report_dir(reports, subject)
     figures = subject_figures(subject, data, p)
-    for name, draw in figures.items():
-        write_figure(draw(), folder / "figures" / f"{name}.png", p.dpi)
-    s = summary.iloc[0]
+    path = folder / "report.md"
+    with replacing_folder(folder / "figures", path) as (figure_dir, (temp,)):
+        for name, draw in figures.items():
+            write_figure(draw(), figure_dir / f"{name}.png", p.dpi)
+        temp.write_text("\n".join(report_lines(subject, data, set(figures), p, paper, evaluation, clinical)))
+    return path
+
+
+def report_lines(subject: str, data: dict[str, pd.DataFrame], figures: set[str], p: ReportParams,
+                 paper: PaperValues, evaluation: dict | None, clinical: dict[str, ClinicalRange]
+                 ) -> list[str]:
+    """The lines of `subject`'s report.md, linking the figures named in `figures`."""
+    s = _of(data["summary"], subject).iloc[0]
     lines = [f"# {subject}: HITL gait report", ""]
     if isinstance(s["round_trip_of"], str) and s["round_trip_of"]:
         lines += [f"**Round trip:** this subject's \"recorded\" trials are {s['round_trip_of']}'s simulated "
@@ -579,11 +591,7 @@ def subject_report(subject: str, data: dict[str, pd.DataFrame], reports: Path = 
     lines += fall_lines(_of(data["fall"], subject), _of(data["not_caught"], subject),
                         _of(data["false_alarms"], subject), "fall_intervention" in figures, p.caught_drop_m,
                         p.detection_window_s)
-    lines += sensitivity_lines(sens, paper, p.paper_scenario, "sensitivity" in figures)
-    path = folder / "report.md"
-    with replacing(path) as (temp,):
-        temp.write_text("\n".join(lines))
-    return path
+    return lines + sensitivity_lines(sens, paper, p.paper_scenario, "sensitivity" in figures)
 
 
 FINDING_PHASES = ("start", "steady", "stop")  # the walk_10m phases the compliance findings are read in

@@ -8,9 +8,13 @@ import http.server
 import json
 import re
 import shutil
+import signal
 import subprocess
+import sys
 import threading
+import time
 from html.parser import HTMLParser
+from pathlib import Path
 
 import matplotlib.image as mpimg
 import numpy as np
@@ -21,7 +25,7 @@ from pipeline.params import load_params
 from pipeline.paths import UNIVERSAL_DIR
 from pipeline.stages.ingest import run_ingest
 from pipeline.stages.metrics import run_metrics
-from pipeline.stages.report import ReportParams, run_report
+from pipeline.stages.report import ReportParams, load_report_data, run_report, subject_report
 from pipeline.stages.store import load_results
 from pipeline.store import SWEEP_COLUMNS, StoreError, StoreParams, query, store_results
 
@@ -326,6 +330,74 @@ def test_unknown_subject_is_refused(store, tmp_path):
     _, db = store
     with pytest.raises(StoreError, match="no stored results for this subject"):
         run_report(["nobody"], ["nobody"], db, tmp_path, False)
+
+
+KILLED_REPORT = """
+import sys, time
+from pathlib import Path
+from pipeline.params import ReportParams
+from pipeline.stages import report
+db, reports, marker = map(Path, sys.argv[1:])
+write = report.write_figure
+written = []
+def write_then_stop(fig, path, dpi):  # the third figure written, then the run is killed
+    write(fig, path, dpi)
+    written.append(path)
+    if len(written) == 3:
+        marker.write_text(str(path.parent))
+        time.sleep(120)
+report.write_figure = write_then_stop
+report.subject_report("camargo", report.load_report_data(db), reports, ReportParams(dpi=50))
+"""
+
+
+def report_files(folder) -> dict[str, bytes]:
+    """report.md and every figure of a subject's report, by path in its folder."""
+    files = [folder / "report.md", *(folder / "figures").iterdir()]
+    return {str(f.relative_to(folder)): f.read_bytes() for f in files}
+
+
+def test_a_report_killed_with_sigkill_keeps_the_earlier_figures_whole(store, tmp_path):
+    """kill -9 midway through a subject's figures (issue 34 case 13): the earlier figures and report
+    are all there with the same bytes, the new ones only in the killed run's temp folder, which the
+    next successful run deletes."""
+    _, db = store
+    data = load_report_data(db)
+    subject_report("camargo", data, tmp_path, ReportParams(dpi=60))
+    folder = tmp_path / "camargo"
+    before = report_files(folder)
+    assert sorted(before) == sorted(["report.md", *(f"figures/{n}.png" for n in CAMARGO_FIGURES)])
+    marker = tmp_path / "killed_here"
+    run = subprocess.Popen([sys.executable, "-c", KILLED_REPORT, str(db), str(tmp_path), str(marker)],
+                           cwd=Path(__file__).resolve().parents[2])
+    deadline = time.monotonic() + 120
+    while not marker.exists():
+        assert run.poll() is None and time.monotonic() < deadline, "the report did not write 3 figures"
+        time.sleep(0.1)
+    run.send_signal(signal.SIGKILL)
+    assert run.wait(timeout=10) == -signal.SIGKILL
+    temp = folder / f".figures.{run.pid}.tmp"
+    assert marker.read_text() == str(temp)
+    assert sorted(p.name for p in temp.iterdir()) == sorted(f"{n}.png" for n in CAMARGO_FIGURES[:3])
+    assert report_files(folder) == before
+    subject_report("camargo", data, tmp_path, ReportParams(dpi=60))
+    assert sorted(p.name for p in folder.iterdir()) == ["figures", "report.md"]
+    assert sorted(report_files(folder)) == sorted(before)
+
+
+def test_a_report_replaces_its_figures_as_a_set(store, tmp_path):
+    """A figure the new run no longer draws (no cohort rollouts) is gone with its link."""
+    _, db = store
+    data = load_report_data(db)
+    subject_report("camargo", data, tmp_path, ReportParams(dpi=60))
+    figures = tmp_path / "camargo" / "figures"
+    assert (figures / "cohort.png").is_file()
+    without = {**data, "cohort_controllers": data["cohort_controllers"].iloc[0:0]}
+    subject_report("camargo", without, tmp_path, ReportParams(dpi=60))
+    assert sorted(p.name for p in figures.iterdir()) == sorted(
+        f"{n}.png" for n in CAMARGO_FIGURES if n != "cohort")
+    assert "figures/cohort.png" not in (tmp_path / "camargo" / "report.md").read_text()
+    assert sorted(p.name for p in (tmp_path / "camargo").iterdir()) == ["figures", "report.md"]
 
 
 CHECK_PAGE = """<!DOCTYPE html><html><body><iframe id="f" src="index.html" width="1200" height="800"></iframe>
