@@ -197,7 +197,8 @@ def process_trial(trial: Trial, markerset: dict[str, str], p: IngestParams, trea
                            window_s=p.events.force_window_s, origin=trial.origin)
     if lm is None:
         raise IngestError(trial.origin, "strides need heel, toe and pelvis markers")
-    strides = segment_strides(events, time, heel, toe, pelvis, path, bouts, p.strides)
+    strides = segment_strides(events, time, heel, toe, pelvis, path, bouts, p.strides, kin,
+                              p.events.force_window_s)
     cycles = normalise_cycles(strides, time, angles, p.n_points)
     ident = {"subject": trial.subject, "source": trial.source, "condition": trial.condition,
              "trial": trial.trial}

@@ -1,13 +1,22 @@
 """Strides: heel strike to the next ipsilateral heel strike, kept only when steady and straight.
 
 Each stride gets one reason when rejected, checked in this order: ``events missing`` (too long,
-or no toe off inside), ``marker gap`` (a heel, toe or pelvis sample missing after gap filling),
+or no toe off inside), ``mixed event sources (force, kinematic)`` (its two heel strikes come from
+different event methods and no same-method pair times it: see below), ``marker gap`` (a heel,
+toe or pelvis sample missing after gap filling),
 ``standing`` (pelvis slower than `min_speed_mps`), ``stepping in place`` (shorter than
 `min_stride_length_m`), ``turn`` (heading change above `max_heading_change_deg`, or any turning
 frame), ``start`` / ``stop`` (pelvis speed of the second step differing from the first by more than
 `max_speed_change` of their mean,
 or its speed outside `speed_tolerance` of the bout median; before or after the bout's middle),
 ``outside straight bout`` (overlaps frames where the subject stands still or turns).
+
+A stride from a force-plate heel strike to a kinematic one (plates cover a few steps only) would mix
+two event sources: the kinematic detector's bias against the plates (tens of ms; 35 ms on one lab's
+data) would enter its time and every measure over it. Such a stride is timed from the kinematic
+strikes at both ends instead (the one the plate event replaced, `ingest.events.merge_events`, within
+`force_window_s`), so both ends carry the same bias; when there is none (no markers, or a plate event
+with no kinematic match) it is rejected as ``mixed event sources (force, kinematic)``.
 """
 
 from __future__ import annotations
@@ -51,13 +60,19 @@ def _interp(time_s: np.ndarray, x: np.ndarray, t: np.ndarray) -> np.ndarray:
 
 def segment_strides(events: pd.DataFrame, time_s: np.ndarray, heel: dict[str, np.ndarray],
                     toe: dict[str, np.ndarray], pelvis: np.ndarray, path: PelvisPath,
-                    bouts: list[Bout], p: StrideParams) -> pd.DataFrame:
-    """One row per stride of each side with its measures, `kept` flag and rejection reason."""
+                    bouts: list[Bout], p: StrideParams, kinematic: pd.DataFrame | None = None,
+                    window_s: float = 0.0) -> pd.DataFrame:
+    """One row per stride of each side with its measures, `kept` flag and rejection reason;
+    `kinematic` holds the kinematic events that time a stride whose heel strikes mix sources (module
+    docstring), matched within `window_s`."""
     seen = finite_frames(pelvis)
     for m in (*heel.values(), *toe.values()):
         seen &= finite_frames(m)
     rows, bout = [], []
     times = times_by_side(events, [(s, e) for s in SIDES for e in ("heel_strike", "toe_off")])
+    sources = _heel_strike_methods(events)
+    kin_hs = ({s: times_by_side(kinematic, [(s, "heel_strike")])[s, "heel_strike"] for s in SIDES}
+              if kinematic is not None else {s: np.empty(0) for s in SIDES})
     for side in SIDES:
         other = SIDES[1 - SIDES.index(side)]
         hs, to, contra = times[side, "heel_strike"], times[side, "toe_off"], times[other, "heel_strike"]
@@ -66,9 +81,18 @@ def segment_strides(events: pd.DataFrame, time_s: np.ndarray, heel: dict[str, np
         first_contra = np.searchsorted(contra, hs, side="right")  # the first contralateral strike after each
         for k, (t0, t1) in enumerate(zip(hs[:-1], hs[1:], strict=True)):
             i0, i1, c = frames[k], frames[k + 1], first_contra[k]
-            contra_heel = contra_at[c] if c < len(contra) and contra[c] < t1 else None
-            m = stride_measures(at_strike[k], at_strike[k + 1], t0, t1, contra_heel)
-            reason = _reject_reason(t0, t1, i0, i1, to, seen, pelvis, path, m.stride_length_m, p)
+            a0, a1, methods = at_strike[k], at_strike[k + 1], sources[side][k : k + 2]
+            if len(set(methods)) > 1 and (same := _kinematic_pair(kin_hs[side], t0, t1, window_s)):
+                t0, t1 = same
+                i0, i1 = _indices(time_s, np.array(same))
+                a0, a1 = _interp(time_s, heel[side], np.array(same))
+                c, methods = int(np.searchsorted(contra, t0, side="right")), ["kinematic"] * 2
+                c_at = _interp(time_s, heel[other], contra[c : c + 1]) if c < len(contra) else None
+                contra_heel = c_at[0] if c < len(contra) and contra[c] < t1 else None
+            else:
+                contra_heel = contra_at[c] if c < len(contra) and contra[c] < t1 else None
+            m = stride_measures(a0, a1, t0, t1, contra_heel)
+            reason = _reject_reason(t0, t1, i0, i1, to, seen, pelvis, path, m.stride_length_m, p, methods)
             rows.append((side, k, t0, t1, reason is None, reason or "", m.stride_length_m,
                          m.stride_time_s, m.cadence_spm, m.gait_speed_mps, m.step_width_m))
             bout.append(_bout_of(bouts, i0, i1))
@@ -91,11 +115,33 @@ def _bout_of(bouts: list[Bout], i0: int, i1: int) -> int:
     return -1
 
 
-def _reject_reason(t0, t1, i0, i1, to, seen, pelvis, path, length, p) -> str | None:
+def _heel_strike_methods(events: pd.DataFrame) -> dict[str, list[str]]:
+    """The `method` of each side's heel strikes, in the time order of `times_by_side`."""
+    strikes = events[events["event"] == "heel_strike"].sort_values("time_s", kind="stable")
+    return {side: strikes.loc[strikes["side"] == side, "method"].astype(str).tolist() for side in SIDES}
+
+
+def _kinematic_pair(kin_hs: np.ndarray, t0: float, t1: float, window_s: float) -> tuple[float, float] | None:
+    """The kinematic heel strikes nearest `t0` and `t1` when both lie within `window_s` of them."""
+    if len(kin_hs) == 0:
+        return None
+    pair = []
+    for t in (t0, t1):
+        j = int(np.argmin(np.abs(kin_hs - t)))
+        if abs(kin_hs[j] - t) > window_s:
+            return None
+        pair.append(float(kin_hs[j]))
+    return (pair[0], pair[1]) if pair[0] < pair[1] else None
+
+
+def _reject_reason(t0, t1, i0, i1, to, seen, pelvis, path, length, p, methods) -> str | None:
     """Why a stride is rejected (module docstring, in that order), None when kept; `seen` marks the
-    frames where the pelvis, heels and toes were all seen."""
+    frames where the pelvis, heels and toes were all seen, `methods` the event methods of its two
+    heel strikes."""
     if t1 - t0 > p.max_stride_time_s or not ((to > t0) & (to < t1)).any():
         return "events missing"
+    if len(set(methods)) > 1:
+        return f"mixed event sources ({', '.join(sorted(set(methods)))})"
     window = slice(i0, i1 + 1)
     if not seen[window].all():
         return "marker gap"

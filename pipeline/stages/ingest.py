@@ -23,12 +23,15 @@ TABLES = ("events", "strides", "cycles", "robot")
 
 
 def summary(strides: pd.DataFrame, n_trials: int) -> dict:
-    """Counts, and mean stride length and gait speed of the kept strides."""
+    """Counts (strides rejected for mixing force-plate and kinematic heel strikes among them), and
+    mean stride length and gait speed of the kept strides."""
     kept = strides[strides["kept"]]
+    mixed = strides["reason"].astype(str).str.startswith("mixed event sources")
     return {
         "n_trials": n_trials,
         "n_strides": len(strides),
         "n_kept": {side: int((kept["side"] == side).sum()) for side in SIDES},
+        "n_mixed_event_sources": int(mixed.sum()),
         "mean_stride_length_m": round(float(kept["stride_length_m"].mean()), 4),
         "mean_gait_speed_mps": round(float(kept["gait_speed_mps"].mean()), 4),
     }

@@ -3,6 +3,7 @@
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from ingest.manifest import Manifest
@@ -105,3 +106,93 @@ def test_opencap4_pools_complete_cycles_across_short_walks(opencap4):
     assert knee["angle_deg"].max().between(50, 75).all()
     assert kept["gait_speed_mps"].between(0.9, 1.6).all()
     assert opencap4.events["trial"].nunique() == 12
+
+
+@pytest.fixture(scope="module")
+def camargo_signals(ingest_params):
+    """Camargo's walk cleaned as `process_trial` does: the inputs of `segment_strides` and its
+    kinematic and force-plate events (6 plates: some heel strikes of the walk are on a plate, others
+    not)."""
+    from ingest.bouts import straight_bouts
+    from ingest.canonical import load_trial
+    from ingest.events import force_plate_events, kinematic_events
+    from ingest.process import PELVIS_ROLES, as_overground, clean_markers, landmarks, trial_path
+
+    subject, p = load_subject("camargo"), ingest_params
+    clean, _ = as_overground(clean_markers(load_trial(subject, subject.trials[0], Manifest.load()),
+                                           subject.markerset, p), subject.markerset, p)
+    lm = landmarks(clean, subject.markerset)
+    pelvis = np.mean([lm[r] for r in PELVIS_ROLES], axis=0)
+    path = trial_path(lm, clean.rate_hz, p)
+    heel = {s: lm[f"heel_{s}"] for s in ("left", "right")}
+    toe = {s: lm[f"toe_{s}"] for s in ("left", "right")}
+    kin = kinematic_events(heel, toe, pelvis, path.heading_rad, clean.time_s, clean.rate_hz, p.events)
+    feet = {s: (heel[s][:, :2] + toe[s][:, :2]) / 2 for s in ("left", "right")}
+    force = force_plate_events(clean.plates, feet, clean.time_s, p.events)
+    inputs = (clean.time_s, heel, toe, pelvis, path, straight_bouts(path, int(p.min_bout_s * clean.rate_hz)),
+              p.strides)
+    return inputs, kin, force
+
+
+def _strike_methods(events, strides):
+    """The event method at each stride's start and end (None where no heel strike lies there)."""
+    hs = events[events["event"] == "heel_strike"]
+    out = []
+    for side, t0, t1 in zip(strides["side"], strides["t_start_s"], strides["t_end_s"], strict=True):
+        at = hs[hs["side"] == side].set_index("time_s")["method"]
+        out.append(tuple(at.get(t) for t in (t0, t1)))
+    return out
+
+
+def test_a_stride_mixing_plate_and_kinematic_strikes_is_flagged(camargo_signals, ingest_params):
+    """Issue 34 case 5: camargo's real walk has strides from a plate heel strike to a kinematic one.
+    Without kinematic strikes to time them on one source they are rejected as mixed; the strides
+    whose two strikes share a source are the same row either way."""
+    from ingest.events import merge_events
+    from ingest.strides import segment_strides
+
+    inputs, kin, force = camargo_signals
+    merged = merge_events(kin, force, ingest_params.events.force_window_s)
+    flagged = segment_strides(merged, *inputs)
+    methods = _strike_methods(merged, flagged)
+    mixed = np.array([len(set(m)) > 1 for m in methods])
+    assert mixed.sum() >= 3 and (~mixed).sum() >= 3  # both kinds occur in the real walk
+    reasons = flagged.loc[mixed, "reason"]  # `events missing` is checked first (module docstring)
+    assert set(reasons) == {"mixed event sources (force, kinematic)", "events missing"}
+    assert (reasons != "events missing").sum() >= 3 and not flagged.loc[mixed, "kept"].any()
+    assert not flagged.loc[~mixed, "reason"].str.startswith("mixed").any()
+    retimed = segment_strides(merged, *inputs, kinematic=kin, window_s=ingest_params.events.force_window_s)
+    pd.testing.assert_frame_equal(retimed[~mixed], flagged[~mixed])
+
+
+def test_a_mixed_stride_is_timed_from_the_kinematic_strikes_at_both_ends(camargo_signals, ingest_params):
+    """Where the plate strike replaced a kinematic one, the mixed stride takes both kinematic
+    strikes: the same row as the kinematic-only stride, so no plate-vs-markers bias enters it (11-28
+    ms on camargo). One camargo stride has no kinematic pair within the window and stays flagged."""
+    from ingest.events import merge_events
+    from ingest.strides import segment_strides
+
+    inputs, kin, force = camargo_signals
+    window = ingest_params.events.force_window_s
+    merged = merge_events(kin, force, window)
+    strides = segment_strides(merged, *inputs, kinematic=kin, window_s=window)
+    methods = _strike_methods(merged, strides)
+    left = np.array([None not in m and len(set(m)) > 1 for m in methods])  # no kinematic pair found
+    assert set(strides.loc[left, "reason"]) <= {"mixed event sources (force, kinematic)", "events missing"}
+    assert not strides.loc[left, "kept"].any() and strides["reason"].str.startswith("mixed").sum() <= 1
+    retimed = strides[[None in m for m in methods]]  # an end off the merged events: a kinematic strike
+    assert len(retimed) >= 3
+    kinematic_only = segment_strides(kin, *inputs).set_index(["side", "t_start_s", "t_end_s"])
+    for _, row in retimed.iterrows():
+        same = kinematic_only.loc[(row["side"], row["t_start_s"], row["t_end_s"])]
+        assert same["stride_time_s"] == pytest.approx(row["stride_time_s"])
+        assert same["stride_length_m"] == pytest.approx(row["stride_length_m"])
+        assert same["kept"] == row["kept"]
+
+
+def test_the_ingest_summary_counts_the_mixed_source_strides(camargo):
+    """Camargo's one stride left on a plate and a kinematic strike (no kinematic pair) is counted."""
+    from pipeline.stages.ingest import summary
+
+    mixed = camargo.strides["reason"] == "mixed event sources (force, kinematic)"
+    assert summary(camargo.strides, 1)["n_mixed_event_sources"] == mixed.sum() == 1
