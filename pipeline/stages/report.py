@@ -994,9 +994,10 @@ def universal_lines(progress: dict) -> list[str]:
              f"from {start}."]
     if points:
         last = points[-1]
-        best = max(points, key=lambda c: c["passed"])
+        best = max(c["passed"] for c in points)
+        at = ", ".join(f"{c['steps'] / 1e6:.2f}" for c in points if c["passed"] == best)
         lines.append(f"Last gate ({last['steps'] / 1e6:.2f} M steps): {last['passed']} of {last['checks']} "
-                     f"checks; best {best['passed']} at {best['steps'] / 1e6:.2f} M.")
+                     f"checks; best {best}, at {at} M steps.")
         for subject, rows in last["gate"].items():
             failed = [k for k, r in rows.items() if not r["pass"]]
             lines.append(f"{subject}: {len(rows) - len(failed)} of {len(rows)}"
