@@ -18,7 +18,7 @@ export`; reports and the store label it).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 import yaml
@@ -107,6 +107,35 @@ def _require(doc: dict, key: str, path: Path):
     return doc[key]
 
 
+SUBJECT_KEYS = ("id", "height_m", "mass_kg", "dataset", "markerset", "format", "static", "trials",
+                "treadmill", "robot_markers", "round_trip_of")
+TRIAL_KEYS = tuple(f.name for f in fields(TrialSpec))
+FORMAT_KEYS = tuple(f.name for f in fields(FileFormat))
+STATIC_KEYS = tuple(f.name for f in fields(StaticSpec))
+
+
+def _mapping(doc, where: str, known: tuple[str, ...], path: Path) -> dict:
+    """`doc` when it is a mapping of known keys (`where` names it in the error), else `SubjectError`
+    naming the unknown keys and the known ones: a misspelt key is never silently ignored."""
+    if not isinstance(doc, dict):
+        raise SubjectError(path, f"{where} must be a mapping of {', '.join(known)}, not {doc!r}")
+    unknown = [str(k) for k in doc if k not in known]
+    if unknown:
+        raise SubjectError(path, f"{where}: unknown key(s) {', '.join(map(repr, unknown))} "
+                                 f"(known: {', '.join(known)})")
+    return doc
+
+
+def _number(doc: dict, key: str, path: Path) -> float:
+    value = _require(doc, key, path)
+    try:
+        if isinstance(value, bool):
+            raise TypeError
+        return float(value)
+    except (TypeError, ValueError):
+        raise SubjectError(path, f"{key} {value!r} is not a number") from None
+
+
 def load_markerset(name: str, directory: Path = MARKERSETS_DIR) -> dict[str, str]:
     """Role -> marker name of the marker set `name`: a shipped set's name or a YAML path
     (`ingest.markersets.load_markerset`)."""
@@ -154,18 +183,28 @@ def load_subject(subject_id: str, directory: Path = SUBJECTS_DIR) -> Subject:
         doc = yaml.safe_load(path.read_text()) or {}
     except yaml.YAMLError as exc:
         raise SubjectError(path, f"not valid YAML ({exc})") from None
+    _mapping(doc, "subject file", SUBJECT_KEYS, path)
     if _require(doc, "id", path) != subject_id:
         raise SubjectError(path, f"id {doc['id']!r} does not match the file name {subject_id!r}")
-    height, mass = float(_require(doc, "height_m", path)), float(_require(doc, "mass_kg", path))
+    height, mass = _number(doc, "height_m", path), _number(doc, "mass_kg", path)
     check_body_size(height, mass, path)
-    fmt_doc = doc.get("format") or {}
+    fmt_doc = _mapping(doc.get("format") or {}, "format", FORMAT_KEYS, path)
+    sign = fmt_doc.get("knee_flexion_sign", 1)
     fmt = FileFormat(
         up_axis=str(fmt_doc.get("up_axis", "auto")).lower(),
-        knee_flexion_sign=int(fmt_doc.get("knee_flexion_sign", 1)),
+        knee_flexion_sign=sign if sign in (1, -1) and not isinstance(sign, bool) else 0,
         angle_unit=fmt_doc.get("angle_unit"),
     )
     if fmt.up_axis not in UP_AXIS_CHOICES or fmt.knee_flexion_sign not in (1, -1):
-        raise SubjectError(path, "format.up_axis must be x, y, z or auto and knee_flexion_sign 1 or -1")
+        raise SubjectError(path, "format.up_axis must be x, y, z or auto and knee_flexion_sign 1 or -1 "
+                                 f"(got {fmt_doc.get('up_axis', 'auto')!r}, {sign!r})")
+    if fmt.angle_unit not in (None, "deg", "rad"):
+        raise SubjectError(path, f"format.angle_unit must be deg or rad, not {fmt.angle_unit!r}")
+    trial_docs = _require(doc, "trials", path)
+    if not isinstance(trial_docs, list):
+        raise SubjectError(path, f"trials must be a list of trials, not {trial_docs!r}")
+    for k, t in enumerate(trial_docs):
+        _mapping(t, f"trials[{k}]", TRIAL_KEYS, path)
     trials = tuple(
         TrialSpec(
             id=str(_require(t, "id", path)),
@@ -177,10 +216,15 @@ def load_subject(subject_id: str, directory: Path = SUBJECTS_DIR) -> Subject:
             treadmill=_treadmill(t.get("treadmill", doc.get("treadmill")), path),
             belt_speed_mps=_belt_speed(t.get("belt_speed_mps"), path),
         )
-        for t in _require(doc, "trials", path)
+        for t in trial_docs
     )
     if not trials:
         raise SubjectError(path, "no trials listed")
+    ids = [t.id for t in trials]
+    if len(set(ids)) != len(ids):
+        twice = sorted({i for i in ids if ids.count(i) > 1})
+        raise SubjectError(path, f"trial id(s) {', '.join(map(repr, twice))} listed twice: each trial needs "
+                                 "an id of its own")
     for t in trials:
         if t.belt_speed_mps is not None and t.treadmill is False:
             raise SubjectError(path, f"trial {t.id!r} has a belt_speed_mps but treadmill: false")
@@ -204,8 +248,20 @@ def load_subject(subject_id: str, directory: Path = SUBJECTS_DIR) -> Subject:
     if static_doc in (STATIC_AUTO, STATIC_NONE):
         static = StaticSpec(static_doc)
     elif static_doc:
+        if isinstance(static_doc, str):
+            raise SubjectError(path, f"static must be {STATIC_AUTO}, {STATIC_NONE} or a mapping of "
+                                     f"{', '.join(STATIC_KEYS)}, not {static_doc!r}")
+        _mapping(static_doc, "static", STATIC_KEYS, path)
+        if not static_doc.get("markers"):
+            raise SubjectError(path, "static: missing required field 'markers' (the static trial's "
+                                     "manifest key)")
         window = static_doc.get("window_s")
         angles = static_doc.get("angles")
+        if window is not None and not (isinstance(window, list) and len(window) == 2
+                                       and all(isinstance(w, int | float) for w in window)
+                                       and window[0] < window[1]):
+            raise SubjectError(path, f"static.window_s must be [start, end] in seconds with start < end, "
+                                     f"not {window!r}")
         static = StaticSpec(str(static_doc["markers"]), tuple(window) if window else None,
                             str(angles) if angles else None)
     return Subject(

@@ -487,9 +487,9 @@ class FallTestSchema(Schema):
 
 
 class RolloutSchema(Schema):
-    max_physics_dt_s: float
-    start_offset_m: float
-    n_seeds: int
+    max_physics_dt_s: Annotated[float, Field(gt=0.0)]
+    start_offset_m: Annotated[float, Field(ge=0.0)]
+    n_seeds: Annotated[int, Field(ge=1)]
     conditions: tuple[str, ...]
     bout_margin_s: float
     bout_join_gap_s: float
@@ -700,7 +700,7 @@ class ScenarioChecksSchema(Schema):
 
 
 class EvaluatePolicySchema(Schema):
-    n_seeds: int
+    n_seeds: Annotated[int, Field(ge=1)]
     free_s: float
     robot_s: float
     push_n: float

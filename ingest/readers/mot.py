@@ -83,6 +83,12 @@ def read_mot(path: str | Path, columns: Callable[[str], bool] | None = None) -> 
         raise IngestError(path, "no column names or data after 'endheader'")
     table, width = _fast_table(body, columns)
     if table is None:
+        names = body.decode(errors="replace").strip().split("\n", 1)[0].rstrip("\r").split("\t")
+        named = [c.strip() for c in names if c.strip()]
+        if len(set(named)) != len(named):
+            twice = sorted({c for c in named if named.count(c) > 1})
+            raise IngestError(path, f"duplicate column(s) {', '.join(twice)}: each column needs a name "
+                                    "of its own")
         table = _float_table(path, body)
         table.columns = [str(c).strip() for c in table.columns]
         trailing = [c for c in table.columns if c.startswith("Unnamed:") and table[c].isna().all()]

@@ -139,9 +139,16 @@ def read_trc(path: str | Path) -> MarkerTable:
         n_markers = int(header["NumMarkers"])
     except (KeyError, ValueError) as exc:
         raise IngestError(path, f"bad header value: {exc}") from None
+    if not (np.isfinite(rate) and rate > 0):
+        raise IngestError(path, f"header DataRate {rate:g} Hz: must be a positive number of frames per "
+                                "second")
     names = _marker_names(lines[3], n_markers)
     if len(names) != n_markers:
         raise IngestError(path, f"header declares {n_markers} markers, line 4 names {len(names)}")
+    if len(set(names)) != len(names):
+        twice = sorted({n for n in names if names.count(n) > 1})
+        raise IngestError(path, f"duplicate marker name(s) on line 4: {', '.join(twice)} (each marker's "
+                                "three columns need a name of their own)")
     n_cols = 2 + 3 * n_markers
     if not has_rows:
         raise IngestError(path, "no data rows")
@@ -166,8 +173,17 @@ def read_trc(path: str | Path) -> MarkerTable:
     time = data[:, 1].copy()  # not a view: it would hold the whole table for the trial's lifetime
     if np.isnan(time).any():
         raise IngestError(path, "Time column has empty cells")
+    back = np.flatnonzero(~(np.diff(time) > 0))
+    if len(back):
+        k = int(back[0]) + 1
+        raise IngestError(path, f"Time column not strictly increasing: row {k + 1} is at {time[k]:.6g} s "
+                                f"after {time[k - 1]:.6g} s")
     time = regular_time(path, time, rate)
     xyz = data[:, 2:].reshape(len(rows), n_markers, 3)  # a view: metres need no copy
+    if np.isinf(xyz).any():
+        row, marker = (int(i) for i in np.argwhere(np.isinf(xyz).any(axis=2))[0])
+        raise IngestError(path, f"marker {names[marker]} has an infinite coordinate at row {row + 1} "
+                                f"({time[row]:.6g} s): a missing sample must be an empty cell")
     if UNIT_TO_M[unit] != 1.0:
         xyz = xyz * UNIT_TO_M[unit]
     return MarkerTable(path, rate, time, names, xyz, unit)

@@ -677,3 +677,199 @@ def test_file_not_in_manifest(corpus):
 def test_every_corpus_error_is_a_gaitloop_error():
     assert issubclass(IngestError, GaitloopError)
     assert issubclass(ManifestError, GaitloopError) and issubclass(SubjectError, GaitloopError)
+
+
+# --- more files and fields that cannot be trusted (issue 34, deliverable 4) ---------------------
+
+def _trc_header(text: str, column: str, value: str) -> str:
+    """A TRC text with the header value of `column` (line 3, named on line 2) set to `value`."""
+    lines = text.splitlines()
+    cells = lines[2].split("\t")
+    cells[lines[1].split("\t").index(column)] = value
+    return "\n".join([*lines[:2], "\t".join(cells), *lines[3:]]) + "\n"
+
+
+def _trc_row_time(text: str, row: int, value: str) -> str:
+    """A TRC text with the Time cell of data row `row` (1-based, as the reader names rows) set."""
+    lines = text.splitlines()
+    data = [k for k in range(5, len(lines)) if lines[k].strip()]
+    cells = lines[data[row - 1]].split("\t")
+    cells[1] = value
+    lines[data[row - 1]] = "\t".join(cells)
+    return "\n".join(lines) + "\n"
+
+
+def test_trc_with_a_duplicated_marker_name(corpus):
+    """Two markers of one name were read as two markers, the role taking whichever came first."""
+    lines = corpus.text(CAMARGO_TRC).splitlines()
+    names = lines[3].split("\t")
+    second = next(j for j in range(3, len(names)) if names[j])  # the second marker's name cell
+    names[second] = names[2]
+    key = corpus.add(CAMARGO_TRC, "\n".join([*lines[:3], "\t".join(names), *lines[4:]]) + "\n")
+    with _raises(IngestError, corpus.path(key), f"duplicate marker name(s) on line 4: {names[2]}"):
+        read_trc(corpus.path(key))
+
+
+@pytest.mark.parametrize("rate", ["0", "-200"])
+def test_trc_header_rate_not_positive(corpus, rate):
+    """A DataRate of 0 gave a message about 'nan s off the header's nan s'; refused as a rate."""
+    key = corpus.add(CAMARGO_TRC, _trc_header(corpus.text(CAMARGO_TRC), "DataRate", rate))
+    with _raises(IngestError, corpus.path(key), f"header DataRate {rate} Hz: must be a positive number"):
+        read_trc(corpus.path(key))
+
+
+def test_trc_time_stepping_back(corpus):
+    """A Time column that steps back (a spliced file) was reported as a wrong DataRate."""
+    text = corpus.text(CAMARGO_TRC)
+    key = corpus.add(CAMARGO_TRC, _trc_row_time(text, 10, "0.040000"))
+    with _raises(IngestError, corpus.path(key), "Time column not strictly increasing: row 10 is at 0.04 s "
+                                                "after 0.045 s"):
+        read_trc(corpus.path(key))
+
+
+def test_trc_with_an_infinite_coordinate(corpus):
+    """A coordinate written as 1e400 (read as infinity) was accepted and filtered into every frame."""
+    text = corpus.text(CAMARGO_TRC)
+    j = _marker_columns(text, "L_Heel")[2]
+    lines = text.splitlines()
+    cells = lines[25].split("\t")
+    cells[j] = "1e400"
+    lines[25] = "\t".join(cells)
+    key = corpus.add(CAMARGO_TRC, "\n".join(lines) + "\n")
+    with _raises(IngestError, corpus.path(key), "marker L_Heel has an infinite coordinate at row",
+                 "empty cell"):
+        read_trc(corpus.path(key))
+
+
+def test_trc_units_in_inches(corpus):
+    key = corpus.add(CAMARGO_TRC, _trc_header(corpus.text(CAMARGO_TRC), "Units", "in"))
+    with _raises(IngestError, corpus.path(key), "unknown Units 'in'", "'cm', 'm', 'mm'"):
+        read_trc(corpus.path(key))
+
+
+def test_trc_frame_count_not_a_number(corpus):
+    key = corpus.add(CAMARGO_TRC, _trc_header(corpus.text(CAMARGO_TRC), "NumFrames", "many"))
+    with _raises(IngestError, corpus.path(key), "bad header value", "'many'"):
+        read_trc(corpus.path(key))
+
+
+def test_trc_declaring_fewer_markers_than_it_names(corpus):
+    key = corpus.add(CAMARGO_TRC, _trc_header(corpus.text(CAMARGO_TRC), "NumMarkers", "27"))
+    with _raises(IngestError, corpus.path(key), "header declares 27 markers, line 4 names 28"):
+        read_trc(corpus.path(key))
+
+
+def test_ik_mot_with_a_duplicated_column(corpus):
+    """Pandas renamed the second 'knee_angle_r' to 'knee_angle_r.1': one knee curve silently lost."""
+    from ingest.readers import read_mot
+
+    head, body = corpus.text(CAMARGO_MOT).split("endheader\n", 1)
+    lines = body.splitlines()
+    names = lines[0].split("\t")
+    names[names.index("knee_angle_l")] = "knee_angle_r"
+    key = corpus.add(CAMARGO_MOT, head + "endheader\n" + "\n".join(["\t".join(names), *lines[1:]]) + "\n")
+    with _raises(IngestError, corpus.path(key), "duplicate column(s) knee_angle_r"):
+        read_mot(corpus.path(key))
+
+
+def test_grf_mot_whose_row_count_disagrees_with_its_header(corpus):
+    from ingest.readers import read_mot
+
+    text = corpus.text(CAMARGO_GRF)
+    key = corpus.add(CAMARGO_GRF, text.replace("nRows=3067", "nRows=3167", 1))
+    with _raises(IngestError, corpus.path(key), "header declares 3167 rows, file holds 3067"):
+        read_mot(corpus.path(key))
+
+
+def test_grf_mot_with_time_stepping_back(corpus):
+    from ingest.readers import read_mot
+
+    head, body = corpus.text(CAMARGO_GRF).split("endheader\n", 1)
+    lines = body.splitlines()
+    cells = lines[11].split("\t")
+    cells[0] = lines[9].split("\t")[0]
+    lines[11] = "\t".join(cells)
+    key = corpus.add(CAMARGO_GRF, head + "endheader\n" + "\n".join(lines) + "\n")
+    with _raises(IngestError, corpus.path(key), "time column is not strictly increasing"):
+        read_mot(corpus.path(key))
+
+
+def test_grf_mot_without_endheader(corpus):
+    from ingest.readers import read_mot
+
+    key = corpus.add(CAMARGO_GRF, corpus.text(CAMARGO_GRF).replace("endheader\n", "", 1))
+    with _raises(IngestError, corpus.path(key), "no 'endheader' line"):
+        read_mot(corpus.path(key))
+
+
+def _subject_doc() -> dict:
+    return yaml.safe_load((ROOT / "data" / "subjects" / "camargo.yaml").read_text())
+
+
+def _write_subject(tmp_path: Path, doc) -> Path:
+    (tmp_path / "camargo.yaml").write_text(yaml.safe_dump(doc))
+    return tmp_path / "camargo.yaml"
+
+
+def _edit_trial(**changes):
+    def edit(doc):
+        doc["trials"][0].update(changes)
+    return edit
+
+
+def _without(section: str, key: str):
+    def edit(doc):
+        doc[section].pop(key)
+    return edit
+
+
+@pytest.mark.parametrize(("edit", "fragments"), [
+    (lambda d: d.update(mass_lb=165),
+     ["subject file: unknown key(s) 'mass_lb'", "known: id, height_m, mass_kg"]),
+    (lambda d: d.update(height_m="tall"), ["height_m 'tall' is not a number"]),
+    (lambda d: d.update(mass_kg=None), ["missing required field 'mass_kg'"]),
+    (lambda d: d.update(trials={"walk": "a.trc"}), ["trials must be a list of trials"]),
+    (lambda d: d.update(trials=["walk.trc"]), ["trials[0] must be a mapping of id, condition", "'walk.trc'"]),
+    (lambda d: d["trials"].append(dict(d["trials"][0])),
+     ["trial id(s) 'levelground_ccw_fast_01_01' listed twice"]),
+    (_edit_trial(marker="x.trc"), ["trials[0]: unknown key(s) 'marker'", "known: id, condition, markers"]),
+    (lambda d: d["format"].update(upaxis="y"), ["format: unknown key(s) 'upaxis'", "known: up_axis"]),
+    (lambda d: d["format"].update(knee_flexion_sign="minus"), ["knee_flexion_sign 1 or -1", "'minus'"]),
+    (lambda d: d["format"].update(angle_unit="grad"), ["format.angle_unit must be deg or rad, not 'grad'"]),
+    (lambda d: d.update(static="maybe"), ["static must be auto, none or a mapping", "'maybe'"]),
+    (_without("static", "markers"), ["static: missing required field 'markers'"]),
+    (lambda d: d["static"].update(window_s=[3.3, 1.5]),
+     ["static.window_s must be [start, end]", "[3.3, 1.5]"]),
+    (lambda d: d["static"].update(window=[1.5, 3.3]), ["static: unknown key(s) 'window'", "window_s"]),
+], ids=["unknown key", "height text", "mass empty", "trials mapping", "trial a string", "trial id twice",
+        "trial unknown key", "format unknown key", "knee sign text", "angle unit", "static text",
+        "static without markers", "static window reversed", "static unknown key"])
+def test_subject_file_field_refused_naming_file_and_key(tmp_path, edit, fragments):
+    """Each of these was ignored (a misspelt key, a doubled trial, an angle unit read as radians) or
+    ended in a raw ValueError / AttributeError; refused naming the subject file and the field."""
+    doc = _subject_doc()
+    edit(doc)
+    path = _write_subject(tmp_path, doc)
+    with _raises(SubjectError, str(path), *fragments):
+        load_subject("camargo", tmp_path)
+
+
+def test_subject_file_that_is_a_list(tmp_path):
+    (tmp_path / "camargo.yaml").write_text("- camargo\n- 1.80\n")
+    with _raises(SubjectError, str(tmp_path / "camargo.yaml"), "subject file must be a mapping"):
+        load_subject("camargo", tmp_path)
+
+
+def test_marker_set_role_naming_a_marker_missing_from_the_file(tmp_path, corpus, camargo, ingest_params):
+    """A marker set whose heel role names a marker the file does not hold: refused naming the file and
+    the missing marker, not a traceback from inside the landmarks."""
+    from ingest.subject import load_markerset
+
+    roles = yaml.safe_load((ROOT / "data" / "markersets" / "camargo.yaml").read_text())
+    roles["heel_left"] = "L_Heel_typo"
+    (tmp_path / "lab.yaml").write_text(yaml.safe_dump(roles))
+    key = corpus.add(CAMARGO_TRC, corpus.text(CAMARGO_TRC))
+    lab = load_markerset(str(tmp_path / "lab.yaml"))
+    subject, spec = _one_trial(dataclasses.replace(camargo, markerset=lab), key)
+    with _raises(IngestError, corpus.path(key), "missing: L_Heel_typo"):
+        process_trial(load_trial(subject, spec, corpus.manifest()), subject.markerset, ingest_params)

@@ -130,6 +130,15 @@ def test_every_key_of_params_yaml_is_read_and_kept(params):
      r"\(PID takes kp_x, ki_x, kd_x, kp_y, ki_y, kd_y; optional i_max\)$"),
     (lambda d: d["robot"]["controllers"]["adaptive"]["gains"].pop("log_r_y"),
      r"params\.yaml: robot\.controllers\.adaptive: gains: missing gain\(s\) 'log_r_y' \(Adaptive takes "),
+    # these passed the check before: a count of seeds below 1, a physics step of 0, a negative offset
+    (lambda d: d["rollout"].update(n_seeds=-3),
+     r"params\.yaml: rollout\.n_seeds: Input should be greater than or equal to 1 \(got -3\)$"),
+    (lambda d: d["evaluate_policy"].update(n_seeds=0),
+     r"params\.yaml: evaluate_policy\.n_seeds: Input should be greater than or equal to 1 \(got 0\)$"),
+    (lambda d: d["rollout"].update(max_physics_dt_s=0.0),
+     r"params\.yaml: rollout\.max_physics_dt_s: Input should be greater than 0 \(got 0\.0\)$"),
+    (lambda d: d["rollout"].update(start_offset_m=-0.03),
+     r"params\.yaml: rollout\.start_offset_m: Input should be greater than or equal to 0 \(got -0\.03\)$"),
 ])
 def test_errors_name_the_file_and_the_key_path(tmp_path, edit, message):
     document = doc()
