@@ -26,6 +26,13 @@ A loaded marker set is a plain `dict[str, str]`: a derived role maps to a virtua
 (`Derivation.name`, starting with `@`) that spells out its recipe, and `with_derived` adds those
 virtual markers to a trial's markers when it is loaded (`ingest.canonical.load_trial`), so every
 consumer sees plain marker names. `pick_markerset` chooses the shipped set that fits a file.
+
+Markers without a landmark role (thigh and shank clusters, arm markers of a set without arm roles)
+may be given the body they ride on: `segments: {thigh_l: [LTH1, LTH2], forearm_r: [RW1]}` (bodies
+as the human model names them, `sim.body.scaling.BODIES`), in the marker set or in its static-only
+roles file (`data/markersets/scaling/<name>.yaml`); `load_segments` reads it (marker -> body).
+Scaling puts the other markers without a role on the nearest bone within a limit and leaves the
+rest out of the model (`sim.body.scaling.assign_markers`).
 """
 
 from __future__ import annotations
@@ -45,6 +52,7 @@ ALL_ROLES = tuple(f"{r}_{s}" for r in ROLES for s in ("left", "right"))
 PELVIS = ("asis_left", "asis_right", "psis_left", "psis_right")
 DERIVE_KINDS = ("sacral", "hip_keypoints", "cluster")
 VIRTUAL_PREFIX = "@"
+SEGMENTS_KEY = "segments"
 
 # Measured here: medians over the six lab recordings of ../shared/data with ASIS and PSIS markers
 # (camargo, opencap4, lenhart2015, kgc6 DM, falisse2019, moissenet NP1014): PSIS-PSIS / ASIS-ASIS
@@ -122,7 +130,10 @@ def load_markerset(spec: str | Path, directory: Path = MARKERSETS_DIR) -> dict[s
 
 
 def parse_markerset(doc: dict[str, object], path: Path | str) -> dict[str, str]:
-    """A marker set's YAML mapping checked and resolved (module docstring)."""
+    """A marker set's YAML mapping checked and resolved (module docstring); its `segments` are
+    checked here and read by `load_segments`."""
+    doc = dict(doc)
+    parse_segments(doc.pop(SEGMENTS_KEY, None), path)
     unknown = sorted(set(doc) - set(ALL_ROLES))
     missing = [r for r in ALL_ROLES if r not in doc or doc[r] is None]
     if unknown:
@@ -136,6 +147,38 @@ def parse_markerset(doc: dict[str, object], path: Path | str) -> dict[str, str]:
         if isinstance(spec, dict):
             out[role] = _derivation(role, spec, plain, path).name
     return {r: out[r] for r in ALL_ROLES}
+
+
+def parse_segments(spec: object, path: Path | str) -> dict[str, str]:
+    """Marker -> body of a `segments: {body: [marker, ...]}` mapping (None: {}); `SubjectError`
+    naming `path` for another shape or a marker given two bodies."""
+    if spec is None:
+        return {}
+    if not isinstance(spec, dict) or not all(
+            isinstance(v, list) and all(isinstance(m, str) for m in v) for v in spec.values()):
+        raise SubjectError(path, f"{SEGMENTS_KEY}: maps a body of the model to its markers, "
+                           "{thigh_l: [marker, ...], ...}")
+    out: dict[str, str] = {}
+    for body, names in spec.items():
+        for name in names:
+            if out.get(name, str(body)) != str(body):
+                raise SubjectError(path, f"{SEGMENTS_KEY}: marker {name} is given two bodies "
+                                   f"({out[name]}, {body})")
+            out[name] = str(body)
+    return out
+
+
+def load_segments(spec: str | Path, directory: Path = MARKERSETS_DIR) -> dict[str, str]:
+    """Marker -> body of the `segments` of the marker set named or pointed to by `spec` ({} without
+    them, or for a file that is not there; `load_markerset` reports those)."""
+    path = markerset_path(spec, directory)
+    if not path.is_file():
+        return {}
+    try:
+        doc = yaml.safe_load(path.read_text()) or {}
+    except (OSError, yaml.YAMLError) as exc:
+        raise SubjectError(path, f"marker set is not readable YAML ({exc})") from None
+    return parse_segments(doc.get(SEGMENTS_KEY), path) if isinstance(doc, dict) else {}
 
 
 def _derivation(role: str, spec: dict, plain: dict[str, str], path: Path | str) -> Derivation:
@@ -271,5 +314,5 @@ def pick_markerset(names: tuple[str, ...] | list[str], origin: Path | str,
     return best.name
 
 
-__all__ = ["load_markerset", "with_derived", "pick_markerset", "coverage", "markerset_path",
-           "shipped_markersets", "Derivation", "parse_virtual"]
+__all__ = ["load_markerset", "load_segments", "parse_segments", "with_derived", "pick_markerset", "coverage",
+           "markerset_path", "shipped_markersets", "Derivation", "parse_virtual"]

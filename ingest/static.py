@@ -7,7 +7,8 @@ are the median of `static.angles` (the dataset's IK of the static pose, canonica
 degrees) over the same window, plus `subtalar_left` / `subtalar_right` when the file has OpenSim's
 subtalar coordinates (not canonical angles; the model folds them into its ankle hinge); none when
 the subject file names no static angles. Roles are the subject's marker set plus the static-only
-landmarks of `data/markersets/scaling/<markerset>.yaml` (absent file: none).
+landmarks of `data/markersets/scaling/<markerset>.yaml` (absent file: none); segments (marker ->
+body, for markers without a role) are the `segments` of both (`ingest.markersets.load_segments`).
 `sim.body.scaling.scale_subject` turns a `StaticTrial` into the scaled body.
 
 The static trial must be quiet standing, checked frame by frame from the markers (Z up): pelvis
@@ -45,7 +46,7 @@ from ingest.errors import IngestError, SubjectError
 from ingest.filtering import finite_runs
 from ingest.kinematics import hip_joint_centres
 from ingest.manifest import Manifest
-from ingest.markersets import with_derived
+from ingest.markersets import SEGMENTS_KEY, load_segments, parse_segments, with_derived
 from ingest.readers import MarkerTable, read_markers, read_mot
 from ingest.subject import MARKERSETS_DIR, STATIC_AUTO, STATIC_NONE, StaticSpec, Subject
 from ingest.trial import SIDES
@@ -212,7 +213,8 @@ class StaticTrial:
 
     markers: marker name -> (3,) position (m); angles_deg: canonical angle name -> degrees ({} without
     static angles); roles: landmark role -> marker name; source / angles_source: the files read
-    (errors name them)."""
+    (errors name them); segments: marker -> the body it rides on, for markers without a role
+    (`scaling_segments`)."""
 
     subject: str
     markers: dict[str, np.ndarray]
@@ -220,19 +222,38 @@ class StaticTrial:
     source: str
     angles_deg: dict[str, float] = field(default_factory=dict)
     angles_source: str | None = None
+    segments: dict[str, str] = field(default_factory=dict)
+
+
+def _markerset_name(subject: Subject) -> str | None:
+    if subject.path is not None and subject.path.is_file():
+        return (yaml.safe_load(subject.path.read_text()) or {}).get("markerset")
+    return None
 
 
 def scaling_roles(subject: Subject, directory: Path = SCALING_ROLES_DIR) -> dict[str, str]:
     """The subject's landmark roles: its marker set plus the static-only ones in
     `data/markersets/scaling/<markerset>.yaml` (absent file: none)."""
     roles = dict(subject.markerset)
-    name = None
-    if subject.path is not None and subject.path.is_file():
-        name = (yaml.safe_load(subject.path.read_text()) or {}).get("markerset")
+    name = _markerset_name(subject)
     path = directory / f"{name}.yaml"
     if name and path.is_file():
-        roles.update({str(k): str(v) for k, v in (yaml.safe_load(path.read_text()) or {}).items()})
+        roles.update({str(k): str(v) for k, v in (yaml.safe_load(path.read_text()) or {}).items()
+                      if k != SEGMENTS_KEY})
     return roles
+
+
+def scaling_segments(subject: Subject, directory: Path = SCALING_ROLES_DIR) -> dict[str, str]:
+    """Marker -> body for the subject's markers without a role: the `segments` of its marker set,
+    then those of `data/markersets/scaling/<markerset>.yaml` (which win)."""
+    name = _markerset_name(subject)
+    if not name:
+        return {}
+    out = load_segments(str(name))
+    path = directory / f"{name}.yaml"
+    if path.is_file():
+        out.update(parse_segments((yaml.safe_load(path.read_text()) or {}).get(SEGMENTS_KEY), path))
+    return out
 
 
 def static_markers(path: Path, subject: Subject) -> dict[str, np.ndarray]:
@@ -286,19 +307,21 @@ def read_static_trial(subject: Subject, manifest: Manifest, roles_dir: Path = SC
     synthesises one from its walks (`walking_static`, which needs `widths_per_height`)."""
     if subject.static is None:
         raise SubjectError(subject.path, "no static trial (field 'static') to scale the model from")
+    segments = scaling_segments(subject, roles_dir)
     if subject.static.markers == STATIC_NONE:
         paths = [manifest.resolve(t.markers) for t in subject.trials if t.markers]
-        return walking_static(subject, paths, scaling_roles(subject, roles_dir), check, widths_per_height)
+        return dataclasses.replace(walking_static(subject, paths, scaling_roles(subject, roles_dir), check,
+                                                  widths_per_height), segments=segments)
     if subject.static.markers == STATIC_AUTO:
         subject = _with_auto_static(subject, manifest, check)
     path = manifest.resolve(subject.static.markers)
     check_static(path, subject, subject.static.window_s, check)
     markers, roles = static_markers(path, subject), scaling_roles(subject, roles_dir)
     if subject.static.angles is None:
-        return StaticTrial(subject.id, markers, roles, str(path))
+        return StaticTrial(subject.id, markers, roles, str(path), segments=segments)
     angles_path = manifest.resolve(subject.static.angles)
     return StaticTrial(subject.id, markers, roles, str(path), static_ik_angles(angles_path, subject),
-                       str(angles_path))
+                       str(angles_path), segments)
 
 
 def _with_auto_static(subject: Subject, manifest: Manifest, p: StaticCheckParams) -> Subject:

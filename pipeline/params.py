@@ -550,6 +550,7 @@ class HumanSchema(Schema):
     sjc_below_acromion_fraction: float
     head_radius_per_height: float
     floor_tolerance_m: float
+    marker_bone_distance_max_m: Annotated[float, Field(gt=0.0)]
     contact_radius_m: float
     friction: float
     contact_solref: Pair

@@ -3,8 +3,10 @@
 Outputs, written all-or-nothing: `<root>/<subject>/model/human.xml` (MJCF from `MjSpec.to_xml`,
 keyframe `static` = the static pose), `<root>/<subject>/model/model.json` (segment lengths and
 masses, joint-centre sources, static hinge angles, checks: DoF counts, total mass, standing height,
-thigh and shank lengths; a DVC metrics file) and `reports/<subject>/model.png` (the model in the
-static pose with the real static markers; `render` in model.json says how it was drawn).
+thigh and shank lengths; `markers_left_out`: the static markers on no body of the model, hence not
+fitted by the retarget, with their distance to the nearest bone and why; a DVC metrics file) and
+`reports/<subject>/model.png` (the model in the static pose with the real static markers; `render` in
+model.json says how it was drawn).
 """
 
 from __future__ import annotations
@@ -22,12 +24,21 @@ from pipeline.paths import PROCESSED_ROOT, REPORTS_ROOT, human_xml, model_dir, r
 from pipeline.stages.outputs import json_text, replacing
 from sim.body.human import build_human, model_checks
 from sim.body.render import render_model_png
-from sim.body.scaling import knee_valgus_deg, scale_subject
+from sim.body.scaling import ScaledBody, knee_valgus_deg, scale_subject
 from sim.errors import SimulationError
 
 
 def _rounded(d: dict, digits: int = 4) -> dict:
     return {k: round(float(v), digits) for k, v in d.items()}
+
+
+def markers_left_out(body: ScaledBody, limit_m: float) -> dict[str, dict]:
+    """model.json's `markers_left_out`: each static marker on no body, its distance to the nearest
+    bone and why (the quality gate can name them)."""
+    return {name: {"distance_m": round(d, 4),
+                   "reason": f"no landmark role or segments entry, {d * 100:.1f} cm from the nearest bone "
+                             f"(human.marker_bone_distance_max_m: {limit_m} m): not fitted by the retarget"}
+            for name, d in sorted(body.markers_left_out.items())}
 
 
 def run_scale(subject_id: str, params: Params, root: Path = PROCESSED_ROOT,
@@ -58,6 +69,7 @@ def run_scale(subject_id: str, params: Params, root: Path = PROCESSED_ROOT,
         "static_knee_valgus_deg": None if synthesised else {
             s: round(knee_valgus_deg(body.joint_centres, s), 2) for s in ("l", "r")},
         "markers": len(body.marker_bodies),
+        "markers_left_out": markers_left_out(body, p.marker_bone_distance_max_m),
         "checks": checks,
     }
     xml_out, json_out, png_out = human_xml(root, subject_id), folder / "model.json", png

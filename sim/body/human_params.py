@@ -29,6 +29,7 @@ class HumanParams:
     sjc_below_acromion_fraction: float = 0.17
     head_radius_per_height: float = 0.05
     floor_tolerance_m: float = 0.02
+    marker_bone_distance_max_m: float = 0.17  # a marker without role or segment farther is left out
     contact_radius_m: float = 0.02
     friction: float = 1.0
     contact_solref: tuple[float, float] = (0.02, 1.0)

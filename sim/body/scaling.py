@@ -40,6 +40,11 @@ joints, which `human.neutral` chooses:
 Upper arm is fully 3-D (ball joint above it), forearm its parent's frame turned about y by the
 static elbow angle; the torso stands upright. In every mode the static pose is reached exactly by
 the model's own joints (keyframe `static`).
+
+Markers ride on bodies (`assign_markers`, the model's sites, which the retarget fits): a marker with a
+landmark role on the body its role names, a marker the set lists under `segments` on that body, any
+other on the nearest bone only within `human.marker_bone_distance_max_m`; beyond it the marker is left
+out of the model (`ScaledBody.markers_left_out`, with its distance).
 """
 
 from __future__ import annotations
@@ -90,6 +95,8 @@ class ScaledBody:
     dorsiflexion); hinges absent here use `sim.body.human.HINGE_AXES` (the frame's y axis).
     neutral: the joint-zero definition used (`human.neutral`, after any fallback); static_ik_deg:
     the static IK angles it was calibrated to (canonical names, degrees; empty when not static_ik).
+    marker_bodies: marker -> body it rides on; markers_left_out: marker -> distance (m) to the
+    nearest bone of the markers on no body (`assign_markers`).
     """
 
     subject: str
@@ -108,6 +115,7 @@ class ScaledBody:
     hinge_axes: dict[str, np.ndarray] = field(default_factory=dict)
     neutral: str = "static_upright"
     static_ik_deg: dict[str, float] = field(default_factory=dict)
+    markers_left_out: dict[str, float] = field(default_factory=dict)
 
     @property
     def table(self) -> Table:
@@ -145,11 +153,21 @@ def _segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
 
 
 def assign_markers(markers: dict[str, np.ndarray], roles: dict[str, str], jc: dict[str, np.ndarray],
-                   arms_measured: bool, tie_m: float = 0.01) -> dict[str, str]:
-    """Body of each marker: by its landmark role where it has one, else the body whose bone
-    (segment between its joint centres) passes closest; within `tie_m` of the closest, the more
-    proximal body wins (a marker on the hip centre belongs to the pelvis). Arm bones placed by
-    stature ratios are not candidates (they may hang over the thigh markers)."""
+                   arms_measured: bool, segments: Mapping[str, str] | None = None,
+                   max_distance_m: float = math.inf, tie_m: float = 0.01,
+                   origin: str = "static trial") -> tuple[dict[str, str], dict[str, float]]:
+    """(marker -> body, marker -> distance (m) of the markers left out). A marker goes to the body
+    its landmark role names; else to the body `segments` gives it (marker -> body, a name of
+    `BODIES`); else to the body whose bone (segment between its joint centres) passes closest,
+    within `tie_m` of the closest the more proximal body (a marker on the hip centre belongs to the
+    pelvis), when that bone lies within `max_distance_m`; farther markers ride on no body and are
+    returned with their distance. Arm bones placed by stature ratios are not candidates (they may
+    hang over the thigh markers). `ScalingError` naming `origin` for a segment body the model lacks."""
+    segments = dict(segments or {})
+    unknown = sorted({b for b in segments.values() if b not in BODIES})
+    if unknown:
+        raise ScalingError(origin, f"segments: unknown bodies {', '.join(unknown)} "
+                           f"(bodies: {', '.join(BODIES)})")
     by_role = {}
     for role, name in roles.items():
         side = "l" if role.endswith("_left") else "r" if role.endswith("_right") else None
@@ -165,14 +183,18 @@ def assign_markers(markers: dict[str, np.ndarray], roles: dict[str, str], jc: di
         if arms_measured:
             bones += [(f"upper_arm_{s}", f"shoulder_{s}", f"elbow_{s}"),
                       (f"forearm_{s}", f"elbow_{s}", f"hand_{s}")]
-    out = {}
+    out: dict[str, str] = {}
+    left_out: dict[str, float] = {}
     for name, p in markers.items():
-        if name in by_role:
-            out[name] = by_role[name]
+        if name in by_role or name in segments:
+            out[name] = by_role.get(name) or segments[name]
             continue
         dist = np.array([_segment_distance(p, jc[a], jc[b]) for _, a, b in bones])
+        if dist.min() > max_distance_m:
+            left_out[name] = float(dist.min())
+            continue
         out[name] = bones[int(np.flatnonzero(dist <= dist.min() + tie_m)[0])][0]
-    return out
+    return out, left_out
 
 
 def _to_static_frame(markers: dict[str, np.ndarray], roles: dict[str, str], origin: str,
@@ -339,10 +361,11 @@ def scale_subject(subject: Subject, static: StaticTrial, p: HumanParams) -> Scal
                           ("hand", "wrist", "hand"), ("foot", "heel", "toe")):
             lengths[f"{seg}_{s}"] = float(np.linalg.norm(jc[f"{b}_{s}"] - jc[f"{a}_{s}"]))
     sources.update({"hip_l": "Harrington 2007", "hip_r": "Harrington 2007", "vertex": "height_m"})
+    bodies, left_out = assign_markers(markers, roles, jc, sources.get("elbow_l") == "markers",
+                                      static.segments, p.marker_bone_distance_max_m, origin=origin)
     return ScaledBody(subject.id, H, subject.mass_kg, p.anthropometry, markers, jc, frames, contact,
-                      lengths, segment_masses(table, subject.mass_kg), sources,
-                      assign_markers(markers, roles, jc, sources.get("elbow_l") == "markers"), angles,
-                      hinge_axes, neutral, ik)
+                      lengths, segment_masses(table, subject.mass_kg), sources, bodies, angles,
+                      hinge_axes, neutral, ik, left_out)
 
 
 def _calibrated_leg(pelvis: np.ndarray, ik: dict[str, float], s: str, knee_axis: np.ndarray,

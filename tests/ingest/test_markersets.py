@@ -13,7 +13,7 @@ import yaml
 from ingest.canonical import load_trial
 from ingest.errors import SubjectError
 from ingest.manifest import Manifest, Source, sha256_of
-from ingest.markersets import load_markerset, pick_markerset, shipped_markersets, with_derived
+from ingest.markersets import load_markerset, load_segments, pick_markerset, shipped_markersets, with_derived
 from ingest.process import landmarks, process_trial
 from ingest.readers import read_markers
 from ingest.readers.trc import write_trc
@@ -171,3 +171,29 @@ def test_cluster_derivation_places_a_point_fixed_in_the_cluster(tmp_path):
     with pytest.raises(SubjectError, match=r"knee_left: derive cluster gives a role from"):
         doc["knee_left"] = {"derive": "cluster", "markers": ["A", "B"], "offset_m": [0.1, 0.0, 0.0]}
         load_markerset(str(_write_set(tmp_path / "bad.yaml", doc)))
+
+
+def test_segments_give_markers_without_a_role_their_body(tmp_path):
+    doc = yaml.safe_load((ROOT / "data" / "markersets" / "opencap_labval.yaml").read_text())
+    doc["segments"] = {"thigh_l": ["L_thigh1", "L_thigh2"], "shank_r": ["r_sh2"]}
+    path = tmp_path / "with_segments.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    assert load_markerset(path) == load_markerset("opencap_labval")  # roles unchanged
+    assert load_segments(path) == {"L_thigh1": "thigh_l", "L_thigh2": "thigh_l", "r_sh2": "shank_r"}
+    assert load_segments("opencap_labval") == {}
+
+
+@pytest.mark.parametrize("segments, problem", [
+    (["L_thigh1"], "segments: maps a body of the model to its markers"),
+    ({"thigh_l": "L_thigh1"}, "segments: maps a body of the model to its markers"),
+    ({"thigh_l": ["L_thigh1"], "shank_l": ["L_thigh1"]}, "segments: marker L_thigh1 is given two bodies "
+     "(shank_l, thigh_l)"),  # safe_dump sorts the bodies
+])
+def test_bad_segments_are_refused_naming_the_file(tmp_path, segments, problem):
+    doc = yaml.safe_load((ROOT / "data" / "markersets" / "opencap_labval.yaml").read_text())
+    doc["segments"] = segments
+    path = tmp_path / "bad_segments.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    with pytest.raises(SubjectError, match=problem.replace("(", r"\(").replace(")", r"\)")) as err:
+        load_markerset(path)
+    assert str(path) in str(err.value)
