@@ -11,6 +11,7 @@ its work runs it whole there instead), so two threads cannot deadlock.
 from __future__ import annotations
 
 import os
+import signal
 import threading
 from concurrent.futures import ThreadPoolExecutor
 
@@ -24,8 +25,24 @@ def helper_pool() -> ThreadPoolExecutor:
     global _pool
     if _pool is None or _pool[0] != os.getpid():
         pool = ThreadPoolExecutor(max_workers=HELPER_THREADS, thread_name_prefix=THREAD_PREFIX)
+        _start_threads(pool)
         _pool = (os.getpid(), pool)
     return _pool[1]
+
+
+def _start_threads(pool: ThreadPoolExecutor) -> None:
+    """Start all of `pool`'s threads now, with SIGINT held back in this thread meanwhile: a Ctrl-C
+    that lands while a thread starts can leave it unjoinable, and the process then hangs at exit
+    after its error line. The held-back signal arrives as soon as the threads run."""
+    main = threading.current_thread() is threading.main_thread()
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT}) if main else None
+    try:
+        barrier = threading.Barrier(HELPER_THREADS)  # every task waits for the others: one thread each
+        for f in [pool.submit(barrier.wait, 10.0) for _ in range(HELPER_THREADS)]:
+            f.result()
+    finally:
+        if old is not None:
+            signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
 
 def on_helper_thread() -> bool:

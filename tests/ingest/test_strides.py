@@ -188,11 +188,3 @@ def test_a_mixed_stride_is_timed_from_the_kinematic_strikes_at_both_ends(camargo
         assert same["stride_time_s"] == pytest.approx(row["stride_time_s"])
         assert same["stride_length_m"] == pytest.approx(row["stride_length_m"])
         assert same["kept"] == row["kept"]
-
-
-def test_the_ingest_summary_counts_the_mixed_source_strides(camargo):
-    """Camargo's one stride left on a plate and a kinematic strike (no kinematic pair) is counted."""
-    from pipeline.stages.ingest import summary
-
-    mixed = camargo.strides["reason"] == "mixed event sources (force, kinematic)"
-    assert summary(camargo.strides, 1)["n_mixed_event_sources"] == mixed.sum() == 1
