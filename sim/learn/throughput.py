@@ -21,9 +21,9 @@ import numpy as np
 import torch
 from stable_baselines3.common.vec_env import DummyVecEnv
 
-from sim.learn.pool import MultiBodyEnv, Source, UniversalParams
+from sim.learn.pool import Source, UniversalParams
 from sim.learn.train import TrainParams
-from sim.learn.universal import train_universal
+from sim.learn.universal import make_pool_env, train_universal
 from sim.learn.vec import GroupedSubprocVecEnv
 from sim.rollout.scenarios import Segment
 
@@ -48,16 +48,11 @@ def raw_step_rate(xml: str, processes: int, seconds: float = 2.0) -> float:
         return float(sum(pool.starmap(_mj_steps, [(xml, seconds)] * processes)))
 
 
-def _pool_env(sources: tuple[Source, ...], up: UniversalParams, p: TrainParams, seed: int) -> MultiBodyEnv:
-    torch.set_num_threads(1)
-    return MultiBodyEnv(sources, up, p.env, seed)
-
-
 def env_step_rate(sources: tuple[Source, ...], up: UniversalParams, p: TrainParams, n_envs: int,
                   steps: int, workers: int | None = None) -> float:
     """Env steps per second of `n_envs` pools of bodies (in `workers` processes, default one per
     env, when more than one), random actions, resets included."""
-    fns = [partial(_pool_env, sources, up, p, 100 + i) for i in range(n_envs)]
+    fns = [partial(make_pool_env, sources, up, p.env, 100 + i) for i in range(n_envs)]
     venv = GroupedSubprocVecEnv(fns, workers or n_envs) if n_envs > 1 else DummyVecEnv(fns)
     rng = np.random.default_rng(0)
     venv.reset()

@@ -17,11 +17,10 @@ from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 
 import mujoco
-import numpy as np
 
 from sim.body.human import standing_height
-from sim.body.scaling import SIDE_NAME_OF_SUFFIX
 from sim.errors import SimulationError
+from sim.learn.bodies import leg_length
 
 
 @dataclass(frozen=True)
@@ -61,11 +60,7 @@ def body_features(model_path: str | Path, speed_mps: float) -> BodyFeatures:
     if model.nkey and mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, "static") >= 0:
         mujoco.mj_resetDataKeyframe(model, data, model.key("static").id)
     mujoco.mj_kinematics(model, data)
-    legs = []
-    for s in SIDE_NAME_OF_SUFFIX:
-        hip, knee, ankle = (data.xpos[model.body(f"{seg}_{s}").id] for seg in ("thigh", "shank", "foot"))
-        legs.append(float(np.linalg.norm(knee - hip) + np.linalg.norm(ankle - knee)))
-    return BodyFeatures(standing_height(model, data), float(model.body_mass.sum()), float(np.mean(legs)),
+    return BodyFeatures(standing_height(model, data), float(model.body_mass.sum()), leg_length(model),
                         float(speed_mps))
 
 

@@ -139,7 +139,9 @@ class CriticWarmup(BaseCallback):
         return True
 
 
-def _make_env(sources: tuple[Source, ...], up: UniversalParams, p: WalkEnvParams, seed: int) -> MultiBodyEnv:
+def make_pool_env(sources: tuple[Source, ...], up: UniversalParams, p: WalkEnvParams,
+                  seed: int) -> MultiBodyEnv:
+    """One env process's pool of bodies (one torch thread: the envs never run torch)."""
     torch.set_num_threads(1)
     return MultiBodyEnv(sources, up, p, seed)
 
@@ -155,9 +157,9 @@ def quick_gate(model: PPO, norm: VecNormalize, sources: tuple[Source, ...], up: 
     for src in sources:
         cycle = load_reference(src.reference_npz).cycle
         rows: dict = {}
+        body = make_body(src, cycle, None, replace(p, episode_s=120.0, push_probability=0.0), 0)
+        env = body.env
         for name in up.gate_scenarios:
-            body = make_body(src, cycle, None, replace(p, episode_s=120.0, push_probability=0.0), 0)
-            env = body.env
             prof = command_profile(name, scenarios[name], cycle.speed_mps, 1.0 / env.dt, p.profile)
             falls, standing, speeds = 0, 0, []
             for seed in range(up.gate_seeds):
@@ -210,7 +212,7 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
     device = device_of(device)
     torch.set_num_threads(threads)
     n_envs = n_envs or p.n_envs
-    fns = [partial(_make_env, sources, up, p.env, p.seed * 1000 + 37 * i) for i in range(n_envs)]
+    fns = [partial(make_pool_env, sources, up, p.env, p.seed * 1000 + 37 * i) for i in range(n_envs)]
     vec = GroupedSubprocVecEnv(fns, workers or n_envs) if subprocess and n_envs > 1 else DummyVecEnv(fns)
     venv = VecMonitor(vec)
     prior = json.loads((out / PROGRESS_FILE).read_text()) if resume and (out / PROGRESS_FILE).exists() else {}
@@ -346,6 +348,15 @@ def params_from_yaml(path: Path) -> tuple[TrainParams, UniversalParams, dict[str
     return p, up, scenarios
 
 
+def _shown(arg: str) -> str:
+    """A command-line argument as the progress record keeps it: an absolute path relative to the
+    checkout, or, outside it, `<outside>/<name>` (no path of one machine in a committed record)."""
+    if not os.path.isabs(arg):
+        return arg
+    path, here = Path(arg).resolve(), Path.cwd().resolve()
+    return str(path.relative_to(here)) if path.is_relative_to(here) else f"<outside>/{path.name}"
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m sim.learn.universal", description=__doc__.split("\n")[0])
     ap.add_argument("--params", type=Path, default=Path("params.yaml"))
@@ -376,7 +387,7 @@ def main(argv: list[str] | None = None) -> int:
         p = replace(p, checkpoint_steps=args.checkpoint_steps)
     resume = args.resume and (args.out / PROGRESS_FILE).exists()
     init = None if resume else (args.init_from or Path("data/policies") / up.init_from)
-    command = "python -m sim.learn.universal " + " ".join(sys.argv[1:] if argv is None else argv)
+    command = "python -m sim.learn.universal " + " ".join(map(_shown, sys.argv[1:] if argv is None else argv))
     rec = train_universal(sources_of(up.subjects, args.processed), p, up, args.out, scenarios, init_from=init,
                           resume=resume, total_steps=args.steps, n_envs=args.n_envs,
                           subprocess=args.subprocess, workers=args.workers, max_wall_s=args.max_wall_s,
