@@ -10,6 +10,8 @@ command's handler runs. `from pkg import name` counts `pkg/name.py` when it exis
 package's `__init__.py` along a module's path counts (Python executes it). Each of those files must
 lie under one of the stage's deps (the file itself or a folder holding it); data deps are not
 checked. Dynamic imports (`importlib.import_module` of a controller named in params) are not seen.
+A package's data files (pyproject's `[tool.setuptools.package-data]`, e.g. the report templates)
+are read by its code, not imported: they count for every stage that runs the package.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ import inspect
 import os
 import re
 import shlex
+import tomllib
 from collections.abc import Iterable, Mapping
 from functools import cache
 from pathlib import Path, PurePosixPath
@@ -30,6 +33,7 @@ import yaml
 
 REPO = Path(__file__).resolve().parents[2]
 DVC_YAML = REPO / "dvc.yaml"
+PYPROJECT = REPO / "pyproject.toml"
 PACKAGES = ("ingest", "sim", "metrics", "pipeline")
 ENTRY = Path("pipeline/__main__.py")  # `python -m pipeline`
 HandlerKey = tuple[Path, str]  # (repo-relative file, top-level function name)
@@ -147,6 +151,31 @@ def stage_modules(cmd: str) -> set[Path]:
     return seen
 
 
+@cache
+def package_data() -> dict[str, tuple[str, ...]]:
+    """pyproject's `[tool.setuptools.package-data]`: package -> globs of the files beside its code."""
+    setuptools = tomllib.loads(PYPROJECT.read_text())["tool"]["setuptools"]
+    return {package: tuple(globs) for package, globs in setuptools.get("package-data", {}).items()}
+
+
+def data_files(modules: Iterable[Path]) -> set[Path]:
+    """The package data files (repo-relative) of the packages among `modules` (their
+    `__init__.py` runs whenever one of their modules does)."""
+    inits = {m.as_posix() for m in modules if m.name == "__init__.py"}
+    files: set[Path] = set()
+    for package, globs in package_data().items():
+        folder = Path(*package.split("."))
+        if (folder / "__init__.py").as_posix() in inits:
+            files |= {f.relative_to(REPO) for g in globs for f in (REPO / folder).glob(g) if f.is_file()}
+    return files
+
+
+def stage_files(cmd: str) -> set[Path]:
+    """What `cmd` runs (`stage_modules`) and the package data those modules read (`data_files`)."""
+    modules = stage_modules(cmd)
+    return modules | data_files(modules)
+
+
 def uncovered(stage_deps: Iterable[str], modules: Iterable[Path | str]) -> list[str]:
     """The modules (repo-relative) that no dep covers; a dep covers itself and, if a folder,
     everything under it."""
@@ -191,7 +220,7 @@ def stages(doc: Mapping) -> dict[str, dict]:
 
 def problems(doc: Mapping) -> dict[str, list[str]]:
     """Stage name -> the modules its command runs that its deps miss (stages with none left out)."""
-    found = {name: uncovered(s["deps"], stage_modules(s["cmd"])) for name, s in stages(doc).items()}
+    found = {name: uncovered(s["deps"], stage_files(s["cmd"])) for name, s in stages(doc).items()}
     return {name: missing for name, missing in found.items() if missing}
 
 
@@ -207,7 +236,7 @@ STAGES = stages(load_dvc_yaml())
 @pytest.mark.parametrize("stage", sorted(STAGES))
 def test_stage_deps_cover_the_code_it_runs(stage):
     spec = STAGES[stage]
-    missing = uncovered(spec["deps"], stage_modules(spec["cmd"]))
+    missing = uncovered(spec["deps"], stage_files(spec["cmd"]))
     assert not missing, (f"dvc.yaml stage {stage!r} (`{spec['cmd']}`) runs {missing} but none of its deps "
                          f"{spec['deps']} covers them: add the file or its folder")
 
@@ -235,6 +264,20 @@ def test_stage_modules_follow_function_imports_and_packages():
             "pipeline/stages/reference.py", "sim/__init__.py", "sim/body/human.py"} <= runs
     # another command's lazy import (cmd_render's) is not this command's code
     assert "pipeline/commands/render.py" not in runs
+
+
+def test_report_templates_count_as_the_report_stages_code():
+    """The templates are package data of pipeline.report: a report stage whose deps name its
+    modules but not the templates folder is reported."""
+    folder = REPO / "pipeline" / "report" / "templates"
+    templates = sorted(p.relative_to(REPO).as_posix() for p in folder.glob("*.j2"))
+    assert {f"pipeline/report/templates/{t}" for t in ("index.html.j2", "subject.md.j2")} <= set(templates)
+    for stage in ("report", "summary"):
+        assert set(templates) <= {p.as_posix() for p in stage_files(STAGES[stage]["cmd"])}
+    cmd = STAGES["summary"]["cmd"]
+    narrowed = [d for d in STAGES["summary"]["deps"] if d != "pipeline"] + [
+        m.as_posix() for m in stage_modules(cmd)]  # every module it runs, file by file, and no template
+    assert uncovered(narrowed, stage_files(cmd)) == templates
 
 
 def test_uncovered():

@@ -21,11 +21,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pipeline.params import load_params
+from pipeline.params import ReportParams, load_params
 from pipeline.paths import UNIVERSAL_DIR
+from pipeline.report.queries import load_report_data
 from pipeline.stages.ingest import run_ingest
 from pipeline.stages.metrics import run_metrics
-from pipeline.stages.report import ReportParams, load_report_data, run_report, subject_report
+from pipeline.stages.report import run_report, subject_report
 from pipeline.stages.store import load_results
 from pipeline.store import SWEEP_COLUMNS, StoreError, StoreParams, query, store_results
 
@@ -472,14 +473,15 @@ def test_index_loads_in_headless_chromium(reports, tmp_path):
 
 
 def test_policy_checks_section_names_every_check():
-    from pipeline.stages.report import policy_check_lines
+    from pipeline.report import sections
+    from pipeline.report.render import section_markdown
 
     doc = {"checks": {"free_no_fall": True, "scenario_walk_10m_free_no_fall": False, "spm_hip_flexion": None},
            "scenarios": {"own_start_s": 1.54, "start_window_s": [1.07, 2.0],
                          "walk_10m free": {"walks": 10, "human_falls": 3, "start_s": [1.2], "stop_s": [1.0],
                                            "steady_speed_mps": [1.8]}, "checks": {}}}
-    text = "\n".join(policy_check_lines(doc))
+    text = section_markdown("policy_checks", sections.policy_checks(doc))
     assert "1 of 3 checks pass" in text
     assert "| scenario_walk_10m_free_no_fall | FAIL |" in text and "| spm_hip_flexion | not judged |" in text
     assert "| walk_10m free | 10 | 3 |" in text
-    assert "No `evaluate-policy` result" in policy_check_lines(None)[0]
+    assert "No `evaluate-policy` result" in section_markdown("policy_checks", None).splitlines()[2]

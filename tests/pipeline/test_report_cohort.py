@@ -11,19 +11,16 @@ import pytest
 from matplotlib.figure import Figure
 
 from metrics.plots import COHORT_PANELS, FALL_PANELS, VARIANT_ORDER, cohort_heatmap, fall_intervention_figure
-from pipeline.stages.report import (
-    CLINICAL_MEASURES,
-    FIGURES,
-    NO_COHORT,
-    NO_FALLS,
-    PaperError,
-    cohort_lines,
-    fall_lines,
-    figure_names,
-    load_clinical_ranges,
-)
+from pipeline.report import sections
+from pipeline.report.figures import FIGURES, figure_names
+from pipeline.report.published import CLINICAL_MEASURES, PaperError, load_clinical_ranges
+from pipeline.report.render import section_markdown
 
 NAN = math.nan
+NO_COHORT = ("No cohort walks stored for this subject yet (run the sweep studies, `python -m pipeline sweep` "
+             "and `python -m pipeline sweep --study fall_intervention`, then `store`).")
+NO_FALLS = ("No fall-intervention rollouts stored for this subject yet (run `python -m pipeline sweep "
+            "--study fall_intervention`, then `store`).")
 CAUGHT_DROP_M = 0.22
 WINDOW_S = 1.5
 GAIT = ["subject", "variant", "scenario", "walks", "distinct_walks", "falls", "gait_speed_mps",
@@ -160,9 +157,17 @@ def test_fall_figure_without_robot_rows_says_so():
 # -- sections -----------------------------------------------------------------------------------------
 
 
+def cohort_text(*args, **kwargs) -> str:
+    return section_markdown("cohort", sections.cohort(*args, **kwargs))
+
+
+def fall_text(*args) -> str:
+    return section_markdown("fall", sections.fall(*args))
+
+
 def test_cohort_section_prints_the_gait_beside_the_clinical_ranges():
     ranges = load_clinical_ranges()
-    text = "\n".join(cohort_lines(gait_frame(), controllers_frame(), ranges, figure=True))
+    text = cohort_text(gait_frame(), controllers_frame(), ranges, figure=True)
     assert text.startswith("## Virtual cohort")
     assert "| healthy | steady | 4 | 0/4 | 1.310 ± 0.010 | 1.360 | 1.010 | 0.990 | 1.40 | 80 |" in text
     # no SD across walks, no stance ratio: dashes, the rest still printed
@@ -174,33 +179,32 @@ def test_cohort_section_prints_the_gait_beside_the_clinical_ranges():
         assert f"| {CLINICAL_MEASURES[r.measure]} | {r.value_text()} | {r.meaning} | {r.source} |" in text
     assert "| weak | steady | adaptive | 4 | 0/4 | 0.40 | 1.10 | 22.00 | – | -1.00 | 0.20 |" in text
     assert "![cohort](figures/cohort.png)" in text
-    assert "![cohort]" not in "\n".join(cohort_lines(gait_frame(), controllers_frame(), ranges, figure=False))
+    assert "![cohort]" not in cohort_text(gait_frame(), controllers_frame(), ranges, figure=False)
 
 
 def test_cohort_section_names_the_variants_without_a_measured_stride():
     """A variant-scenario `cohort_gait` marks `no_strides` is named; one whose walks
     fell is not (its falls say what happened), and a cohort that walked gets no such line."""
-    assert "No stride measured" not in "\n".join(cohort_lines(gait_frame(), controllers_frame(), {}, False))
+    assert "No stride measured" not in cohort_text(gait_frame(), controllers_frame(), {}, False)
     idle = pd.DataFrame([
         ["s1", "hemiparetic_right", "walk_10m", 2, 1, 0, NAN, NAN, NAN, NAN, NAN, NAN, 0, "no_strides"],
         ["s1", "unsteady", "walk_10m", 2, 2, 2, NAN, NAN, NAN, NAN, NAN, NAN, 0, "fell"],
         ["s1", "hemiparetic_right", "steady", 2, 1, 0, NAN, NAN, NAN, NAN, NAN, NAN, 0, "no_strides"],
     ], columns=GAIT)
-    text = "\n".join(cohort_lines(pd.concat([gait_frame(), idle]), controllers_frame(), {}, False))
+    text = cohort_text(pd.concat([gait_frame(), idle]), controllers_frame(), {}, False)
     assert "**No stride measured:** hemiparetic_right in steady, hemiparetic_right in walk_10m: walks" in text
     assert "unsteady in walk_10m" not in text
 
 
 def test_cohort_section_without_rows_says_how_to_get_them():
-    lines = cohort_lines(gait_frame().iloc[0:0], controllers_frame().iloc[0:0], load_clinical_ranges(), False)
-    assert lines == ["## Virtual cohort", "", NO_COHORT, ""]
-    only_gait = "\n".join(cohort_lines(gait_frame(), controllers_frame().iloc[0:0], {}, False))
+    text = cohort_text(gait_frame().iloc[0:0], controllers_frame().iloc[0:0], load_clinical_ranges(), False)
+    assert text == f"## Virtual cohort\n\n{NO_COHORT}\n\n"
+    only_gait = cohort_text(gait_frame(), controllers_frame().iloc[0:0], {}, False)
     assert "| healthy | steady | 4 |" in only_gait and "_No rows._" in only_gait
 
 
 def test_fall_section_prints_each_variant_event_and_controller():
-    text = "\n".join(fall_lines(fall_frame(), not_caught_frame(), alarms_frame(), True, CAUGHT_DROP_M,
-                                 WINDOW_S))
+    text = fall_text(fall_frame(), not_caught_frame(), alarms_frame(), True, CAUGHT_DROP_M, WINDOW_S)
     assert text.startswith("## Fall intervention")
     rows = [line for line in text.splitlines() if line.startswith(("| healthy |", "| weak |"))]
     assert rows[:4] == [  # robot rows only, events in their usual order, pid before adaptive
@@ -220,18 +224,16 @@ def test_fall_section_prints_each_variant_event_and_controller():
 
 def test_fall_section_without_rows():
     none = not_caught_frame().iloc[0:0]
-    assert fall_lines(fall_frame().iloc[0:0], none, alarms_frame().iloc[0:0], False, CAUGHT_DROP_M,
-                      WINDOW_S) == ["## Fall intervention", "", NO_FALLS, ""]
-    alarms_only = "\n".join(fall_lines(fall_frame().iloc[0:0], none, alarms_frame(), False, CAUGHT_DROP_M,
-                                       WINDOW_S))
+    assert fall_text(fall_frame().iloc[0:0], none, alarms_frame().iloc[0:0], False, CAUGHT_DROP_M,
+                     WINDOW_S) == f"## Fall intervention\n\n{NO_FALLS}\n\n"
+    alarms_only = fall_text(fall_frame().iloc[0:0], none, alarms_frame(), False, CAUGHT_DROP_M, WINDOW_S)
     assert "_No rows._" in alarms_only and "| healthy | pid | 8 | 0.020 | 1 | 1 | 50.00 |" in alarms_only
 
 
 def test_falls_not_caught_are_listed_with_why_or_said_to_be_none():
     """Each uncaught fall of `falls_not_caught` in its own row, in the usual order (variant, event,
     controller, scenario, seed), its reason in words with its numbers; none: one line."""
-    text = "\n".join(fall_lines(fall_frame(), not_caught_frame(), alarms_frame(), False, CAUGHT_DROP_M,
-                                 WINDOW_S))
+    text = fall_text(fall_frame(), not_caught_frame(), alarms_frame(), False, CAUGHT_DROP_M, WINDOW_S)
     section = text[text.index("### Falls not caught"):text.index("### False alarms")]
     assert [line for line in section.splitlines() if line.startswith("| healthy |")] == [
         "| healthy | trip | adaptive | steady | 2 | detected, but the pelvis had dropped 0.250 m at the lock "
@@ -246,8 +248,8 @@ def test_falls_not_caught_are_listed_with_why_or_said_to_be_none():
         "| healthy | push | adaptive | walk_10m | 0 | not detected: the arm locked 2.20 s after the onset "
         "(window 1.50 s) |",
     ]
-    caught = "\n".join(fall_lines(fall_frame(), not_caught_frame().iloc[0:0], alarms_frame(), False,
-                                   CAUGHT_DROP_M, WINDOW_S))
+    caught = fall_text(fall_frame(), not_caught_frame().iloc[0:0], alarms_frame(), False, CAUGHT_DROP_M,
+                       WINDOW_S)
     section = caught[caught.index("### Falls not caught"):caught.index("### False alarms")]
     assert section.splitlines()[2] == ("Every event that fell walking free was caught: 9 of 9 rollouts "
                                        "with a controller.")

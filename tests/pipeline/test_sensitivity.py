@@ -11,7 +11,9 @@ from metrics.findings import region_text, responsiveness_comparisons
 from metrics.plots import sensitivity_figure
 from pipeline.params import ParamsError, load_params, parse_params
 from pipeline.paths import POLICIES_ROOT
-from pipeline.stages.report import findings_lines, load_paper, paper_compliance, sensitivity_lines
+from pipeline.report import sections
+from pipeline.report.published import load_paper, paper_compliance
+from pipeline.report.render import section_markdown
 from pipeline.stages.sweep import run_sweep, sensitivity_jobs, sweep_jobs
 from pipeline.store import query, store_results
 
@@ -117,9 +119,9 @@ def test_figure_and_report_region(stored, tmp_path):
     t2 = pd.DataFrame(columns=["sim_human_mode", "condition", "sim_gait_speed_mps_mean",
                                "sim_gait_speed_mps_sd", "sim_n_strides"])
     t3 = pd.DataFrame(columns=["sim_human_mode", "joint", "condition", "sim_intercycle_sd_deg"])
-    lines = findings_lines(empty, t2, t3, paper, "walk_10m", v)
-    table = lines[-1]
-    assert "| Responsiveness region |" in table.splitlines()[0]
+    table = sections.findings(empty, t2, t3, paper, "walk_10m", v)["table"]
+    assert table.header[-1] == "Responsiveness region"
+    table = section_markdown("findings", sections.findings(empty, t2, t3, paper, "walk_10m", v))
     assert f"| {text} |" in table
-    section = "\n".join(sensitivity_lines(v, paper, "walk_10m", True))
+    section = section_markdown("sensitivity", sections.sensitivity(v, paper, "walk_10m", True))
     assert "## Follow-me responsiveness" in section and "figures/sensitivity.png" in section

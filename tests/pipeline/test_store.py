@@ -372,10 +372,11 @@ def test_a_tuning_whose_every_search_rollout_fell_is_marked_no_signal(tmp_path):
         healthy = by[("healthy", c)]
         assert healthy.search_falls < healthy.search_rollouts and healthy.search_status == "ok"
         assert not healthy.same
-    from pipeline.stages.report import tuning_lines
+    from pipeline.report import sections
+    from pipeline.report.render import section_markdown
 
     view = query(db, "SELECT * FROM tuning_comparison WHERE subject = 'camargo'")
-    lines = "\n".join(tuning_lines(view, False))
+    lines = section_markdown("tuning", sections.tuning(view, False))
     rows = [ln for ln in lines.splitlines() if ln.startswith("| ")]
     assert all(("**no signal**" in ln) == ("hemiparetic_left" in ln) for ln in rows[2:]), rows
     healthy_pid = by[("healthy", "pid")]

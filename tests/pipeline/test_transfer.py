@@ -16,10 +16,12 @@ import pytest
 import yaml
 
 from metrics.quality import transfer_checks
-from pipeline.params import PARAMS_FILE, ParamsError, load_params
+from pipeline.params import PARAMS_FILE, ParamsError, ReportParams, load_params
+from pipeline.report import sections
+from pipeline.report.render import section_markdown
 from pipeline.runs.gate import EVALUATION_FILE, GATE_FILE, judge, read_gate, required_checks, usable_policy
 from pipeline.stages.metrics import quality_checks, run_metrics
-from pipeline.stages.report import ReportParams, run_report, transfer_lines
+from pipeline.stages.report import run_report
 from pipeline.stages.simulate import run_simulate_policy
 from pipeline.stages.store import load_results
 from pipeline.stages.transfer import choose_source, policy_features, run_transfer, subject_features
@@ -211,7 +213,7 @@ def test_failed_gate_gives_fail_quality_rows_and_no_policy_rows(processed, polic
     assert rows.loc["scenario_steady_pid_no_fall", "status"] == "ok"
     assert set(rows[rows["status"] == "fail"].index) == set(gate["failed"])
     assert "fine-tuned from opencap4" in rows.loc["scenario_steady_free_no_fall", "note"]
-    (line, _) = transfer_lines(q)
+    (line, _) = section_markdown("transfer", sections.transfer(q)).splitlines()
     assert "transfer gate FAILED" in line and "scenario_steady_free_no_fall" in line
     assert "replay rows only" in line
 
@@ -230,7 +232,7 @@ def test_failed_gate_gives_fail_quality_rows_and_no_policy_rows(processed, polic
 
 def test_no_gate_no_policy_rows():
     assert transfer_checks("camargo", None) == []
-    assert transfer_lines(pd.DataFrame(columns=["stage", "check", "status", "note"])) == []
+    assert sections.transfer(pd.DataFrame(columns=["stage", "check", "status", "note"])) is None
 
 
 def test_bench_section_reports_steps_wall_time_and_the_gate(processed, policies, params):

@@ -1,0 +1,111 @@
+"""The figures of a subject's report: which ones its stored rows allow (`subject_figures`, in the
+order the index shows them) and each one's caption (`FIGURES`)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import pandas as pd
+from matplotlib.figure import Figure
+
+from metrics.plots import (
+    cohort_heatmap,
+    event_figure,
+    fall_intervention_figure,
+    harness_figure,
+    kinematics_figure,
+    sensitivity_figure,
+    spm_figure,
+    tracking_figure,
+    tuning_figure,
+)
+from pipeline.params import ReportParams
+from pipeline.paths import PAPER_FILE
+from pipeline.report.published import load_paper, paper_compliance
+from pipeline.report.queries import of
+
+UNIVERSAL_FIGURE = "universal_progress.png"  # in reports/: the universal policy's gate against steps
+# Every figure a report can have, in the order the index shows them, with its caption.
+FIGURES = {
+    "events": "Forward and lateral offset e_x, e_y and harness force |f| around the commanded start, turn "
+              "and stop, per controller (policy human; mean and 95 % CI across runs)",
+    "kinematics_policy": "Gait per controller: the policy human's joint angles walking free, with pid and "
+                         "with adaptive (mean ± SD over the cycles sampled like the paper)",
+    "tracking": "e_x, e_y and harness |F| over the first run of each condition",
+    "harness": "Harness force and torque magnitude, RMS and peak per condition",
+    "kinematics": "Joint angles of every source and condition (mean ± SD over cycles)",
+    "spm": "SPM1D statistic curves, thresholds (dashed) and supra-threshold clusters (shaded)",
+    "tuning": "Per-subject controller tuning (`tune`): the objective of metrics/outcomes.py on the held-back "
+              "walks with the generic and the tuned gains (mean and 95 % CI across rollouts; falls above "
+              "each bar)",
+    "cohort": "Virtual cohort with each controller, walking without events: mean |e_x|, |e_y|, harness force "
+              "RMS and gait speed change versus the same variant walking free, per variant (rows) and "
+              "controller (columns), each panel on its own colour scale",
+    "fall_intervention": "Scripted balance losses per event type and controller: share detected (circles: "
+                         "share caught of the events that fell walking free), onset-to-lock latency, "
+                         "pelvis drop at the lock (triangles: worst; dashed: caught threshold) and peak "
+                         "harness force",
+    "sensitivity": "The twin's follow-me responsiveness (one factor at a time, the others at the twin's "
+                   "values, dotted): mean |e_x| and |e_y| per controller (policy human in the paper's walk, "
+                   "mean and 95 % CI across walks; falls/walks where any fell), the paper's simulated values "
+                   "dashed (their robot and participant)",
+}
+
+
+def paper_sensitivity(sens: pd.DataFrame, scenario: str) -> pd.DataFrame:
+    """The responsiveness study's rows (`sensitivity` view, one subject) of the subject's own policy
+    human in the paper's scenario."""
+    if sens.empty:
+        return sens
+    return sens[(sens["variant"] == "healthy") & (sens["scenario"] == scenario)]
+
+
+def subject_figures(subject: str, data: dict[str, pd.DataFrame], p: ReportParams = ReportParams()
+                    ) -> dict[str, Callable[[], Figure]]:
+    """The figures of `subject` (names in `FIGURES`, in that order), each drawn when called; which
+    ones exist follows from the stored data alone, so the index can list them without drawing."""
+    bands = of(data["kinematics"], subject)
+    side = "both" if (bands["side"] == "both").any() else "right"
+    bands = bands[bands["side"] == side]
+    policy = bands[(bands["source"] == "sim") & (bands["human_mode"] == "policy")]
+    events = of(data["events"], subject)
+    chosen = [(e, s) in p.event_scenarios.items() for e, s in zip(events["event"], events["scenario"],
+                                                                  strict=True)]
+    events = events[chosen]
+    tests = of(data["spm_tests"], subject)
+    curves = data["spm_curves"][data["spm_curves"]["test_id"].isin(tests["test_id"])]
+    tracking, harness = of(data["tracking"], subject), of(data["harness"], subject)
+    statistic = "F" if (tests["test"] == "anova1").all() else "t"
+    tuning = of(data["tuning"], subject)
+    cohort, fall = of(data["cohort_controllers"], subject), of(data["fall"], subject)
+    sens = paper_sensitivity(of(data.get("sensitivity", pd.DataFrame()), subject), p.paper_scenario)
+    figures = {
+        "events": lambda: event_figure(events, list(p.event_scenarios),
+                                       f"{subject}: around the commanded events (mean, 95 % CI across runs)"),
+        "kinematics_policy": lambda: kinematics_figure(
+            policy, f"{subject}: gait per controller, policy human (mean ± SD, side {side})"),
+        "tracking": lambda: tracking_figure(tracking, f"{subject}: tracking (first run per condition)"),
+        "harness": lambda: harness_figure(harness, f"{subject}: harness interaction"),
+        "kinematics": lambda: kinematics_figure(
+            bands, f"{subject}: joint kinematics (mean ± SD, side {side})"),
+        "spm": lambda: spm_figure(tests, curves, f"{subject}: SPM{{{statistic}}} (alpha 0.05)"),
+        "tuning": lambda: tuning_figure(tuning, f"{subject}: controller tuning, held-back objective "
+                                                "(mean, 95 % CI)"),
+        "cohort": lambda: cohort_heatmap(cohort, f"{subject}: virtual cohort with each controller"),
+        "fall_intervention": lambda: fall_intervention_figure(
+            fall, f"{subject}: scripted balance losses per controller", p.caught_drop_m),
+        "sensitivity": lambda: sensitivity_figure(
+            sens, paper_compliance(load_paper(PAPER_FILE)),
+            f"{subject}: follow-me responsiveness, {p.paper_scenario} (mean, 95 % CI across walks)"),
+    }
+    present = {"events": not events.empty, "kinematics_policy": not policy.empty,
+               "tracking": not tracking.empty, "harness": not harness.empty, "tuning": not tuning.empty,
+               "cohort": not cohort.empty, "fall_intervention": (fall["condition"] != "free").any(),
+               "sensitivity": not sens.empty}
+    return {name: draw for name, draw in figures.items() if present.get(name, True)}
+
+
+
+def figure_names(subject: str, data: dict[str, pd.DataFrame], p: ReportParams = ReportParams()) -> list[str]:
+    """The figures `subject_figures` draws for a subject, in index order."""
+    return list(subject_figures(subject, data, p))
