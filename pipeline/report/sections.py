@@ -262,17 +262,18 @@ def false_alarm_table(alarms: pd.DataFrame) -> Table:
                   for r in in_order(alarms, "variant", "condition").itertuples(index=False)])
 
 
-def fall(fall: pd.DataFrame, missed: pd.DataFrame, alarms: pd.DataFrame, figure: bool, caught_drop_m: float,
+def fall(events: pd.DataFrame, missed: pd.DataFrame, alarms: pd.DataFrame, figure: bool, caught_drop_m: float,
          window_s: float) -> dict:
     """The "Fall intervention" section: how each controller met the scripted balance losses of each
-    variant (`fall_intervention`), each fall it did not catch and why (`falls_not_caught`; the issue
-    asks for every one to be caught or shown; `all_caught`: how many were, when all were), and how
-    often it locked the arm in normal walking (`false_alarms`)."""
-    out = {"empty": fall.empty and alarms.empty, "figure": figure, "caught_drop_m": caught_drop_m,
+    variant (`events`: `fall_intervention`), each fall it did not catch and why (`falls_not_caught`;
+    the issue asks for every one to be caught or shown; `all_caught`: how many were, when all were),
+    and how often it locked the arm in normal walking (`false_alarms`)."""
+    out = {"empty": events.empty and alarms.empty, "figure": figure, "caught_drop_m": caught_drop_m,
            "window_s": window_s}
     if out["empty"]:
         return out
-    caught = int(fall.loc[fall["condition"] != "free", "events_falling_free"].sum()) if not fall.empty else 0
-    return {**out, "missing": missing_variants(fall, alarms), "table": fall_table(fall),
+    robot = events.loc[events["condition"] != "free"] if not events.empty else events
+    caught = int(robot["events_falling_free"].sum()) if not events.empty else 0
+    return {**out, "missing": missing_variants(events, alarms), "table": fall_table(events),
             "not_caught": None if missed.empty else not_caught_table(missed, caught_drop_m, window_s),
             "all_caught": caught, "false_alarms": false_alarm_table(alarms)}
