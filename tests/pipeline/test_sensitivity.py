@@ -119,9 +119,8 @@ def test_figure_and_report_region(stored, tmp_path):
     t2 = pd.DataFrame(columns=["sim_human_mode", "condition", "sim_gait_speed_mps_mean",
                                "sim_gait_speed_mps_sd", "sim_n_strides"])
     t3 = pd.DataFrame(columns=["sim_human_mode", "joint", "condition", "sim_intercycle_sd_deg"])
-    table = sections.findings(empty, t2, t3, paper, "walk_10m", v)["table"]
-    assert table.header[-1] == "Responsiveness region"
-    table = section_markdown("findings", sections.findings(empty, t2, t3, paper, "walk_10m", v))
-    assert f"| {text} |" in table
+    found = sections.findings(empty, t2, t3, paper, "walk_10m", v)
+    assert found["table"].header[-1] == "Responsiveness region"
+    assert f"| {text} |" in section_markdown("findings", found)
     section = section_markdown("sensitivity", sections.sensitivity(v, paper, "walk_10m", True))
     assert "## Follow-me responsiveness" in section and "figures/sensitivity.png" in section
