@@ -171,8 +171,9 @@ def test_throughput_is_measured_against_the_physics(universal, camargo):
                   device="cpu", init_from="data/policies/camargo", env_steps=100, train_steps=128)
     assert doc["cpu_count"] >= 1 and doc["workers"] == 2
     for label in ("one", "all"):
-        # an env step is 15 physics steps (30 ms policy, 2 ms physics) plus the env's own work
-        assert 0 < doc[f"env_steps_per_s_{label}"] < doc[f"mj_step_per_s_{label}"] / 10
+        # an env step is 15 physics steps (30 ms policy, 2 ms physics) plus the env's own work; the two
+        # rates are measured one after the other, so a busy machine's noise gets a factor of 2
+        assert 0 < doc[f"env_steps_per_s_{label}"] < doc[f"mj_step_per_s_{label}"] / 5
         assert 0 < doc[f"train_steps_per_s_{label}"]
         assert doc[f"train_to_env_{label}"] == pytest.approx(
             doc[f"train_steps_per_s_{label}"] / doc[f"env_steps_per_s_{label}"], abs=1e-3)
