@@ -21,6 +21,7 @@ import inspect
 import os
 import re
 import shlex
+import tomllib
 from collections.abc import Iterable, Mapping
 from functools import cache
 from pathlib import Path, PurePosixPath
@@ -199,6 +200,21 @@ def load_dvc_yaml() -> dict:
     return yaml.safe_load(DVC_YAML.read_text())
 
 
+def package_data() -> dict[Path, list[str]]:
+    """pyproject's `[tool.setuptools.package-data]`: package folder -> its data file globs."""
+    doc = tomllib.loads((REPO / "pyproject.toml").read_text())
+    declared = doc.get("tool", {}).get("setuptools", {}).get("package-data", {})
+    return {Path(*package.split(".")): globs for package, globs in declared.items()}
+
+
+def data_files(modules: Iterable[Path]) -> set[Path]:
+    """The package-data files of the packages among `modules` (their `__init__.py`): files the code
+    reads at run time (e.g. the store's views, `pipeline/store/views/*.sql`)."""
+    modules = set(modules)
+    return {p.relative_to(REPO) for folder, globs in package_data().items()
+            if folder / "__init__.py" in modules for glob in globs for p in (REPO / folder).glob(glob)}
+
+
 # --- tests ---------------------------------------------------------------------------------------
 
 STAGES = stages(load_dvc_yaml())
@@ -210,6 +226,24 @@ def test_stage_deps_cover_the_code_it_runs(stage):
     missing = uncovered(spec["deps"], stage_modules(spec["cmd"]))
     assert not missing, (f"dvc.yaml stage {stage!r} (`{spec['cmd']}`) runs {missing} but none of its deps "
                          f"{spec['deps']} covers them: add the file or its folder")
+
+
+@pytest.mark.parametrize("stage", sorted(STAGES))
+def test_stage_deps_cover_the_package_data_it_reads(stage):
+    spec = STAGES[stage]
+    missing = uncovered(spec["deps"], data_files(stage_modules(spec["cmd"])))
+    assert not missing, (f"dvc.yaml stage {stage!r} reads {missing} but none of its deps {spec['deps']} "
+                         "covers them: add the file or its folder")
+
+
+def test_non_python_files_in_packages_are_package_data():
+    """A file the code reads from a package folder (SQL) ships with the package and counts as the code
+    of the stages that import it; a stage whose deps missed it would be reported."""
+    found = {p.relative_to(REPO) for package in PACKAGES for p in (REPO / package).rglob("*.sql")}
+    read = data_files(stage_modules(STAGES["store"]["cmd"]))
+    assert found and sorted(p.as_posix() for p in found - read) == []
+    without_pipeline = ["ingest", "sim", "metrics", "pipeline/stages"]
+    assert uncovered(without_pipeline, read) == sorted(p.as_posix() for p in read)
 
 
 def test_broken_dvc_yaml_is_reported():
