@@ -1,7 +1,8 @@
 -- the latest tuned gains per subject, variant and controller, beside the generic ones
 -- search_status: 'no signal' when every search rollout fell (each trial scored the fall penalty,
 -- so the tuned gains are the first trial's, the generic ones; pipeline.commands.tune.search_falls)
-CREATE OR REPLACE VIEW tuning_comparison AS SELECT t.* EXCLUDE (content_hash, run_id), CASE
+CREATE OR REPLACE VIEW tuning_comparison AS
+SELECT t.* EXCLUDE (content_hash, run_id), CASE
     WHEN t.search_rollouts > 0 AND t.search_falls = t.search_rollouts THEN 'no signal'
     WHEN t.search_rollouts IS NULL THEN 'unknown' ELSE 'ok' END AS search_status
 FROM tuned_gains t

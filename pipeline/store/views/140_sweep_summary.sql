@@ -1,5 +1,6 @@
 -- a study's rollouts per subject, variant, condition and scenario: mean over seeds
-CREATE OR REPLACE VIEW sweep_summary AS SELECT study, subject, variant, condition, scenario,
+CREATE OR REPLACE VIEW sweep_summary AS
+SELECT study, subject, variant, condition, scenario,
     coalesce(event, 'none') AS event, count(*) AS n_runs, sum(fell::INT) AS falls,
     avg(mean_abs_ex_cm) AS mean_abs_ex_cm, avg(mean_abs_ey_cm) AS mean_abs_ey_cm,
     avg(force_rms_n) AS force_rms_n, avg(gait_speed_mps) AS gait_speed_mps,

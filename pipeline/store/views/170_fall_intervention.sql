@@ -1,5 +1,6 @@
 -- balance loss x controller x variant: was it caught? (metrics.fall_intervention)
-CREATE OR REPLACE VIEW fall_intervention AS $events_free
+CREATE OR REPLACE VIEW fall_intervention AS
+$events_free
 SELECT e.subject, e.variant, e.event, e.condition, count(*) AS rollouts,
     count(*) FILTER (WHERE e.before_onset) AS fell_before_onset,
     count(*) FILTER (WHERE NOT e.before_onset) AS events,

@@ -1,6 +1,7 @@
 -- each variant's gait signature walking free without events (metrics.gait_symmetry)
 -- distinct_walks (_walk_summary.sql); the SD across walks needs two distinct ones
-CREATE OR REPLACE VIEW cohort_gait AS SELECT subject, variant, scenario, count(*) AS walks,
+CREATE OR REPLACE VIEW cohort_gait AS
+SELECT subject, variant, scenario, count(*) AS walks,
     count(DISTINCT $walk_summary) AS distinct_walks, sum(fell::INT) AS falls,
     avg(gait_speed_mps) AS gait_speed_mps, CASE
     WHEN count(DISTINCT $walk_summary) > 1 THEN stddev_samp(gait_speed_mps) END AS gait_speed_sd,

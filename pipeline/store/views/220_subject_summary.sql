@@ -1,5 +1,6 @@
 -- per subject: groups, versions, conditions, sources, strides, SPM counts, last change
-CREATE OR REPLACE VIEW subject_summary AS SELECT v.subject, count(*) AS n_groups,
+CREATE OR REPLACE VIEW subject_summary AS
+SELECT v.subject, count(*) AS n_groups,
     (SELECT count(*) FROM versions a WHERE a.subject = v.subject) AS n_versions,
     string_agg(DISTINCT v.condition, ',' ORDER BY v.condition) AS conditions,
     string_agg(DISTINCT v.source || ':' || v.human_mode,
