@@ -26,7 +26,7 @@ import pandas as pd
 from metrics.curves import curve_groups
 from metrics.errors import MetricsError
 from metrics.groups import GROUP, JOINTS
-from metrics.table import MetricTable
+from metrics.table import MetricInputs, MetricTable
 
 TESTS = ("anova1", "ttest2")
 TEST_SCHEMA = {"test_id": "VARCHAR", "subject": "VARCHAR", "comparison": "VARCHAR", "side": "VARCHAR",
@@ -203,8 +203,8 @@ def spm_tables(cycles: pd.DataFrame, params: SpmParams = SpmParams()) -> SpmTabl
     )
 
 
-def _shared_tables(inputs, p) -> SpmTables:
-    """The three SPM tables of `inputs`, computed once for all three."""
+def _shared_tables(inputs: MetricInputs, p) -> SpmTables:
+    """The three SPM tables of `inputs` (`p`: the `metrics` params section), computed once for all three."""
     return inputs.shared("spm", lambda: spm_tables(inputs.cycles, p.spm))
 
 
