@@ -12,11 +12,14 @@ import numpy as np
 import pandas as pd
 
 from metrics.groups import GROUP, with_identity
+from metrics.table import GROUP_COLUMNS, MetricTable
 
 # the columns used here, of the robot table a rollout writes (ingest.robot.ROBOT_COLUMNS)
 NEEDED_ROBOT_COLUMNS = ("trial", "time_s", "e_x_m", "e_y_m", "fall", "locked")
-COLUMNS = [*GROUP, "n_trials", "n_samples", "mean_abs_ex_cm", "sd_abs_ex_cm", "mean_abs_ey_cm",
-           "sd_abs_ey_cm", "max_abs_ex_cm", "max_abs_ey_cm", "fall_rate"]
+SCHEMA = {**GROUP_COLUMNS, "n_trials": "BIGINT", "n_samples": "BIGINT", "mean_abs_ex_cm": "DOUBLE",
+          "sd_abs_ex_cm": "DOUBLE", "mean_abs_ey_cm": "DOUBLE", "sd_abs_ey_cm": "DOUBLE",
+          "max_abs_ex_cm": "DOUBLE", "max_abs_ey_cm": "DOUBLE", "fall_rate": "DOUBLE"}
+COLUMNS = list(SCHEMA)
 
 
 FORCE = ["harness_fx_n", "harness_fy_n", "harness_fz_n"]
@@ -60,3 +63,9 @@ def _stats(x: np.ndarray) -> tuple[float, float]:
     if len(x) == 0:
         return np.nan, np.nan
     return float(x.mean()), float(x.std(ddof=1)) if len(x) > 1 else np.nan
+
+
+TABLE = MetricTable("compliance", SCHEMA, lambda inputs, p: compliance_table(inputs.robot, p.exclude_locked)
+                    if inputs.has_robot else pd.DataFrame(columns=COLUMNS),
+                    title="Table I: compliance, mean absolute offset of the pelvis from the arm's neutral "
+                          "point (mean ± SD over samples)")

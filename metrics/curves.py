@@ -11,10 +11,13 @@ import numpy as np
 import pandas as pd
 
 from metrics.groups import CYCLE, GROUP, independent_rows, with_identity
+from metrics.table import GROUP_COLUMNS, MetricTable
 
 CYCLE_COLUMNS = ("trial", "side", "stride", "pct", "joint", "angle_deg")
 BOTH = "both"
-BAND_COLUMNS = [*GROUP, "side", "joint", "pct", "n_cycles", "mean_deg", "sd_deg"]
+BAND_SCHEMA = {**GROUP_COLUMNS, "side": "VARCHAR", "joint": "VARCHAR", "pct": "DOUBLE", "n_cycles": "BIGINT",
+               "mean_deg": "DOUBLE", "sd_deg": "DOUBLE"}
+BAND_COLUMNS = list(BAND_SCHEMA)
 
 
 def tidy_cycles(cycles: pd.DataFrame) -> pd.DataFrame:
@@ -54,3 +57,7 @@ def bands_table(cycles: pd.DataFrame, pool_sides: bool = True) -> pd.DataFrame:
     if not frames:
         return pd.DataFrame(columns=BAND_COLUMNS)
     return pd.concat(frames, ignore_index=True)
+
+
+# the kinematics figure's bands
+TABLE = MetricTable("kinematics", BAND_SCHEMA, lambda inputs, p: bands_table(inputs.cycles, p.pool_sides))

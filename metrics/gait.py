@@ -11,10 +11,13 @@ import numpy as np
 import pandas as pd
 
 from metrics.groups import GROUP, independent_rows, with_identity
+from metrics.table import GROUP_COLUMNS, MetricTable
 
 STRIDE_COLUMNS = ("kept", "stride_length_m", "gait_speed_mps", "stride_time_s", "cadence_spm")
-COLUMNS = [*GROUP, "n_strides", "stride_length_m_mean", "stride_length_m_sd", "gait_speed_mps_mean",
-           "gait_speed_mps_sd", "stride_time_s_mean", "cadence_spm_mean"]
+SCHEMA = {**GROUP_COLUMNS, "n_strides": "BIGINT", "stride_length_m_mean": "DOUBLE",
+          "stride_length_m_sd": "DOUBLE", "gait_speed_mps_mean": "DOUBLE", "gait_speed_mps_sd": "DOUBLE",
+          "stride_time_s_mean": "DOUBLE", "cadence_spm_mean": "DOUBLE"}
+COLUMNS = list(SCHEMA)
 
 
 def gait_table(strides: pd.DataFrame) -> pd.DataFrame:
@@ -32,3 +35,7 @@ def gait_table(strides: pd.DataFrame) -> pd.DataFrame:
 def _mean_sd(x: pd.Series) -> tuple[float, float]:
     x = x.to_numpy(float)
     return float(x.mean()), float(x.std(ddof=1)) if len(x) > 1 else np.nan
+
+
+TABLE = MetricTable("gait", SCHEMA, lambda inputs, p: gait_table(inputs.strides),
+                    title="Table II: stride length and gait speed (mean ± SD over kept strides, n strides)")

@@ -14,12 +14,15 @@ import pandas as pd
 
 from metrics.compliance import following
 from metrics.groups import GROUP, with_identity
+from metrics.table import GROUP_COLUMNS, MetricTable
 
 COMPONENTS = {
     "fx": ("harness_fx_n", "N"), "fy": ("harness_fy_n", "N"), "fz": ("harness_fz_n", "N"),
     "tx": ("harness_tx_nm", "N m"), "ty": ("harness_ty_nm", "N m"), "tz": ("harness_tz_nm", "N m"),
 }
-COLUMNS = [*GROUP, "quantity", "unit", "n_samples", "rms", "peak", "mean"]
+SCHEMA = {**GROUP_COLUMNS, "quantity": "VARCHAR", "unit": "VARCHAR", "n_samples": "BIGINT", "rms": "DOUBLE",
+          "peak": "DOUBLE", "mean": "DOUBLE"}
+COLUMNS = list(SCHEMA)
 
 
 def harness_table(robot: pd.DataFrame, exclude_locked: bool = True) -> pd.DataFrame:
@@ -41,3 +44,7 @@ def harness_table(robot: pd.DataFrame, exclude_locked: bool = True) -> pd.DataFr
             rows.append((*key, q, unit, len(x), float(np.sqrt(np.mean(x**2))), float(np.max(np.abs(x))),
                          float(np.mean(x))))
     return pd.DataFrame(rows, columns=COLUMNS)
+
+
+TABLE = MetricTable("harness", SCHEMA, lambda inputs, p: harness_table(inputs.robot, p.exclude_locked)
+                    if inputs.has_robot else pd.DataFrame(columns=COLUMNS))

@@ -22,16 +22,22 @@ import scipy  # scipy.stats loads on first use (~0.6 s): stages without interval
 
 from metrics.compliance import FORCE, following, run_means
 from metrics.groups import GROUP, with_identity
+from metrics.table import GROUP_COLUMNS, MetricTable
 
 KEYS = [*GROUP, "scenario", "phase"]
 QUANTITIES = {"abs_ex_cm": "mean |e_x| (cm)", "abs_ey_cm": "mean |e_y| (cm)",
               "force_rms_n": "harness |f| RMS (N)"}
-COLUMNS = [*KEYS, "n_runs", "n_samples", "falls",
-           *(f"{q}_{s}" for q in QUANTITIES for s in ("mean", "ci95"))]
+SCHEMA = {**GROUP_COLUMNS, "scenario": "VARCHAR", "phase": "VARCHAR", "n_runs": "BIGINT",
+          "n_samples": "BIGINT", "falls": "BIGINT",
+          **{f"{q}_{s}": "DOUBLE" for q in QUANTITIES for s in ("mean", "ci95")}}
+COLUMNS = list(SCHEMA)
 
 EVENT_KEYS = [*GROUP, "scenario", "event", "t_s"]
 EVENT_QUANTITIES = {"ex_cm": "e_x (cm)", "ey_cm": "e_y (cm)", "force_n": "harness |f| (N)"}
-EVENT_COLUMNS = [*EVENT_KEYS, "n_runs", *(f"{q}_{s}" for q in EVENT_QUANTITIES for s in ("mean", "ci95"))]
+EVENT_SCHEMA = {**GROUP_COLUMNS, "scenario": "VARCHAR", "event": "VARCHAR", "t_s": "DOUBLE",
+                "n_runs": "BIGINT",
+                **{f"{q}_{s}": "DOUBLE" for q in EVENT_QUANTITIES for s in ("mean", "ci95")}}
+EVENT_COLUMNS = list(EVENT_SCHEMA)
 
 
 @dataclass(frozen=True)
@@ -136,5 +142,11 @@ def event_traces(robot: pd.DataFrame, w: EventWindow = EventWindow(), exclude_lo
     return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=EVENT_COLUMNS)
 
 
-__all__ = ["COLUMNS", "EVENT_COLUMNS", "EVENT_QUANTITIES", "KEYS", "QUANTITIES", "EventWindow",
-           "event_traces", "mean_ci95", "phase_table", "run_event_traces", "run_values"]
+TABLE = MetricTable("phases", SCHEMA, lambda inputs, p: phase_table(inputs.scenario_robot, p.exclude_locked),
+                    title="Compliance and harness force per scenario phase (mean ± 95 % CI across runs; "
+                          "falls count the runs that had fallen by the end of the phase)")
+EVENT_TABLE = MetricTable("event_traces", EVENT_SCHEMA,
+                          lambda inputs, p: event_traces(inputs.scenario_robot, p.events, p.exclude_locked))
+
+__all__ = ["COLUMNS", "EVENT_COLUMNS", "EVENT_QUANTITIES", "EVENT_TABLE", "KEYS", "QUANTITIES", "TABLE",
+           "EventWindow", "event_traces", "mean_ci95", "phase_table", "run_event_traces", "run_values"]

@@ -6,9 +6,13 @@ import numpy as np
 import pandas as pd
 
 from metrics.curves import curve_groups
-from metrics.groups import GROUP, JOINTS
+from metrics.groups import JOINTS
+from metrics.table import GROUP_COLUMNS, MetricTable
 
-COLUMNS = [*GROUP, "side", "joint", "n_cycles", "rom_deg_mean", "rom_deg_sd", "min_deg_mean", "max_deg_mean"]
+SCHEMA = {**GROUP_COLUMNS, "side": "VARCHAR", "joint": "VARCHAR", "n_cycles": "BIGINT",
+          "rom_deg_mean": "DOUBLE", "rom_deg_sd": "DOUBLE", "min_deg_mean": "DOUBLE",
+          "max_deg_mean": "DOUBLE"}
+COLUMNS = list(SCHEMA)
 
 
 def cycle_rom(curves: np.ndarray) -> np.ndarray:
@@ -29,3 +33,6 @@ def rom_table(cycles: pd.DataFrame, pool_sides: bool = True,
         rows.append((*key, len(y), float(rom.mean()), float(rom.std(ddof=1)) if len(rom) > 1 else np.nan,
                      float(y.min(axis=1).mean()), float(y.max(axis=1).mean())))
     return pd.DataFrame(rows, columns=COLUMNS)
+
+
+TABLE = MetricTable("rom", SCHEMA, lambda inputs, p: rom_table(inputs.cycles, p.pool_sides, p.joints))

@@ -25,14 +25,20 @@ import pandas as pd
 
 from metrics.curves import curve_groups
 from metrics.errors import MetricsError
-from metrics.groups import JOINTS
+from metrics.groups import GROUP, JOINTS
+from metrics.table import MetricInputs, MetricTable
 
 TESTS = ("anova1", "ttest2")
-TEST_COLUMNS = ["test_id", "subject", "comparison", "side", "joint", "source_a", "human_mode_a",
-                "condition_a", "source_b", "human_mode_b", "condition_b", "test", "statistic", "n_a", "n_b",
-                "alpha", "zstar", "df1", "df2", "h0_rejected", "n_clusters", "min_p", "status", "reason"]
-CURVE_COLUMNS = ["test_id", "pct", "value"]
-CLUSTER_COLUMNS = ["test_id", "cluster", "start_pct", "end_pct", "extent_pct", "p"]
+TEST_SCHEMA = {"test_id": "VARCHAR", "subject": "VARCHAR", "comparison": "VARCHAR", "side": "VARCHAR",
+               "joint": "VARCHAR", "source_a": "VARCHAR", "human_mode_a": "VARCHAR", "condition_a": "VARCHAR",
+               "source_b": "VARCHAR", "human_mode_b": "VARCHAR", "condition_b": "VARCHAR", "test": "VARCHAR",
+               "statistic": "VARCHAR", "n_a": "BIGINT", "n_b": "BIGINT", "alpha": "DOUBLE", "zstar": "DOUBLE",
+               "df1": "DOUBLE", "df2": "DOUBLE", "h0_rejected": "BOOLEAN", "n_clusters": "BIGINT",
+               "min_p": "DOUBLE", "status": "VARCHAR", "reason": "VARCHAR"}
+CURVE_SCHEMA = {"test_id": "VARCHAR", "pct": "DOUBLE", "value": "DOUBLE"}
+CLUSTER_SCHEMA = {"test_id": "VARCHAR", "cluster": "BIGINT", "start_pct": "DOUBLE", "end_pct": "DOUBLE",
+                  "extent_pct": "DOUBLE", "p": "DOUBLE"}
+TEST_COLUMNS, CURVE_COLUMNS, CLUSTER_COLUMNS = list(TEST_SCHEMA), list(CURVE_SCHEMA), list(CLUSTER_SCHEMA)
 
 
 @dataclass(frozen=True)
@@ -195,3 +201,18 @@ def spm_tables(cycles: pd.DataFrame, params: SpmParams = SpmParams()) -> SpmTabl
         pd.concat(curves, ignore_index=True) if curves else pd.DataFrame(columns=CURVE_COLUMNS),
         pd.DataFrame(clusters, columns=CLUSTER_COLUMNS),
     )
+
+
+def _shared_tables(inputs: MetricInputs, p) -> SpmTables:
+    """The three SPM tables of `inputs` (`p`: the `metrics` params section), computed once for all three."""
+    return inputs.shared("spm", lambda: spm_tables(inputs.cycles, p.spm))
+
+
+# a test belongs to the group of its second sample (`*_b`); its curve and clusters to the test's
+TEST_TABLE = MetricTable("spm_tests", TEST_SCHEMA, lambda inputs, p: _shared_tables(inputs, p).tests,
+                         group=("subject", *(f"{c}_b" for c in GROUP[1:])))
+CURVE_TABLE = MetricTable("spm_curves", CURVE_SCHEMA, lambda inputs, p: _shared_tables(inputs, p).curves,
+                          linked=("spm_tests", "test_id"))
+CLUSTER_TABLE = MetricTable("spm_clusters", CLUSTER_SCHEMA,
+                            lambda inputs, p: _shared_tables(inputs, p).clusters,
+                            linked=("spm_tests", "test_id"))

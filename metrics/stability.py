@@ -13,9 +13,12 @@ import numpy as np
 import pandas as pd
 
 from metrics.curves import curve_groups
-from metrics.groups import GROUP, JOINTS
+from metrics.groups import JOINTS
+from metrics.table import GROUP_COLUMNS, MetricTable
 
-COLUMNS = [*GROUP, "side", "joint", "n_cycles", "intercycle_sd_deg", "note"]
+SCHEMA = {**GROUP_COLUMNS, "side": "VARCHAR", "joint": "VARCHAR", "n_cycles": "BIGINT",
+          "intercycle_sd_deg": "DOUBLE", "note": "VARCHAR"}
+COLUMNS = list(SCHEMA)
 
 
 def intercycle_sd(curves: np.ndarray) -> float:
@@ -37,3 +40,9 @@ def stability_table(cycles: pd.DataFrame, pool_sides: bool = True,
         note = "" if n >= 2 else f"only {n} cycle(s): SD needs at least 2"
         rows.append((*key, n, intercycle_sd(m.to_numpy(float)), note))
     return pd.DataFrame(rows, columns=COLUMNS)
+
+
+TABLE = MetricTable("stability", SCHEMA,
+                    lambda inputs, p: stability_table(inputs.cycles, p.pool_sides, p.joints),
+                    title="Table III: inter-cycle SD of the sagittal joint angles, averaged over the cycle "
+                          "(n cycles)")

@@ -11,8 +11,11 @@ import numpy as np
 import pandas as pd
 
 from metrics.groups import GROUP, with_identity
+from metrics.table import GROUP_COLUMNS, MetricTable
 
-TRACKING_COLUMNS = [*GROUP, "trial", "seed", "time_s", "e_x_cm", "e_y_cm", "force_n", "locked"]
+SCHEMA = {**GROUP_COLUMNS, "trial": "VARCHAR", "seed": "BIGINT", "time_s": "DOUBLE", "e_x_cm": "DOUBLE",
+          "e_y_cm": "DOUBLE", "force_n": "DOUBLE", "locked": "BOOLEAN"}
+TRACKING_COLUMNS = list(SCHEMA)
 
 
 def tracking_table(robot: pd.DataFrame, rate_hz: float = 20.0) -> pd.DataFrame:
@@ -38,3 +41,7 @@ def tracking_table(robot: pd.DataFrame, rate_hz: float = 20.0) -> pd.DataFrame:
             frame[col] = value
         frames.append(frame[TRACKING_COLUMNS])
     return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=TRACKING_COLUMNS)
+
+
+TABLE = MetricTable("tracking", SCHEMA, lambda inputs, p: tracking_table(inputs.robot, p.tracking_rate_hz)
+                    if inputs.has_robot else pd.DataFrame(columns=TRACKING_COLUMNS))

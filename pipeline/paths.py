@@ -8,7 +8,8 @@ Layout, relative to the repository root (each root can be moved by a command's `
     data/processed/<subject>/real/        events, strides, cycles (ingest)
     data/processed/<subject>/sim/         replay-human rollouts processed like the real trials (simulate)
     data/processed/<subject>/sim_policy/  policy-human rollouts (simulate --human policy)
-    data/metrics/<subject>/               metric tables and provenance (metrics)
+    data/metrics/<subject>/               metrics.json, quality, provenance (metrics)
+    data/metrics/<subject>/tables/        one parquet per metric table (metrics.tables.REGISTRY), as a set
     data/policies/<subject>/              the trained walking policy (train)
     data/policies/<subject>/cohort/<v>/   a cohort variant's fine-tuned policy (train --variant), committed
     data/sweeps/<study>/                  a study's rollout rows (sweep)
@@ -104,8 +105,14 @@ def sim_policy_dir(root: str | Path, subject: str) -> Path:
 
 
 def metrics_dir(root: str | Path, subject: str) -> Path:
-    """`<root>/<subject>` (root: data/metrics): a subject's metric tables."""
+    """`<root>/<subject>` (root: data/metrics): a subject's metrics, quality gates and provenance."""
     return subject_dir(root, subject)
+
+
+def metric_tables_dir(root: str | Path, subject: str) -> Path:
+    """`<root>/<subject>/tables` (root: data/metrics): a subject's metric tables, one parquet each
+    (`metrics.tables.REGISTRY`); the metrics stage replaces the folder as a set."""
+    return metrics_dir(root, subject) / "tables"
 
 
 def policy_dir(root: str | Path, subject: str, variant: str = "healthy") -> Path:

@@ -13,6 +13,7 @@ import pandas as pd
 
 from metrics.plots import EVENT_ORDER, ROBOT_CONDITIONS, VARIANT_ORDER, ordered
 from metrics.quality import NOT_COMPUTED, worst, worst_check
+from metrics.tables import by_name
 from pipeline.report.cells import falls, following, mean_sd, mode, num
 from pipeline.report.published import PaperValues
 from pipeline.report.queries import of
@@ -98,17 +99,11 @@ class StoreTable(NamedTuple):
 
 
 # The one list (store data key of `queries.QUERIES` -> title and builder); the paper's Tables I-III
-# first (`PAPER_TABLES`: the paper's note goes under the last), then the per-phase table.
-TABLES = {
-    "table1": StoreTable("Table I: compliance, mean absolute offset of the pelvis from the arm's neutral "
-                         "point (mean ± SD over samples)", table1),
-    "table2": StoreTable("Table II: stride length and gait speed (mean ± SD over kept strides, n strides)",
-                         table2),
-    "table3": StoreTable("Table III: inter-cycle SD of the sagittal joint angles, averaged over the cycle "
-                         "(n cycles)", table3),
-    "phases": StoreTable("Compliance and harness force per scenario phase (mean ± 95 % CI across runs; "
-                         "falls count the runs that had fallen by the end of the phase)", phase_table),
-}
+# first (`PAPER_TABLES`: the paper's note goes under the last), then the per-phase table. The titles
+# are the metric tables' own (`metrics.tables.REPORTED`).
+TABLES = {key: StoreTable(by_name(table).title, build) for key, table, build in (
+    ("table1", "compliance", table1), ("table2", "gait", table2), ("table3", "stability", table3),
+    ("phases", "phases", phase_table))}
 PAPER_TABLES = ("table1", "table2", "table3")
 # a quality status's background in the index: ok green, warn amber, fail red
 STATUS_COLOURS = {"ok": "#c8e6c9", "warn": "#ffe08a", "fail": "#f4a6a6", NOT_COMPUTED: "#eeeeee",

@@ -5,10 +5,12 @@ Inputs: `<root>/<subject>/real/{strides,cycles}.parquet` and, once simulated,
 in every scenario; root: data/processed). The policy human enters the paper's tables as the paper
 sampled its walks (`metrics.sampling.paper_inputs`: `scenarios.paper`), and every scenario's robot
 rows give the per-phase table and the traces around the commanded events (`metrics.phases`). Outputs in
-`<out_root>/<subject>/` (data/metrics): one parquet per metric table (`TABLES`), `metrics.json`
-(headline numbers, a DVC metrics file) and `provenance.json` (params hash and input hashes, read
-by the store stage). They live outside data/processed so that the store stage can depend on
-`data/metrics` alone rather than on every stage's outputs under data/processed.
+`<out_root>/<subject>/` (data/metrics): `tables/` with one parquet per metric table of
+`metrics.tables.REGISTRY` (replaced as a set: a DVC folder output, so a new table changes no dvc.yaml),
+`quality.parquet` (the quality gates), `metrics.json` (headline numbers, a DVC metrics file) and
+`provenance.json` (params hash and input hashes, read by the store stage). They live outside
+data/processed so that the store stage can depend on `data/metrics` alone rather than on every
+stage's outputs under data/processed.
 """
 
 from __future__ import annotations
@@ -25,26 +27,16 @@ from ingest.manifest import Manifest, sha256_of
 from ingest.readers import read_markers
 from ingest.readers.mot import read_mot
 from ingest.subject import load_subject
-from metrics import (
-    bands_table,
-    compliance,
-    compliance_table,
-    gait_table,
-    harness,
-    harness_table,
-    rom_table,
-    spm_tables,
-    stability_table,
-)
 from metrics.errors import MetricsError
-from metrics.phases import event_traces, phase_table
 from metrics.quality import TrialSpan, ingest_checks, quality_table, scale_checks, sim_checks, transfer_checks
 from metrics.sampling import paper_inputs, paper_strides, repeated_walks
-from metrics.tracking import TRACKING_COLUMNS, tracking_table
+from metrics.table import MetricInputs, MetricTable
+from metrics.tables import REGISTRY
 from pipeline.params import MetricsParams, Params
 from pipeline.paths import (
     METRICS_ROOT,
     PROCESSED_ROOT,
+    metric_tables_dir,
     metrics_dir,
     model_dir,
     real_dir,
@@ -54,8 +46,6 @@ from pipeline.paths import (
 )
 from pipeline.stages.outputs import read_json, write_outputs
 
-TABLES = ("gait", "stability", "rom", "kinematics", "compliance", "harness", "tracking", "spm_tests",
-          "spm_curves", "spm_clusters", "phases", "event_traces")
 SOURCES = ("real", "sim", "sim_policy")
 SOURCE_DIRS = {"real": real_dir, "sim": sim_dir, "sim_policy": sim_policy_dir}  # under <root>/<subject>/
 # Sections that do not shape the results; the hash of all others identifies a params version
@@ -100,31 +90,13 @@ def read_inputs(subject: str, root: Path, paper: tuple[str, int] | None = None) 
     return out
 
 
-def compute(inputs: dict[str, pd.DataFrame], p: MetricsParams) -> dict[str, pd.DataFrame]:
-    """Every metric table of one subject."""
-    cycles, strides, robot = inputs["cycles"], inputs["strides"], inputs["robot"]
-    scenario_robot = inputs.get("scenario_robot", pd.DataFrame())
-    spm = spm_tables(cycles, p.spm)
-    has_robot = not robot.empty
-    return {
-        "gait": gait_table(strides),
-        "stability": stability_table(cycles, p.pool_sides, p.joints),
-        "rom": rom_table(cycles, p.pool_sides, p.joints),
-        "kinematics": bands_table(cycles, p.pool_sides),
-        "compliance": compliance_table(robot, p.exclude_locked) if has_robot else _empty("compliance"),
-        "harness": harness_table(robot, p.exclude_locked) if has_robot else _empty("harness"),
-        "tracking": tracking_table(robot, p.tracking_rate_hz) if has_robot else _empty("tracking"),
-        "spm_tests": spm.tests,
-        "spm_curves": spm.curves,
-        "spm_clusters": spm.clusters,
-        "phases": phase_table(scenario_robot, p.exclude_locked),
-        "event_traces": event_traces(scenario_robot, p.events, p.exclude_locked),
-    }
-
-
-def _empty(name: str) -> pd.DataFrame:
-    columns = {"compliance": compliance.COLUMNS, "harness": harness.COLUMNS, "tracking": TRACKING_COLUMNS}
-    return pd.DataFrame(columns=columns[name])
+def compute(inputs: dict[str, pd.DataFrame], p: MetricsParams,
+            registry: tuple[MetricTable, ...] = REGISTRY) -> dict[str, pd.DataFrame]:
+    """Every metric table of `registry` for one subject (`inputs`: strides, cycles, robot and
+    optionally scenario_robot)."""
+    given = MetricInputs(inputs["strides"], inputs["cycles"], inputs["robot"],
+                         inputs.get("scenario_robot", pd.DataFrame()))
+    return {table.name: table.compute(given, p) for table in registry}
 
 
 def headline(tables: dict[str, pd.DataFrame]) -> dict:
@@ -210,19 +182,20 @@ def quality_checks(subject: str, params: Params, root: Path = PROCESSED_ROOT,
 
 
 def run_metrics(subject: str, params: Params, root: Path = PROCESSED_ROOT,
-                out_root: Path = METRICS_ROOT) -> Path:
-    """Compute and write a subject's metric tables; returns the output folder."""
+                out_root: Path = METRICS_ROOT, registry: tuple[MetricTable, ...] = REGISTRY) -> Path:
+    """Compute and write a subject's metric tables (those of `registry`); returns the output folder."""
     p = params.metrics.build()
     root = Path(root)
     try:
         paper = params.scenarios.paper
-        tables = compute(read_inputs(subject, root, (paper.scenario, paper.cycles_per_walk)), p)
+        tables = compute(read_inputs(subject, root, (paper.scenario, paper.cycles_per_walk)), p, registry)
     except (KeyError, ValueError) as exc:
         raise MetricsError(str(subject_dir(root, subject)), f"cannot compute metrics ({exc})") from None
-    tables["quality"] = quality_checks(subject, params, root)
+    quality = quality_checks(subject, params, root)
     folder = metrics_dir(out_root, subject)
     provenance = {"subject": subject, "params_hash": params_hash(params),
                   "inputs": input_hashes(subject, root),
                   "round_trip_of": load_subject(subject).round_trip_of}
-    write_outputs(folder, tables, {"metrics": headline(tables), "provenance": provenance})
+    write_outputs(folder, {"quality": quality}, {"metrics": headline(tables), "provenance": provenance},
+                  (metric_tables_dir(out_root, subject), tables))
     return folder

@@ -138,16 +138,31 @@ def json_text(doc: dict) -> str:
     return json.dumps(doc, indent=2) + "\n"
 
 
-def write_outputs(folder: Path, tables: Mapping[str, pd.DataFrame], metrics: Mapping[str, dict]) -> None:
-    """`<folder>/<name>.parquet` for each table and `<folder>/<name>.json` for each metrics dict."""
+def _write(temp: Path, content: pd.DataFrame | dict) -> None:
+    if isinstance(content, pd.DataFrame):
+        content.to_parquet(temp, index=False)
+    else:
+        temp.write_text(json_text(content))
+
+
+def write_outputs(folder: Path, tables: Mapping[str, pd.DataFrame], metrics: Mapping[str, dict],
+                  table_set: tuple[Path, Mapping[str, pd.DataFrame]] | None = None) -> None:
+    """`<folder>/<name>.parquet` for each table and `<folder>/<name>.json` for each metrics dict; with
+    `table_set` (a folder, its tables), also `<that folder>/<name>.parquet` for each of its tables, the
+    folder replaced as a set (`replacing_folder`: a table no longer written is gone)."""
     files = {folder / f"{n}.parquet": t for n, t in tables.items()}
     files |= {folder / f"{n}.json": d for n, d in metrics.items()}
-    with replacing(*files) as temps:
+    if table_set is None:
+        with replacing(*files) as temps:
+            for temp, content in zip(temps, files.values(), strict=True):
+                _write(temp, content)
+        return
+    target, members = table_set
+    with replacing_folder(target, *files) as (temp_folder, temps):
+        for name, table in members.items():
+            _write(temp_folder / f"{name}.parquet", table)
         for temp, content in zip(temps, files.values(), strict=True):
-            if isinstance(content, pd.DataFrame):
-                content.to_parquet(temp, index=False)
-            else:
-                temp.write_text(json_text(content))
+            _write(temp, content)
 
 
 def read_json(path: Path) -> dict | None:

@@ -1,11 +1,11 @@
 """Stage `store`: every subject's metric tables -> new versions in the results store.
 
-Reads `<root>/<subject>/<table>.parquet` (root: data/metrics), `quality.parquet` and `provenance.json`
-for each subject in params.yaml, the rows of the sweep, fall-intervention and responsiveness studies
-(data/sweeps/<study>/results.parquet) and the
-tuning results (data/tuning), and `evaluate-policy`'s checks of each subject's policy and cohort variant
-(`evaluation.json` in its policy folder, data/policies) and adds them to `data/results.duckdb` in one
-transaction (`pipeline.store`).
+Reads `<root>/<subject>/tables/<table>.parquet` for each metric table of `metrics.tables.REGISTRY`
+(root: data/metrics), `quality.parquet` and `provenance.json` for each subject in params.yaml, the
+rows of the sweep, fall-intervention and responsiveness studies (data/sweeps/<study>/results.parquet),
+the tuning results (data/tuning) and `evaluate-policy`'s checks of each subject's policy and cohort
+variant (`evaluation.json` in its policy folder, data/policies), and adds them to
+`data/results.duckdb` in one transaction (`pipeline.store`).
 """
 
 from __future__ import annotations
@@ -16,12 +16,15 @@ from pathlib import Path
 import pandas as pd
 from tqdm import tqdm
 
+from metrics.table import MetricTable
+from metrics.tables import REGISTRY
 from pipeline.params import Params
 from pipeline.paths import (
     METRICS_ROOT,
     POLICIES_ROOT,
     SWEEPS_ROOT,
     TUNING_ROOT,
+    metric_tables_dir,
     metrics_dir,
     policy_dir,
     sweep_dir,
@@ -29,7 +32,6 @@ from pipeline.paths import (
 from pipeline.runs.gate import EVALUATION_FILE, source_evaluation
 from pipeline.store import (
     POLICY_CHECK_COLUMNS,
-    TABLES,
     TUNING_COLUMNS,
     StoreError,
     StoreReport,
@@ -39,14 +41,15 @@ from pipeline.store import (
 from sim.body.variant import HEALTHY
 
 
-def load_results(subject: str, root: Path = METRICS_ROOT) -> SubjectResults:
-    """A subject's metric tables as written by the metrics stage."""
+def load_results(subject: str, root: Path = METRICS_ROOT,
+                 registry: tuple[MetricTable, ...] = REGISTRY) -> SubjectResults:
+    """A subject's metric tables (those of `registry` it has) as written by the metrics stage."""
     folder = metrics_dir(root, subject)
     prov = folder / "provenance.json"
     if not prov.is_file():
         raise StoreError(folder, f"no metrics for subject {subject!r}: "
                          f"run `python -m pipeline metrics {subject}`")
-    files = {t: folder / f"{t}.parquet" for t in TABLES}
+    files = {t.name: metric_tables_dir(root, subject) / f"{t.name}.parquet" for t in registry}
     tables = {t: pd.read_parquet(f) for t, f in files.items() if f.is_file()}
     doc = json.loads(prov.read_text())
     quality_file = folder / "quality.parquet"

@@ -1,7 +1,7 @@
 """The report's "Virtual cohort" and "Fall intervention" sections and their figures, from small
 frames shaped like the store's views (`cohort_gait`, `cohort_controllers`, `fall_intervention`,
-`falls_not_caught`, `false_alarms` of pipeline/store.py), and the published clinical ranges they are
-read beside (data/paper/clinical_ranges.yaml). The whole path from a store is in test_report.py."""
+`falls_not_caught`, `false_alarms` of pipeline/store/views/), and the published clinical ranges they
+are read beside (data/paper/clinical_ranges.yaml). The whole path from a store is in test_report.py."""
 
 import math
 

@@ -18,6 +18,6 @@ def test_subject_without_a_policy_gets_empty_scenario_tables(params, camargo_mod
     assert summary["rollouts"] == 0 and "no trained policy" in summary["note"]
     assert pd.read_parquet(root / "camargo" / "sim_policy" / "robot.parquet").empty
     folder = run_metrics("camargo", params, root, tmp_path / "metrics")
-    assert pd.read_parquet(folder / "phases.parquet").empty
-    gait = pd.read_parquet(folder / "gait.parquet")
+    assert pd.read_parquet(folder / "tables" / "phases.parquet").empty
+    gait = pd.read_parquet(folder / "tables" / "gait.parquet")
     assert set(gait["human_mode"]) == {"none"}  # real only: no policy rows appear from nowhere

@@ -16,7 +16,7 @@ import duckdb
 import pytest
 import yaml
 
-import pipeline.store
+import pipeline.store.write
 from pipeline.cli import main
 from pipeline.params import load_params, parse_params
 from pipeline.stages.ingest import run_ingest
@@ -203,14 +203,14 @@ def test_a_full_disk_is_named_and_the_store_keeps_its_state(processed, tmp_path,
     traceback; both now end in one line naming the cause and the file, the store as it was."""
     db = tmp_path / "results.duckdb"
     store_results(db, results(processed)[:1], FAST, rev="before")
-    real_open = pipeline.store.open_store
+    real_open = pipeline.store.write.open_store
 
     @contextmanager
     def full_at_commit(path, read_only=False, *args):
         with real_open(path, read_only, *args) as con:
             yield con if read_only else FullDiskAtCommit(con)
 
-    monkeypatch.setattr(pipeline.store, "open_store", full_at_commit)
+    monkeypatch.setattr(pipeline.store.write, "open_store", full_at_commit)
     with pytest.raises(StoreError, match=rf"^{re.escape(str(db))}: cannot write the store \(IO Error: "
                        r"Could not write file .*No space left on device\)$"):
         store_results(db, results(processed), FAST, rev="full")
