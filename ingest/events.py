@@ -30,10 +30,12 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 import pandas as pd
 import scipy  # scipy.signal loads on first use (see ingest/filtering.py)
+from pydantic import ConfigDict
 
 from ingest.errors import IngestError
 from ingest.filtering import finite_runs
@@ -44,7 +46,9 @@ EVENT_COLUMNS = ["side", "event", "time_s", "method"]
 
 @dataclass(frozen=True)
 class EventParams:
-    method: str = "auto"
+    __pydantic_config__ = ConfigDict(extra="forbid")
+
+    method: Literal["auto", "force", "kinematic"] = "auto"
     force_threshold_n: float = 20.0
     min_contact_s: float = 0.2
     force_window_s: float = 0.1

@@ -18,6 +18,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from pydantic import ConfigDict
 
 from ingest.bouts import PelvisPath
 from ingest.filtering import finite_runs
@@ -26,6 +27,8 @@ from ingest.filtering import finite_runs
 @dataclass(frozen=True)
 class PhaseParams:
     """The `ingest.phases` section of params.yaml."""
+
+    __pydantic_config__ = ConfigDict(extra="forbid")
 
     standing_speed_mps: float = 0.1
     steady_fraction: float = 0.9

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
+from pydantic import ConfigDict
 
 from ingest.bouts import Bout, PelvisPath
 from ingest.events import times_by_side
@@ -35,6 +36,8 @@ from ingest.trial import SIDES
 
 @dataclass(frozen=True)
 class StrideParams:
+    __pydantic_config__ = ConfigDict(extra="forbid")
+
     max_stride_time_s: float = 2.0
     min_speed_mps: float = 0.3
     min_stride_length_m: float = 0.3

@@ -15,10 +15,12 @@ sample of that phase in the run), averaged across runs with the same 95 % CI.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Annotated
 
 import numpy as np
 import pandas as pd
 import scipy  # scipy.stats loads on first use (~0.6 s): stages without intervals skip it
+from pydantic import ConfigDict, Field
 
 from metrics.compliance import FORCE, following, run_means
 from metrics.groups import GROUP, with_identity
@@ -41,9 +43,15 @@ class EventWindow:
     (about 1.7 s, `scenarios.profile.start_s`), a 90 deg turn (1 s at 90 deg/s) and the stop
     (1.4 s) with a second before the command."""
 
+    __pydantic_config__ = ConfigDict(extra="forbid")
+
     names: tuple[str, ...] = ("start", "turn", "stop")
     window_s: tuple[float, float] = (-1.0, 3.0)
-    step_s: float = 0.05
+    step_s: Annotated[float, Field(gt=0.0)] = 0.05
+
+    def __post_init__(self) -> None:
+        if not self.window_s[0] < 0.0 < self.window_s[1]:
+            raise ValueError(f"window_s: must run from before to after the event (got {list(self.window_s)})")
 
     def grid(self) -> np.ndarray:
         """Times relative to the onset (s), both window ends included."""

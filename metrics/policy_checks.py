@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
+from pydantic import ConfigDict
 
 from metrics.spm import spm_test
 
@@ -23,6 +24,8 @@ from metrics.spm import spm_test
 @dataclass(frozen=True)
 class PolicyChecks:
     """Pass rules of `evaluate_policy.checks` in params.yaml."""
+
+    __pydantic_config__ = ConfigDict(extra="forbid")
 
     free_no_fall_fraction: float = 0.9       # share of free walks without a fall
     robot_no_fall_fraction: float = 0.8      # share of walks with each controller without a fall

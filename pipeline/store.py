@@ -47,9 +47,10 @@ from pathlib import Path
 import duckdb
 import numpy as np
 import pandas as pd
+from pydantic import ConfigDict
 
 from ingest.errors import GaitloopError
-from pipeline.paths import REPO_ROOT, STORE_FILE
+from pipeline.paths import REPO_ROOT, STORE_FILE, repo_path
 
 GROUP = ["subject", "condition", "source", "human_mode"]
 _GROUP_DDL = "subject VARCHAR, source VARCHAR, human_mode VARCHAR, condition VARCHAR"
@@ -165,9 +166,14 @@ class StoreError(GaitloopError):
 class StoreParams:
     """The `store` section of params.yaml."""
 
-    path: Path = STORE_FILE
-    busy_timeout_s: float = 10.0
+    __pydantic_config__ = ConfigDict(extra="forbid")
+
+    path: Path = STORE_FILE  # a relative path is taken from the repository root
+    busy_timeout_s: float = 10.0  # a second writer waits this long (s) for the file lock, then "busy"
     retry_interval_s: float = 0.2
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "path", repo_path(self.path))
 
 
 @dataclass(frozen=True)

@@ -11,6 +11,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from metrics.section import MetricsParams
 from pipeline.params import Params
 from pipeline.stages.ingest import run_ingest
 from pipeline.stages.metrics import compute, params_hash, read_inputs
@@ -30,7 +31,7 @@ def _best(fn, repeat: int) -> float:
 
 
 def time_store(params: Params, repeat: int = 3) -> dict:
-    mp = params.metrics.build()
+    mp = params.section("metrics", MetricsParams)
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp)
         for sid in SUBJECTS:

@@ -60,8 +60,8 @@ from metrics.plots import (
     tuning_figure,
 )
 from metrics.quality import NOT_COMPUTED, worst, worst_check
-from pipeline.params import ReportParams
 from pipeline.paths import PAPER_FILE, POLICIES_ROOT, REPORTS_ROOT, UNIVERSAL_DIR, policy_dir, report_dir
+from pipeline.runs.report_params import ReportParams
 from pipeline.stages.outputs import read_json, replacing, replacing_folder, write_figure
 from pipeline.store import StoreError, open_store
 from sim.rollout.scenarios import PHASES

@@ -18,6 +18,7 @@ from dataclasses import dataclass, replace
 
 import mujoco
 import numpy as np
+from pydantic import ConfigDict
 
 from sim.body.human import standing_height
 from sim.learn.steering import geom_bottom, standing_pose, subtree
@@ -58,6 +59,8 @@ class BodyDraw:
     """How far drawn bodies stray from their subject's (params `universal.bodies`): a whole-body
     factor within +-`range` for lengths and another for mass, times a per-segment one within
     +-`segment_jitter`, each factor clipped to +-`range`."""
+
+    __pydantic_config__ = ConfigDict(extra="forbid")
 
     range: float
     segment_jitter: float

@@ -14,6 +14,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Annotated
+
+from pydantic import ConfigDict, Field
 
 from sim.angles import wrap_angle
 
@@ -21,9 +24,12 @@ from sim.angles import wrap_angle
 @dataclass(frozen=True)
 class TwistParams:
     """`train.env.harness_twist` (probability, lag_s) with the harness's yaw spring from
-    `robot.harness` (`Params.train_params` fills those in)."""
+    `robot.harness` (`pipeline.runs.setup.train_params` fills those in)."""
 
-    probability: float = 0.0                  # share of training episodes with the twist (0: off)
+    __pydantic_config__ = ConfigDict(extra="forbid")
+
+    # share of training episodes with the twist (0: off)
+    probability: Annotated[float, Field(ge=0.0, le=1.0)] = 0.0
     lag_s: tuple[float, float] = (0.2, 1.0)   # the virtual base heading's time constant, drawn per episode
     stiffness_nm_per_rad: float = 40.0
     damping_nms_per_rad: float = 3.0

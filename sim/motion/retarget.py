@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
+from pydantic import ConfigDict
 from scipy.spatial.transform import Rotation
 
 from sim.errors import SimulationError
@@ -42,6 +43,8 @@ SUFFIX_OF_SIDE = {"left": "l", "right": "r"}  # canonical side names -> the mode
 class RetargetParams:
     """The `retarget.ik` block of params.yaml (see the module docstring for the problem solved)."""
 
+    __pydantic_config__ = ConfigDict(extra="forbid")
+
     iterations: int = 4                  # LM iterations per warm-started frame
     first_frame_iterations: int = 80     # LM iterations for the first frame (cold start)
     step_tolerance: float = 1e-4         # stop when |dq| (rad or m) falls below this
@@ -50,17 +53,6 @@ class RetargetParams:
     default_marker_weight: float = 1.0
     marker_weights: dict[str, float] = field(default_factory=dict)  # fnmatch pattern -> weight
     min_markers: int = 4                 # frames with fewer present markers keep the previous pose
-
-    @classmethod
-    def from_dict(cls, d: dict) -> RetargetParams:
-        known = {f for f in cls.__dataclass_fields__}
-        unknown = set(d) - known
-        if unknown:
-            raise SimulationError("params.yaml retarget", f"unknown keys {sorted(unknown)}")
-        d = dict(d)
-        if "marker_weights" in d:
-            d["marker_weights"] = {str(k): float(v) for k, v in (d["marker_weights"] or {}).items()}
-        return cls(**d)
 
     def weight(self, name: str) -> float:
         """Weight of marker `name`: the first matching pattern in `marker_weights`, else the default."""

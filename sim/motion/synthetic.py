@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import mujoco
 import numpy as np
+from pydantic import ConfigDict
 
 from sim.motion.replay import Motion
 
@@ -27,6 +28,8 @@ from sim.motion.replay import Motion
 @dataclass(frozen=True)
 class WalkParams:
     """Synthetic walk (params `robot.tuning.walks`)."""
+
+    __pydantic_config__ = ConfigDict(extra="forbid")
 
     speed_mps: float = 1.2
     stride_s: float = 1.1

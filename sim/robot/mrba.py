@@ -38,6 +38,7 @@ from dataclasses import dataclass
 
 import mujoco
 import numpy as np
+from pydantic import ConfigDict
 
 from sim.errors import SimulationError
 from sim.robot.harness import HARNESS_JOINTS, HarnessParams, add_harness
@@ -56,6 +57,8 @@ SENSOR_WIDTH = 27
 @dataclass(frozen=True)
 class BaseParams:
     """Mobile base: size, mass, drive servo and command limits (params `robot.base`)."""
+
+    __pydantic_config__ = ConfigDict(extra="forbid")
 
     mass_kg: float = 100.0
     length_m: float = 0.6
@@ -78,6 +81,8 @@ class BaseParams:
 class ArmParams:
     """Passive arm (forward, lateral, vertical slides): per-joint values, params `robot.arm`."""
 
+    __pydantic_config__ = ConfigDict(extra="forbid")
+
     link_mass_kg: float = 2.0
     damping_ns_per_m: tuple[float, float, float] = (20.0, 20.0, 20.0)
     frictionloss_n: tuple[float, float, float] = (5.0, 5.0, 5.0)
@@ -89,6 +94,8 @@ class ArmParams:
 class FallParams:
     """Fall rule on robot-sensed arm signals (params `robot.fall`)."""
 
+    __pydantic_config__ = ConfigDict(extra="forbid")
+
     drop_speed_mps: float = 0.7
     drop_m: float = 0.12
     deflection_m: float = 0.22
@@ -98,37 +105,22 @@ class FallParams:
 class SensorParams:
     """Noise of the robot's own sensors (params `robot.sensors`)."""
 
+    __pydantic_config__ = ConfigDict(extra="forbid")
+
     arm_noise_m: float = 0.0005
     velocity_noise_mps: float = 0.005
 
 
 @dataclass(frozen=True)
 class RobotParams:
-    """The whole `robot` section of params.yaml, minus the controllers."""
+    """The MRBA's parts: `robot.base`, `robot.arm`, `robot.harness`, `robot.fall`, `robot.sensors` of
+    params.yaml (`sim.robot.section.RobotSection` is the whole section)."""
 
     base: BaseParams = BaseParams()
     arm: ArmParams = ArmParams()
     harness: HarnessParams = HarnessParams()
     fall: FallParams = FallParams()
     sensors: SensorParams = SensorParams()
-
-    @classmethod
-    def from_dict(cls, d: dict) -> RobotParams:
-        def tup(x):
-            return tuple(float(v) for v in x)
-
-        arm = d["arm"]
-        h = d["harness"]
-        return cls(
-            base=BaseParams(**{k: float(v) for k, v in d["base"].items()}),
-            arm=ArmParams(float(arm["link_mass_kg"]), tup(arm["damping_ns_per_m"]),
-                          tup(arm["frictionloss_n"]), tup(arm["range_m"]), float(arm["lock_timeconst_s"])),
-            harness=HarnessParams(tup(h["stiffness"]), tup(h["damping"]), tup(h["range"]),
-                                  float(h["mass_kg"]), float(h["weld_timeconst_s"]),
-                                  float(h["limit_timeconst_s"])),
-            fall=FallParams(**{k: float(v) for k, v in d["fall"].items()}),
-            sensors=SensorParams(**{k: float(v) for k, v in d["sensors"].items()}),
-        )
 
 
 def body_pose_at_qpos0(spec: mujoco.MjSpec, body: str) -> tuple[np.ndarray, np.ndarray]:

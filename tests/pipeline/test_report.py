@@ -335,7 +335,7 @@ def test_unknown_subject_is_refused(store, tmp_path):
 KILLED_REPORT = """
 import sys, time
 from pathlib import Path
-from pipeline.params import ReportParams
+from pipeline.runs.report_params import ReportParams
 from pipeline.stages import report
 db, reports, marker = map(Path, sys.argv[1:])
 write = report.write_figure

@@ -11,6 +11,7 @@ import pytest
 from matplotlib.figure import Figure
 
 from metrics.plots import COHORT_PANELS, FALL_PANELS, VARIANT_ORDER, cohort_heatmap, fall_intervention_figure
+from pipeline.runs.studies import report_params
 from pipeline.stages.report import (
     CLINICAL_MEASURES,
     FIGURES,
@@ -305,9 +306,9 @@ def test_caught_threshold_and_variants_follow_params(params):
     """The report's caught threshold comes from params (robot.fall.drop_m + the margin); its variant
     order names every variant params declares."""
     rule = params.fall_intervention.rule(params.robot.fall.drop_m)
-    assert params.report_params().caught_drop_m == pytest.approx(rule.caught_drop_m)
-    assert params.report_params().caught_drop_m == pytest.approx(params.robot.fall.drop_m
-                                                                 + params.fall_intervention.caught_margin_m)
+    assert report_params(params).caught_drop_m == pytest.approx(rule.caught_drop_m)
+    assert report_params(params).caught_drop_m == pytest.approx(params.robot.fall.drop_m
+                                                                + params.fall_intervention.caught_margin_m)
     assert set(VARIANT_ORDER) == {"healthy", *params.cohort.variants}
     assert list(params.fall_intervention.variants) == [v for v in VARIANT_ORDER if v in
                                                        params.fall_intervention.variants]

@@ -9,7 +9,7 @@ import pytest
 
 from metrics.findings import region_text, responsiveness_comparisons
 from metrics.plots import sensitivity_figure
-from pipeline.params import ParamsError, load_params, parse_params
+from pipeline.params import ParamsError, check_params, load_params, parse_params
 from pipeline.paths import POLICIES_ROOT
 from pipeline.stages.report import findings_lines, load_paper, paper_compliance, sensitivity_lines
 from pipeline.stages.sweep import run_sweep, sensitivity_jobs, sweep_jobs
@@ -28,7 +28,7 @@ def tiny(seeds: int = 2):
 
 
 def test_design_one_factor_at_a_time():
-    params = load_params()
+    params = check_params()
     jobs, design, notes = sensitivity_jobs(params)
     sw = params.sensitivity
     assert notes == []
