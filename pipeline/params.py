@@ -60,7 +60,7 @@ SECTIONS = {
     "universal": "sim.learn.pool:UniversalParams",
     "transfer": "sim.learn.transfer:TransferSection",
 }
-Subjects = tuple[str, ...]  # `subjects`: every subject the pipeline runs (data/subjects/<id>.yaml)
+Subjects = tuple[str, ...]
 # values that other sections set (pipeline/runs/setup.py, pipeline/runs/report_params.py): never in the file
 DERIVED = {
     "report.caught_drop_m": "robot.fall.drop_m + fall_intervention.caught_margin_m",
@@ -96,6 +96,7 @@ class Params:
 
     @property
     def subjects(self) -> tuple[str, ...]:
+        """`subjects`: every subject the pipeline runs (data/subjects/<id>.yaml)."""
         return self.section("subjects", Subjects)
 
     def section(self, name: str, cls: type[T] | Any) -> T:
@@ -131,9 +132,6 @@ class Params:
 
     def __hash__(self) -> int:
         return hash(self._path)
-
-    def __getstate__(self) -> dict:
-        return {"_doc": self._doc, "_path": self._path, "_sections": {}}
 
 
 class CheckedParams(Params):
@@ -229,9 +227,9 @@ def cross_section_problems(doc: dict) -> list[str]:
             out.append(f"{key}: set from {source}, not in the file")
     controllers, scenarios = _names(doc, "robot", "controllers"), _names(doc, "scenarios", "commands")
     events = _names(doc, "fall_intervention", "balance_loss")
-    for name in _names(doc, "robot", "tuning", "initial"):
-        if name not in controllers:
-            out.append(f"robot.tuning.initial.{name}: no controller {name!r} in robot.controllers")
+    for where in (("robot", "tuning", "initial"), ("tune", "search")):
+        out += [f"{'.'.join(where)}.{name}: no controller {name!r} in robot.controllers"
+                for name in _names(doc, *where) if name not in controllers]
     for cond in _names(doc, "rollout", "conditions"):
         if cond != "free" and cond not in controllers:
             out.append(f"rollout.conditions: {cond!r} is neither free nor a controller in robot.controllers")
@@ -257,15 +255,11 @@ def cross_section_problems(doc: dict) -> list[str]:
         out.append("sensitivity.study must differ from sweep.study and fall_intervention.study")
     if "free" in _names(studies["sensitivity"], "conditions"):
         out.append("sensitivity.conditions: 'free' has no robot to make responsive")
-    for name in _names(doc, "tune", "search"):
-        if name not in controllers:
-            out.append(f"tune.search.{name}: no controller {name!r} in robot.controllers")
     for name in _names(doc, "transfer", "subjects"):
         if name in _names(doc, "train", "subjects"):
             out.append(f"transfer.subjects: {name!r} has a committed policy (train.subjects)")
-    for name in _names(doc, "tune", "scenarios"):
-        if name not in scenarios:
-            out.append(f"tune.scenarios: no scenario {name!r} in scenarios.commands")
+    out += [f"tune.scenarios: no scenario {name!r} in scenarios.commands"
+            for name in _names(doc, "tune", "scenarios") if name not in scenarios]
     return out
 
 

@@ -66,7 +66,7 @@ def variant_from_dict(name: str, d: dict) -> Variant:
     """A variant from its params entry (`cohort.variants.<name>`)."""
     scale = tuple((str(k), float(v)) for k, v in (d.get("torque_scale") or {}).items())
     speed = d.get("speed_mps")
-    swing = d.get("swing_time_ratio") or {}  # one side at most (the params schema checks)
+    swing = d.get("swing_time_ratio") or {}  # one side at most (`VariantSpec` checks)
     return Variant(name, scale, float(d.get("speed_scale", 1.0)), None if speed is None else float(speed),
                    float(d.get("action_noise", 0.0)),
                    next(((str(k), float(v)) for k, v in swing.items()), None),
