@@ -35,7 +35,7 @@ from typing import Literal
 import numpy as np
 import pandas as pd
 import scipy  # scipy.signal loads on first use (see ingest/filtering.py)
-from pydantic import ConfigDict
+from pydantic import with_config
 
 from ingest.errors import IngestError
 from ingest.filtering import finite_runs
@@ -44,9 +44,9 @@ from ingest.trial import SIDES, ForcePlates
 EVENT_COLUMNS = ["side", "event", "time_s", "method"]
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class EventParams:
-    __pydantic_config__ = ConfigDict(extra="forbid")
 
     method: Literal["auto", "force", "kinematic"] = "auto"
     force_threshold_n: float = 20.0

@@ -18,17 +18,16 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from pydantic import ConfigDict
+from pydantic import with_config
 
 from ingest.bouts import PelvisPath
 from ingest.filtering import finite_runs
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class PhaseParams:
     """The `ingest.phases` section of params.yaml."""
-
-    __pydantic_config__ = ConfigDict(extra="forbid")
 
     standing_speed_mps: float = 0.1
     steady_fraction: float = 0.9

@@ -13,7 +13,7 @@ from typing import Annotated
 
 import numpy as np
 import pandas as pd
-from pydantic import ConfigDict, Field
+from pydantic import Field, with_config
 
 from ingest.bouts import PelvisPath, pelvis_path, straight_bouts
 from ingest.concurrency import helper_pool
@@ -36,28 +36,26 @@ ID_COLUMNS = ["subject", "source", "condition", "trial"]
 PELVIS_ROLES = ("asis_left", "asis_right", "psis_left", "psis_right")
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class FilterParams:
     """Zero-phase Butterworth low-pass of every marker and angle (`ingest.filtering.lowpass`)."""
-
-    __pydantic_config__ = ConfigDict(extra="forbid")
 
     order: int = 4  # forward + backward: a 2nd-order design run twice (Winter 2009)
     cutoff_hz: Annotated[float, Field(gt=0.0)] = 12.0  # Wang, Chan et al. ICRA 2025
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class GapParams:
-    __pydantic_config__ = ConfigDict(extra="forbid")
 
     max_gap_s: float = 0.1  # spline-fill interior dropouts up to this long (s); longer ones reject strides
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class BoutParams:
     """Straight walking bouts from the pelvis path (`ingest.bouts`)."""
-
-    __pydantic_config__ = ConfigDict(extra="forbid")
 
     smooth_hz: float = 0.8  # low-pass on the pelvis path before taking its heading (Hz)
     min_walk_speed_mps: float = 0.3
@@ -66,18 +64,17 @@ class BoutParams:
     max_yaw_rate_deg_s: float = 60.0
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class CycleParams:
-    __pydantic_config__ = ConfigDict(extra="forbid")
 
     n_points: int = 101  # samples of a time-normalised gait cycle (0-100 %)
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class IngestParams:
     """The `ingest` section of params.yaml: how a trial is cleaned, cut and normalised."""
-
-    __pydantic_config__ = ConfigDict(extra="forbid")
 
     filter: FilterParams = field(default_factory=FilterParams)
     gaps: GapParams = field(default_factory=GapParams)

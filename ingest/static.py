@@ -41,7 +41,7 @@ from typing import Annotated
 
 import numpy as np
 import yaml
-from pydantic import ConfigDict, Field
+from pydantic import Field, with_config
 
 from ingest.canonical import _check_body_scale, canonical_angles, resolve_up_axis, up_to_z, zero_gaps
 from ingest.errors import IngestError, SubjectError
@@ -57,6 +57,7 @@ SCALING_ROLES_DIR = MARKERSETS_DIR / "scaling"
 log = logging.getLogger("gaitloop.ingest")
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class StaticCheckParams:
     """Quiet standing (module docstring). Sources: pelvis speed 0.1 m/s is the walk phases' standing
@@ -65,8 +66,6 @@ class StaticCheckParams:
     offset) on camargo's standing and opencap4's static; walking: feet 0.08-0.24 m apart, pelvis
     > 1 m/s. `speed_window_s`: the pelvis speed is its displacement over this span (noise of 1 mm
     gives 0.01 m/s)."""
-
-    __pydantic_config__ = ConfigDict(extra="forbid")
 
     min_duration_s: Annotated[float, Field(gt=0.0)] = 0.5
     max_pelvis_speed_mps: Annotated[float, Field(gt=0.0)] = 0.1

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 from typing import Annotated
 
 import numpy as np
-from pydantic import ConfigDict, Field
+from pydantic import Field, with_config
 
 from ingest.canonical import rotate_z
 from ingest.trial import SIDES, Trial
@@ -40,11 +40,10 @@ from ingest.trial import SIDES, Trial
 log = logging.getLogger(__name__)
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class TreadmillParams:
     """Detection thresholds (module docstring gives the reasons)."""
-
-    __pydantic_config__ = ConfigDict(extra="forbid")
 
     max_pelvis_speed_mps: Annotated[float, Field(gt=0.0)] = 0.2
     min_foot_excursion_m: Annotated[float, Field(gt=0.0)] = 0.3

@@ -20,7 +20,7 @@ from typing import Annotated
 import numpy as np
 import pandas as pd
 import scipy  # scipy.stats loads on first use (~0.6 s): stages without intervals skip it
-from pydantic import ConfigDict, Field
+from pydantic import Field, with_config
 
 from metrics.compliance import FORCE, following, run_means
 from metrics.groups import GROUP, with_identity
@@ -36,14 +36,13 @@ EVENT_QUANTITIES = {"ex_cm": "e_x (cm)", "ey_cm": "e_y (cm)", "force_n": "harnes
 EVENT_COLUMNS = [*EVENT_KEYS, "n_runs", *(f"{q}_{s}" for q in EVENT_QUANTITIES for s in ("mean", "ci95"))]
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class EventWindow:
     """`metrics.events` of params.yaml: the commanded phases whose onsets are events, and the time
     window around each onset (s, grid step `step_s`). The defaults cover the gait initiation
     (about 1.7 s, `scenarios.profile.start_s`), a 90 deg turn (1 s at 90 deg/s) and the stop
     (1.4 s) with a second before the command."""
-
-    __pydantic_config__ = ConfigDict(extra="forbid")
 
     names: tuple[str, ...] = ("start", "turn", "stop")
     window_s: tuple[float, float] = (-1.0, 3.0)

@@ -16,16 +16,15 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
-from pydantic import ConfigDict
+from pydantic import with_config
 
 from metrics.spm import spm_test
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class PolicyChecks:
     """Pass rules of `evaluate_policy.checks` in params.yaml."""
-
-    __pydantic_config__ = ConfigDict(extra="forbid")
 
     free_no_fall_fraction: float = 0.9       # share of free walks without a fall
     robot_no_fall_fraction: float = 0.8      # share of walks with each controller without a fall

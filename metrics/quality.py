@@ -21,7 +21,7 @@ from typing import Annotated, NamedTuple
 
 import numpy as np
 import pandas as pd
-from pydantic import ConfigDict, Field
+from pydantic import Field, with_config
 
 QUALITY_COLUMNS = ["subject", "stage", "check", "value", "warn_above", "fail_above", "status", "cause",
                    "note"]
@@ -39,11 +39,10 @@ class Limits(NamedTuple):
     fail: float
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class QualityParams:
     """The `quality` section of params.yaml: each limit is [warn, fail] in the check's unit."""
-
-    __pydantic_config__ = ConfigDict(extra="forbid")
 
     marker_rms_m: Limits = field(default_factory=lambda: Limits(0.02, 0.04))
     asymmetry_pct: Limits = field(default_factory=lambda: Limits(5.0, 10.0))

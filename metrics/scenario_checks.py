@@ -17,14 +17,13 @@ from dataclasses import dataclass
 from typing import Annotated
 
 import numpy as np
-from pydantic import ConfigDict, Field
+from pydantic import Field, with_config
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class ScenarioChecks:
     """Pass rules of `evaluate_policy.scenario_checks` in params.yaml (issue 11)."""
-
-    __pydantic_config__ = ConfigDict(extra="forbid")
 
     seeds: Annotated[int, Field(ge=1)] = 10                         # walks per scenario and condition
     no_fall_fraction: Annotated[float, Field(ge=0.0, le=1.0)] = 1.0  # 10 of 10 walks without a human fall

@@ -4,18 +4,17 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 
-from pydantic import ConfigDict
+from pydantic import with_config
 
 from metrics.groups import JOINTS
 from metrics.phases import EventWindow
 from metrics.spm import SpmParams
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class MetricsParams:
     """The `metrics` section of params.yaml; `spm` takes `pool_sides` and `joints` from it."""
-
-    __pydantic_config__ = ConfigDict(extra="forbid")
 
     pool_sides: bool = True      # left and right cycles pooled as one group
     exclude_locked: bool = True  # leave out robot samples while the arm is locked (fall caught)

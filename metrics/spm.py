@@ -23,7 +23,7 @@ from typing import Annotated, Literal
 
 import numpy as np
 import pandas as pd
-from pydantic import ConfigDict, Field
+from pydantic import Field, with_config
 
 from metrics.curves import curve_groups
 from metrics.errors import MetricsError
@@ -37,12 +37,11 @@ CURVE_COLUMNS = ["test_id", "pct", "value"]
 CLUSTER_COLUMNS = ["test_id", "cluster", "start_pct", "end_pct", "extent_pct", "p"]
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class SpmParams:
     """The `metrics.spm` section of params.yaml (`pool_sides` and `joints` are the `metrics` section's:
     `metrics.section.MetricsParams` sets them)."""
-
-    __pydantic_config__ = ConfigDict(extra="forbid")
 
     alpha: Annotated[float, Field(gt=0.0, lt=1.0)] = 0.05  # Wang, Chan et al. ICRA 2025
     test: Literal["anova1", "ttest2"] = "anova1"  # the paper's one-way ANOVA; or ttest2

@@ -91,16 +91,15 @@ def cmd_run(args: argparse.Namespace) -> int:
     import subprocess
     from contextlib import ExitStack
 
-    from pipeline.runs.studies import RaySection
     from sim.rollout.cluster import RAY_ADDRESS, local_head
 
+    params = check_params(args.params)  # every section, before any stage runs
     cmd = [sys.executable, "-m", "pipeline.commands.repro", *args.targets]
     if os.environ.get(RAY_ADDRESS):
         return subprocess.run(cmd).returncode
     with ExitStack() as stack:
         try:
-            env = stack.enter_context(local_head(load_params(args.params).section("ray", RaySection).num_cpus,
-                                                        Path.cwd()))
+            env = stack.enter_context(local_head(params.ray.num_cpus, Path.cwd()))
         except (OSError, RuntimeError) as exc:  # no shared head: every stage starts its own Ray
             print(f"warning: {exc}; each stage starts its own Ray", file=sys.stderr)
             env = {}

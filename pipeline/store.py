@@ -47,7 +47,7 @@ from pathlib import Path
 import duckdb
 import numpy as np
 import pandas as pd
-from pydantic import ConfigDict
+from pydantic import with_config
 
 from ingest.errors import GaitloopError
 from pipeline.paths import REPO_ROOT, STORE_FILE, repo_path
@@ -162,11 +162,10 @@ class StoreError(GaitloopError):
         super().__init__(f"{self.where}: {problem}")
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class StoreParams:
     """The `store` section of params.yaml."""
-
-    __pydantic_config__ = ConfigDict(extra="forbid")
 
     path: Path = STORE_FILE  # a relative path is taken from the repository root
     busy_timeout_s: float = 10.0  # a second writer waits this long (s) for the file lock, then "busy"

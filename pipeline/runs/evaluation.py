@@ -6,17 +6,16 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Annotated
 
-from pydantic import ConfigDict, Field
+from pydantic import Field, with_config
 
 from metrics.policy_checks import PolicyChecks
 from metrics.scenario_checks import ScenarioChecks
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class EvalParams:
     """Walks of the evaluation (seeds, durations in s, the lateral push) and its pass rules."""
-
-    __pydantic_config__ = ConfigDict(extra="forbid")
 
     n_seeds: Annotated[int, Field(ge=1)] = 10  # walks per check
     free_s: float = 20.0  # free walking

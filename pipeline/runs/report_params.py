@@ -6,15 +6,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from pydantic import ConfigDict
+from pydantic import with_config
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class ReportParams:
     """The `report` section of params.yaml; the last three come from other sections
     (`studies.report_params`), never from the file."""
-
-    __pydantic_config__ = ConfigDict(extra="forbid")
 
     dpi: int = 110  # PNG resolution of the report figures
     # event -> the scenario its column of the phase-aligned figure is drawn from (the paper's protocol)

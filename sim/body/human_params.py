@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Annotated, Literal
 
-from pydantic import ConfigDict, Field
+from pydantic import Field, with_config
 
 BALL_JOINTS = ("lumbar", "hip_l", "hip_r", "shoulder_l", "shoulder_r")
 HINGE_JOINTS = ("knee_l", "knee_r", "ankle_l", "ankle_r", "elbow_l", "elbow_r")
@@ -23,11 +23,10 @@ class ByName:
         return getattr(self, key)
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class JointValues(ByName):
     """One value per joint kind (`joint_kind`)."""
-
-    __pydantic_config__ = ConfigDict(extra="forbid")
 
     lumbar: float
     hip: float
@@ -37,12 +36,11 @@ class JointValues(ByName):
     elbow: float
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class RangeDeg(ByName):
     """Ranges of motion (deg): ball joints the total rotation from upright, hinges [min, max] in
     canonical signs."""
-
-    __pydantic_config__ = ConfigDict(extra="forbid")
 
     lumbar: float = 60.0
     hip: float = 120.0
@@ -52,11 +50,10 @@ class RangeDeg(ByName):
     elbow: tuple[float, float] = (-5.0, 150.0)
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class GeomRadius(ByName):
     """Capsule radius of each segment (shape only), per metre of stature."""
-
-    __pydantic_config__ = ConfigDict(extra="forbid")
 
     pelvis: float = 0.045
     torso: float = 0.06
@@ -68,11 +65,10 @@ class GeomRadius(ByName):
     hand: float = 0.013
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class HumanParams:
     """The `human` section of params.yaml: every tunable number of the human model; units in the names."""
-
-    __pydantic_config__ = ConfigDict(extra="forbid")
 
     anthropometry: Literal["de_leva_male", "de_leva_female"] = "de_leva_male"  # de Leva (1996) Table 4
     neutral: Literal["static_ik", "static_upright", "asis_psis"] = "static_ik"  # joint zeros (scaling)

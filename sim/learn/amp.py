@@ -22,16 +22,15 @@ from typing import Annotated
 
 import numpy as np
 import torch
-from pydantic import ConfigDict, Field
+from pydantic import Field, with_config
 from stable_baselines3.common.callbacks import BaseCallback
 from torch import nn
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class AMPParams:
     """Discriminator settings (params `train.amp`)."""
-
-    __pydantic_config__ = ConfigDict(extra="forbid")
 
     hidden: tuple[int, ...] = (256, 256)
     learning_rate: float = 1e-4

@@ -18,7 +18,7 @@ from dataclasses import dataclass, replace
 
 import mujoco
 import numpy as np
-from pydantic import ConfigDict
+from pydantic import with_config
 
 from sim.body.human import standing_height
 from sim.learn.steering import geom_bottom, standing_pose, subtree
@@ -54,13 +54,12 @@ class BodyScales:
         return self.length[i], self.mass[i]
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class BodyDraw:
     """How far drawn bodies stray from their subject's (params `universal.bodies`): a whole-body
     factor within +-`range` for lengths and another for mass, times a per-segment one within
     +-`segment_jitter`, each factor clipped to +-`range`."""
-
-    __pydantic_config__ = ConfigDict(extra="forbid")
 
     range: float
     segment_jitter: float

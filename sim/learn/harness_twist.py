@@ -16,17 +16,16 @@ import math
 from dataclasses import dataclass
 from typing import Annotated
 
-from pydantic import ConfigDict, Field
+from pydantic import Field, with_config
 
 from sim.angles import wrap_angle
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class TwistParams:
     """`train.env.harness_twist` (probability, lag_s) with the harness's yaw spring from
     `robot.harness` (`pipeline.runs.setup.train_params` fills those in)."""
-
-    __pydantic_config__ = ConfigDict(extra="forbid")
 
     # share of training episodes with the twist (0: off)
     probability: Annotated[float, Field(ge=0.0, le=1.0)] = 0.0

@@ -13,7 +13,7 @@ from dataclasses import dataclass, fields
 import gymnasium as gym
 import mujoco
 import numpy as np
-from pydantic import ConfigDict
+from pydantic import with_config
 
 from sim.learn.bodies import (
     BODY_OBS_SIZE,
@@ -30,11 +30,10 @@ from sim.motion.reference import ReferenceCycle, load_reference
 UNIVERSAL_OBS_SIZE = OBS_SIZE + BODY_OBS_SIZE
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class UniversalParams:
     """The `universal` section of params.yaml, where the values and their units are (one place)."""
-
-    __pydantic_config__ = ConfigDict(extra="forbid")
 
     subjects: tuple[str, ...]            # bundled subjects whose bodies and cycles it trains on
     drawn: int                           # drawn bodies in each env's pool

@@ -38,7 +38,7 @@ from typing import Annotated
 
 import mujoco
 import numpy as np
-from pydantic import ConfigDict, Field
+from pydantic import Field, with_config
 
 from sim.angles import wrap_angle
 from sim.rollout.scenarios import CommandProfile, ProfileParams, Segment, command_profile
@@ -48,12 +48,11 @@ Fraction = Annotated[float, Field(gt=0.0, le=1.0)]
 Positive = Annotated[float, Field(gt=0.0)]
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class CommandSampling:
     """Random training commands (params `train.env.commands`): episode starts, segment lengths,
     speeds (x the cycle's speed) and turn angles."""
-
-    __pydantic_config__ = ConfigDict(extra="forbid")
 
     standing_start_probability: Share = 0.5   # else the episode starts walking at a random phase
     speed_range: tuple[float, float] = (0.6, 1.3)

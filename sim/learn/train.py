@@ -30,7 +30,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import torch
-from pydantic import ConfigDict
+from pydantic import with_config
 from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor, VecNormalize
@@ -55,21 +55,19 @@ LEAN_LAW = ("turn_lean_time_constant_s", "max_lean_tan")  # kept with `turn_lean
 STEERING_FILE = "steering.json"  # the speed law it was trained under (sim/learn/steering.py)
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class TrainSubject:
     """A subject with a committed policy (data/policies/<subject>/): its dvc `train` stage's extra
     `python -m pipeline train` arguments."""
 
-    __pydantic_config__ = ConfigDict(extra="forbid")
-
     args: str = ""
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class TrainParams:
     """The `train` section of params.yaml (PPO + AMP; `subjects` is the dvc `train` stage's list)."""
-
-    __pydantic_config__ = ConfigDict(extra="forbid")
 
     total_steps: int = 3_700_000
     n_envs: int = 8

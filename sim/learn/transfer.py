@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Annotated, Literal
 
 import mujoco
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, with_config
 
 from sim.body.human import standing_height
 from sim.errors import SimulationError
@@ -37,11 +37,10 @@ class BodyFeatures:
     speed_mps: float
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class FeatureWeights:
     """Weight of each feature's log ratio in the distance (`transfer.weights` of params.yaml)."""
-
-    __pydantic_config__ = ConfigDict(extra="forbid")
 
     height: NonNegative = 1.0
     mass: NonNegative = 1.0

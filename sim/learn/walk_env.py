@@ -41,7 +41,7 @@ from typing import Annotated
 import gymnasium as gym
 import mujoco
 import numpy as np
-from pydantic import ConfigDict, Field
+from pydantic import Field, with_config
 
 from sim.body.human_params import ByName, JointValues, joint_kind
 from sim.body.variant import Variant
@@ -70,11 +70,10 @@ LEGACY_OBS_SIZE = 72  # the straight-walking policies before steering (no amplit
 AMP_SIZE = 61
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class Imitation(ByName):
     """One value per imitation term of the reward."""
-
-    __pydantic_config__ = ConfigDict(extra="forbid")
 
     pose: float
     velocity: float
@@ -83,13 +82,12 @@ class Imitation(ByName):
     root_velocity: float
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class WalkEnvParams:
     """Numbers of the walking environment (params `train.env`); units in names. `profile`, `variant` and
     the harness twist's spring are not read from params.yaml's `train.env`: `train_params` (pipeline)
     sets them from `scenarios.profile`, the cohort variant and `robot.harness`."""
-
-    __pydantic_config__ = ConfigDict(extra="forbid")
 
     control_dt_s: float = 0.03             # 33 Hz policy (DeepMimic uses 30 Hz)
     action_scale_rad: float = 0.25          # residual PD target range around the reference

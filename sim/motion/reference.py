@@ -20,7 +20,7 @@ from typing import Annotated, Literal
 import mujoco
 import numpy as np
 import pandas as pd
-from pydantic import ConfigDict, Field
+from pydantic import Field, with_config
 
 from ingest.filtering import lowpass
 from ingest.process import ProcessedTrial
@@ -29,12 +29,11 @@ from sim.errors import SimulationError
 from sim.motion.retarget import ROOT_JOINT, MarkerFit, RetargetParams, joint_angles, retarget
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class ReferenceParams:
     """The `retarget` section of params.yaml: which trials become the reference motion and how, and
     the marker IK that fits them (`ik`)."""
-
-    __pydantic_config__ = ConfigDict(extra="forbid")
 
     conditions: tuple[str, ...] = ("free",)  # trial conditions retargeted; the first builds the cycle
     qvel_cutoff_hz: Annotated[float, Field(gt=0.0)] = 8.0  # low-pass (zero-phase, 4th order) on velocities

@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
-from pydantic import ConfigDict
+from pydantic import with_config
 from scipy.spatial.transform import Rotation
 
 from sim.errors import SimulationError
@@ -39,11 +39,10 @@ ROOT_JOINT = "root"
 SUFFIX_OF_SIDE = {"left": "l", "right": "r"}  # canonical side names -> the model's suffixes
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class RetargetParams:
     """The `retarget.ik` block of params.yaml (see the module docstring for the problem solved)."""
-
-    __pydantic_config__ = ConfigDict(extra="forbid")
 
     iterations: int = 4                  # LM iterations per warm-started frame
     first_frame_iterations: int = 80     # LM iterations for the first frame (cold start)

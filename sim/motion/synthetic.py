@@ -20,16 +20,15 @@ from dataclasses import dataclass
 
 import mujoco
 import numpy as np
-from pydantic import ConfigDict
+from pydantic import with_config
 
 from sim.motion.replay import Motion
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class WalkParams:
     """Synthetic walk (params `robot.tuning.walks`)."""
-
-    __pydantic_config__ = ConfigDict(extra="forbid")
 
     speed_mps: float = 1.2
     stride_s: float = 1.1

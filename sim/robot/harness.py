@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import mujoco
 import numpy as np
-from pydantic import ConfigDict
+from pydantic import with_config
 
 # DoF order of every per-DoF tuple and of the wrench: forces along x, y, z, torques about x, y, z.
 AXES = ("x", "y", "z", "roll", "pitch", "yaw")
@@ -25,11 +25,10 @@ _CHAIN = (0, 1, 2, 5, 4, 3)
 Vec6 = tuple[float, float, float, float, float, float]  # x, y, z, roll, pitch, yaw
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class HarnessParams:
     """Per-DoF stiffness (N/m, N m/rad), damping (N s/m, N m s/rad), half ranges (m, rad)."""
-
-    __pydantic_config__ = ConfigDict(extra="forbid")
 
     stiffness: Vec6 = (3000.0, 3000.0, 8000.0, 60.0, 60.0, 40.0)
     damping: Vec6 = (300.0, 300.0, 1000.0, 5.0, 5.0, 3.0)

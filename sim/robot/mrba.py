@@ -38,7 +38,7 @@ from dataclasses import dataclass
 
 import mujoco
 import numpy as np
-from pydantic import ConfigDict
+from pydantic import with_config
 
 from sim.errors import SimulationError
 from sim.robot.harness import HARNESS_JOINTS, HarnessParams, add_harness
@@ -54,11 +54,10 @@ SENSORS = {"e": (0, 3), "base_pos": (3, 3), "base_vel": (6, 3), "harness_pos": (
 SENSOR_WIDTH = 27
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class BaseParams:
     """Mobile base: size, mass, drive servo and command limits (params `robot.base`)."""
-
-    __pydantic_config__ = ConfigDict(extra="forbid")
 
     mass_kg: float = 100.0
     length_m: float = 0.6
@@ -77,11 +76,10 @@ class BaseParams:
     control_rate_hz: float = 100.0
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class ArmParams:
     """Passive arm (forward, lateral, vertical slides): per-joint values, params `robot.arm`."""
-
-    __pydantic_config__ = ConfigDict(extra="forbid")
 
     link_mass_kg: float = 2.0
     damping_ns_per_m: tuple[float, float, float] = (20.0, 20.0, 20.0)
@@ -90,22 +88,20 @@ class ArmParams:
     lock_timeconst_s: float = 0.005
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class FallParams:
     """Fall rule on robot-sensed arm signals (params `robot.fall`)."""
-
-    __pydantic_config__ = ConfigDict(extra="forbid")
 
     drop_speed_mps: float = 0.7
     drop_m: float = 0.12
     deflection_m: float = 0.22
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class SensorParams:
     """Noise of the robot's own sensors (params `robot.sensors`)."""
-
-    __pydantic_config__ = ConfigDict(extra="forbid")
 
     arm_noise_m: float = 0.0005
     velocity_noise_mps: float = 0.005

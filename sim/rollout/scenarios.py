@@ -25,7 +25,7 @@ from dataclasses import dataclass
 from typing import Annotated
 
 import numpy as np
-from pydantic import AfterValidator, BaseModel, ConfigDict, Field, model_validator
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, model_validator, with_config
 
 from ingest.bouts import pelvis_path
 from ingest.phases import motion_phases
@@ -36,11 +36,10 @@ Positive = Annotated[float, Field(gt=0.0)]
 PHASES = ("standing", "start", "steady", "speed_change", "turn", "stop")
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class Segment:
     """One step of a scenario; exactly one of `stand_s`, `walk_s`, `walk_m`, `turn_deg`, `stop`."""
-
-    __pydantic_config__ = ConfigDict(extra="forbid")
 
     stand_s: Annotated[float, Field(ge=0.0)] | None = None
     walk_s: Annotated[float, Field(gt=0.0)] | None = None
@@ -59,11 +58,10 @@ class Segment:
         return kinds[0]
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class ProfileParams:
     """Transition timing of every scenario (params `scenarios.profile`)."""
-
-    __pydantic_config__ = ConfigDict(extra="forbid")
 
     start_s: Positive = 1.7  # rest to the commanded speed (s)
     stop_s: Positive = 1.4  # speed to rest (s)
