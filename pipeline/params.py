@@ -1,13 +1,13 @@
 """params.yaml: read once per command, each section validated by the library class that uses it.
 
 Every section of params.yaml is defined once, beside the code that reads it: a dataclass or pydantic
-model with its defaults and units (`SECTIONS` names it, "module:Class"). A command loads the file
-with `load_params`, which checks that every top-level section is known and present and runs the
-checks that span sections (a condition names a controller of `robot.controllers`, ...); each stage
-then validates only the sections it reads, passing their class: `params.section("metrics",
-MetricsSection)`. So a stage imports only the code it uses (dvc.yaml's deps follow its imports) and
-an unknown key or a wrong type still fails when the section is loaded. `check_params` validates the
-whole file against every class of `SECTIONS` (`python -m pipeline check-params`, the tests); it
+model with its defaults and units (`SECTIONS` names it, "module:Class"); a key left out of the file
+takes the class's default. `load_params` checks that every top-level section is known and present and
+runs the checks that span sections (a condition names a controller of `robot.controllers`, ...); a
+stage then validates only the sections it reads, passing their class: `params.section("metrics",
+MetricsParams)`. So a stage imports only the code it uses (dvc.yaml's deps follow its imports) and an
+unknown key or a wrong type still fails when the section is loaded. `check_params` validates the whole
+file against every class of `SECTIONS` (`python -m pipeline check-params`, `make run`, the tests); it
 imports the classes by name, at run time, and is meant for commands outside dvc.yaml.
 
 Problems raise `ParamsError` naming the file and the key path, e.g.
@@ -33,7 +33,7 @@ __all__ = ["PARAMS_FILE", "SECTIONS", "CheckedParams", "Params", "ParamsError", 
 
 MAX_REPORTED_ERRORS = 5
 HEALTHY = "healthy"  # a subject's own policy: no cohort variant (`sim.body.variant.HEALTHY`)
-NO_EVENT = "none"  # a study's normal walking, no balance-loss event (`pipeline.runs.studies.NO_EVENT`)
+NO_EVENT = "none"  # a study's normal walking, no balance-loss event (the studies' `events`)
 T = TypeVar("T")
 
 # section -> the class that validates it ("module:Class", imported by `check_params` only)
@@ -61,7 +61,7 @@ SECTIONS = {
     "transfer": "sim.learn.transfer:TransferSection",
 }
 Subjects = tuple[str, ...]
-# values that other sections set (pipeline/runs/setup.py, pipeline/runs/report_params.py): never in the file
+# values other sections set (pipeline/runs/setup.py, pipeline.runs.studies.report_params), never the file
 DERIVED = {
     "report.caught_drop_m": "robot.fall.drop_m + fall_intervention.caught_margin_m",
     "report.detection_window_s": "fall_intervention.detection_window_s",

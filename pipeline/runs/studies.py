@@ -11,7 +11,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from metrics.fall_intervention import FallRuleParams
 from metrics.outcomes import ObjectiveWeights
-from pipeline.params import Params
+from pipeline.params import NO_EVENT, Params
 from pipeline.runs.report_params import ReportParams
 from sim.body.balance_loss import BalanceLoss
 from sim.robot.mrba import FallParams
@@ -24,7 +24,6 @@ class Schema(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True, coerce_numbers_to_str=True)
 
 
-NO_EVENT = "none"  # a study's normal walking (no balance-loss event)
 
 
 class RaySection(Schema):

@@ -13,6 +13,9 @@ from ingest.process import IngestParams
 from pipeline.cli import main
 from pipeline.commands.tune_controllers import write_gains
 from pipeline.params import (
+    HEALTHY as PARAMS_HEALTHY,
+)
+from pipeline.params import (
     PARAMS_FILE,
     SECTIONS,
     ParamsError,
@@ -38,7 +41,7 @@ from pipeline.paths import (
     sim_policy_dir,
 )
 from pipeline.runs.setup import fine_tune_steps, train_params, variant
-from sim.body.variant import CohortSection
+from sim.body.variant import HEALTHY, CohortSection
 from sim.motion.reference import ReferenceParams
 from sim.rollout.scenarios import ScenariosSection
 
@@ -58,6 +61,7 @@ def test_every_section_has_its_class_and_the_file_names_them_all(params):
     for name in SECTIONS:
         assert params.section(name, section_class(name)) == getattr(params, name)
     assert isinstance(params.ingest, IngestParams) and isinstance(params.retarget, ReferenceParams)
+    assert PARAMS_HEALTHY == HEALTHY  # the cross-section checks' name of a subject's own policy
 
 
 def test_a_key_left_out_takes_the_library_default(tmp_path):

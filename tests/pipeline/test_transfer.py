@@ -16,7 +16,7 @@ import pytest
 import yaml
 
 from metrics.quality import transfer_checks
-from pipeline.params import PARAMS_FILE, ParamsError, load_params
+from pipeline.params import PARAMS_FILE, ParamsError, check_params
 from pipeline.runs.gate import EVALUATION_FILE, GATE_FILE, judge, read_gate, required_checks, usable_policy
 from pipeline.stages.metrics import quality_checks, run_metrics
 from pipeline.stages.report import ReportParams, run_report, transfer_lines
@@ -97,7 +97,9 @@ def test_params_schema_accepts_the_transfer_section(params):
     (lambda t: t.update(max_wall_s="long"),
      r"params\.yaml: transfer\.max_wall_s: Input should be a valid number"),
     (lambda t: t.update(gate="some"), r"params\.yaml: transfer\.gate: Input should be 'source' or 'all'"),
-    (lambda t: t["weights"].pop("speed"), r"params\.yaml: transfer\.weights: missing key 'speed'$"),
+    (lambda t: t["weights"].update(sped=1.0), r"params\.yaml: transfer\.weights: unknown key 'sped'$"),
+    (lambda t: t.update(weights={"height": 0.0, "mass": 0.0, "leg_length": 0.0, "speed": 0.0}),
+     r"params\.yaml: transfer\.weights: at least one weight must be positive"),
     (lambda t: t.update(subjects=["camargo"]),
      r"params\.yaml: transfer\.subjects: 'camargo' has a committed policy \(train\.subjects\)$"),
 ])
@@ -107,7 +109,7 @@ def test_bad_transfer_params_name_params_yaml(tmp_path, edit, message):
     path = tmp_path / "params.yaml"
     path.write_text(yaml.safe_dump(document, sort_keys=False))
     with pytest.raises(ParamsError, match=message):
-        load_params(path)
+        check_params(path)
 
 
 # -- the nearest policy -------------------------------------------------------------------------------
