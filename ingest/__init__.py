@@ -3,6 +3,7 @@
 from ingest.canonical import load_trial
 from ingest.errors import GaitloopError, IngestError, ManifestError, SubjectError
 from ingest.manifest import Manifest
+from ingest.opensim_export import export_trial
 from ingest.process import IngestParams, ProcessedTrial, SubjectTables, process_subject, process_trial
 from ingest.static import StaticTrial, read_static_trial
 from ingest.subject import Subject, load_subject
@@ -20,6 +21,7 @@ __all__ = [
     "SubjectError",
     "SubjectTables",
     "Trial",
+    "export_trial",
     "load_subject",
     "load_trial",
     "process_subject",

@@ -30,10 +30,12 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 import pandas as pd
 import scipy  # scipy.signal loads on first use (see ingest/filtering.py)
+from pydantic import with_config
 
 from ingest.errors import IngestError
 from ingest.filtering import finite_runs
@@ -42,9 +44,11 @@ from ingest.trial import SIDES, ForcePlates
 EVENT_COLUMNS = ["side", "event", "time_s", "method"]
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class EventParams:
-    method: str = "auto"
+
+    method: Literal["auto", "force", "kinematic"] = "auto"
     force_threshold_n: float = 20.0
     min_contact_s: float = 0.2
     force_window_s: float = 0.1

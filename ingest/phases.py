@@ -18,11 +18,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from pydantic import with_config
 
 from ingest.bouts import PelvisPath
 from ingest.filtering import finite_runs
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class PhaseParams:
     """The `ingest.phases` section of params.yaml."""

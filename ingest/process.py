@@ -9,9 +9,11 @@ exactly this function: that is what makes the datasets matched.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Annotated
 
 import numpy as np
 import pandas as pd
+from pydantic import Field, with_config
 
 from ingest.bouts import PelvisPath, pelvis_path, straight_bouts
 from ingest.concurrency import helper_pool
@@ -24,6 +26,7 @@ from ingest.kinematics import marker_angles
 from ingest.phases import PhaseParams, motion_phases
 from ingest.robot import ROBOT_COLUMNS
 from ingest.robot_log import log_from_markers, robot_table
+from ingest.static import StaticCheckParams
 from ingest.strides import StrideParams, segment_strides
 from ingest.treadmill import Treadmill, TreadmillParams, check_treadmill, decide, overground_equivalent
 from ingest.trial import SIDES, Provenance, Trial
@@ -33,41 +36,55 @@ ID_COLUMNS = ["subject", "source", "condition", "trial"]
 PELVIS_ROLES = ("asis_left", "asis_right", "psis_left", "psis_right")
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
-class IngestParams:
-    """The `ingest` section of params.yaml."""
+class FilterParams:
+    """Zero-phase Butterworth low-pass of every marker and angle (`ingest.filtering.lowpass`)."""
 
-    cutoff_hz: float = 12.0
-    filter_order: int = 4
-    max_gap_s: float = 0.1
-    smooth_hz: float = 0.8
+    order: int = 4  # forward + backward: a 2nd-order design run twice (Winter 2009)
+    cutoff_hz: Annotated[float, Field(gt=0.0)] = 12.0  # Wang, Chan et al. ICRA 2025
+
+
+@with_config(extra="forbid")
+@dataclass(frozen=True)
+class GapParams:
+
+    max_gap_s: float = 0.1  # spline-fill interior dropouts up to this long (s); longer ones reject strides
+
+
+@with_config(extra="forbid")
+@dataclass(frozen=True)
+class BoutParams:
+    """Straight walking bouts from the pelvis path (`ingest.bouts`)."""
+
+    smooth_hz: float = 0.8  # low-pass on the pelvis path before taking its heading (Hz)
     min_walk_speed_mps: float = 0.3
-    max_yaw_rate_deg_s: float = 60.0
     max_facing_angle_deg: float = 45.0
     min_bout_s: float = 1.0
-    n_points: int = 101
+    max_yaw_rate_deg_s: float = 60.0
+
+
+@with_config(extra="forbid")
+@dataclass(frozen=True)
+class CycleParams:
+
+    n_points: int = 101  # samples of a time-normalised gait cycle (0-100 %)
+
+
+@with_config(extra="forbid")
+@dataclass(frozen=True)
+class IngestParams:
+    """The `ingest` section of params.yaml: how a trial is cleaned, cut and normalised."""
+
+    filter: FilterParams = field(default_factory=FilterParams)
+    gaps: GapParams = field(default_factory=GapParams)
+    bouts: BoutParams = field(default_factory=BoutParams)
     events: EventParams = field(default_factory=EventParams)
     strides: StrideParams = field(default_factory=StrideParams)
+    cycles: CycleParams = field(default_factory=CycleParams)
     phases: PhaseParams = field(default_factory=PhaseParams)
+    static: StaticCheckParams = field(default_factory=StaticCheckParams)  # the static (scaling) trial
     treadmill: TreadmillParams = field(default_factory=TreadmillParams)
-
-    @classmethod
-    def from_dict(cls, d: dict) -> IngestParams:
-        return cls(
-            cutoff_hz=float(d["filter"]["cutoff_hz"]),
-            filter_order=int(d["filter"]["order"]),
-            max_gap_s=float(d["gaps"]["max_gap_s"]),
-            smooth_hz=float(d["bouts"]["smooth_hz"]),
-            min_walk_speed_mps=float(d["bouts"]["min_walk_speed_mps"]),
-            max_yaw_rate_deg_s=float(d["bouts"]["max_yaw_rate_deg_s"]),
-            max_facing_angle_deg=float(d["bouts"]["max_facing_angle_deg"]),
-            min_bout_s=float(d["bouts"]["min_bout_s"]),
-            n_points=int(d["cycles"]["n_points"]),
-            events=EventParams(**d["events"]),
-            strides=StrideParams(**d["strides"]),
-            phases=PhaseParams(**d["phases"]),
-            treadmill=TreadmillParams(**d["treadmill"]),
-        )
 
 
 @dataclass(frozen=True)
@@ -87,7 +104,7 @@ def clean_markers(trial: Trial, markerset: dict[str, str], p: IngestParams) -> T
     if len(pelvis_names) == 4:
         cluster = fill_rigid(np.stack([markers[n] for n in pelvis_names], axis=1))
         markers.update({n: cluster[:, j] for j, n in enumerate(pelvis_names)})
-    rate, fc = trial.rate_hz, p.cutoff_hz
+    rate, fc = trial.rate_hz, p.filter.cutoff_hz
     if trial.n_frames <= 9:
         raise IngestError(trial.origin, f"only {trial.n_frames} frames: too short to filter")
     if fc >= rate / 2:
@@ -103,16 +120,16 @@ def _filtered(signals: dict[str, np.ndarray], rate_hz: float, p: IngestParams) -
     (`ingest.concurrency`). Each channel is filtered on its own whatever it is stacked with."""
     gapped = [n for n, x in signals.items() if not np.isfinite(x).all()]
     if gapped:  # the signals of a dict (markers, or angles) share one shape
-        filled = fill_short_all([signals[n] for n in gapped], rate_hz, p.max_gap_s)
+        filled = fill_short_all([signals[n] for n in gapped], rate_hz, p.gaps.max_gap_s)
         signals = signals | dict(zip(gapped, filled, strict=True))
     gapped = [n for n in gapped if not np.isfinite(signals[n]).all()]  # gaps too long to fill
     complete = [n for n in signals if n not in gapped]
-    rest = helper_pool().submit(lambda: {n: lowpass(signals[n], rate_hz, p.cutoff_hz, p.filter_order)
+    rest = helper_pool().submit(lambda: {n: lowpass(signals[n], rate_hz, p.filter.cutoff_hz, p.filter.order)
                                          for n in gapped}) if gapped else None
     out: dict[str, np.ndarray] = {}
     if complete:
         flat = [signals[n].reshape(len(signals[n]), -1) for n in complete]
-        filtered = lowpass(np.column_stack(flat), rate_hz, p.cutoff_hz, p.filter_order)
+        filtered = lowpass(np.column_stack(flat), rate_hz, p.filter.cutoff_hz, p.filter.order)
         starts = np.cumsum([0] + [f.shape[1] for f in flat])
         out = {n: filtered[:, a:b].reshape(signals[n].shape)
                for n, a, b in zip(complete, starts[:-1], starts[1:], strict=True)}
@@ -133,8 +150,8 @@ def trial_path(lm: dict[str, np.ndarray], rate_hz: float, p: IngestParams) -> Pe
     """Pelvis path of a trial from its pelvis landmarks (see `ingest.bouts`)."""
     pelvis = np.mean([lm[r] for r in PELVIS_ROLES], axis=0)
     facing = (lm["asis_left"] + lm["asis_right"] - lm["psis_left"] - lm["psis_right"]) / 2
-    return pelvis_path(pelvis, facing, rate_hz, p.smooth_hz, p.min_walk_speed_mps,
-                       p.max_yaw_rate_deg_s, p.max_facing_angle_deg)
+    return pelvis_path(pelvis, facing, rate_hz, p.bouts.smooth_hz, p.bouts.min_walk_speed_mps,
+                       p.bouts.max_yaw_rate_deg_s, p.bouts.max_facing_angle_deg)
 
 
 def as_overground(clean: Trial, markerset: dict[str, str], p: IngestParams, treadmill: bool | None = None,
@@ -180,7 +197,7 @@ def process_trial(trial: Trial, markerset: dict[str, str], p: IngestParams, trea
     if lm is not None:
         pelvis = np.mean([lm[r] for r in PELVIS_ROLES], axis=0)
         path = trial_path(lm, clean.rate_hz, p)
-        bouts = straight_bouts(path, int(p.min_bout_s * clean.rate_hz))
+        bouts = straight_bouts(path, int(p.bouts.min_bout_s * clean.rate_hz))
         heel = {s: lm[f"heel_{s}"] for s in SIDES}
         toe = {s: lm[f"toe_{s}"] for s in SIDES}
         kin = kinematic_events(heel, toe, pelvis, path.heading_rad, time, clean.rate_hz, p.events)
@@ -199,12 +216,12 @@ def process_trial(trial: Trial, markerset: dict[str, str], p: IngestParams, trea
         raise IngestError(trial.origin, "strides need heel, toe and pelvis markers")
     strides = segment_strides(events, time, heel, toe, pelvis, path, bouts, p.strides, kin,
                               p.events.force_window_s)
-    cycles = normalise_cycles(strides, time, angles, p.n_points)
+    cycles = normalise_cycles(strides, time, angles, p.cycles.n_points)
     ident = {"subject": trial.subject, "source": trial.source, "condition": trial.condition,
              "trial": trial.trial}
     log = trial.robot_log
     if log is None and trial.robot_markers is not None:  # filtered like every marker
-        log = log_from_markers(clean.markers, time, trial.robot_markers, clean.rate_hz, p.max_gap_s,
+        log = log_from_markers(clean.markers, time, trial.robot_markers, clean.rate_hz, p.gaps.max_gap_s,
                                trial.origin)
     robot = (robot_table(log, trial.time_s, trial.subject, trial.condition, trial.trial) if log is not None
              else pd.DataFrame(columns=ROBOT_COLUMNS))

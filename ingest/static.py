@@ -37,9 +37,11 @@ import logging
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Annotated
 
 import numpy as np
 import yaml
+from pydantic import Field, with_config
 
 from ingest.canonical import _check_body_scale, canonical_angles, resolve_up_axis, up_to_z, zero_gaps
 from ingest.errors import IngestError, SubjectError
@@ -55,6 +57,7 @@ SCALING_ROLES_DIR = MARKERSETS_DIR / "scaling"
 log = logging.getLogger("gaitloop.ingest")
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class StaticCheckParams:
     """Quiet standing (module docstring). Sources: pelvis speed 0.1 m/s is the walk phases' standing
@@ -64,12 +67,13 @@ class StaticCheckParams:
     > 1 m/s. `speed_window_s`: the pelvis speed is its displacement over this span (noise of 1 mm
     gives 0.01 m/s)."""
 
-    min_duration_s: float = 0.5
-    max_pelvis_speed_mps: float = 0.1
-    max_foot_spread_m: float = 0.04
-    max_knee_flexion_deg: float = 25.0
-    speed_window_s: float = 0.1
-    max_marker_spread_m: float = 0.02  # static: none: a marker rides on a segment this rigidly (median)
+    min_duration_s: Annotated[float, Field(gt=0.0)] = 0.5
+    max_pelvis_speed_mps: Annotated[float, Field(gt=0.0)] = 0.1
+    max_foot_spread_m: Annotated[float, Field(gt=0.0)] = 0.04
+    max_knee_flexion_deg: Annotated[float, Field(gt=0.0)] = 25.0
+    speed_window_s: Annotated[float, Field(gt=0.0)] = 0.1
+    # static: none: a marker rides on a segment this rigidly (median)
+    max_marker_spread_m: Annotated[float, Field(gt=0.0)] = 0.02
 
 
 @dataclass(frozen=True)

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
+from pydantic import with_config
 
 from ingest.bouts import Bout, PelvisPath
 from ingest.events import times_by_side
@@ -33,8 +34,10 @@ from ingest.spatiotemporal import stride_measures
 from ingest.trial import SIDES
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class StrideParams:
+
     max_stride_time_s: float = 2.0
     min_speed_mps: float = 0.3
     min_stride_length_m: float = 0.3

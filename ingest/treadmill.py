@@ -29,8 +29,10 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
+from typing import Annotated
 
 import numpy as np
+from pydantic import Field, with_config
 
 from ingest.canonical import rotate_z
 from ingest.trial import SIDES, Trial
@@ -38,14 +40,15 @@ from ingest.trial import SIDES, Trial
 log = logging.getLogger(__name__)
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class TreadmillParams:
     """Detection thresholds (module docstring gives the reasons)."""
 
-    max_pelvis_speed_mps: float = 0.2
-    min_foot_excursion_m: float = 0.3
-    min_belt_speed_mps: float = 0.2
-    stance_height_m: float = 0.01
+    max_pelvis_speed_mps: Annotated[float, Field(gt=0.0)] = 0.2
+    min_foot_excursion_m: Annotated[float, Field(gt=0.0)] = 0.3
+    min_belt_speed_mps: Annotated[float, Field(gt=0.0)] = 0.2
+    stance_height_m: Annotated[float, Field(gt=0.0)] = 0.01
 
 
 @dataclass(frozen=True)

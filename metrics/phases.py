@@ -15,10 +15,12 @@ sample of that phase in the run), averaged across runs with the same 95 % CI.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Annotated
 
 import numpy as np
 import pandas as pd
 import scipy  # scipy.stats loads on first use (~0.6 s): stages without intervals skip it
+from pydantic import Field, with_config
 
 from metrics.compliance import FORCE, following, run_means
 from metrics.groups import GROUP, with_identity
@@ -40,6 +42,7 @@ EVENT_SCHEMA = {**GROUP_COLUMNS, "scenario": "VARCHAR", "event": "VARCHAR", "t_s
 EVENT_COLUMNS = list(EVENT_SCHEMA)
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class EventWindow:
     """`metrics.events` of params.yaml: the commanded phases whose onsets are events, and the time
@@ -49,7 +52,11 @@ class EventWindow:
 
     names: tuple[str, ...] = ("start", "turn", "stop")
     window_s: tuple[float, float] = (-1.0, 3.0)
-    step_s: float = 0.05
+    step_s: Annotated[float, Field(gt=0.0)] = 0.05
+
+    def __post_init__(self) -> None:
+        if not self.window_s[0] < 0.0 < self.window_s[1]:
+            raise ValueError(f"window_s: must run from before to after the event (got {list(self.window_s)})")
 
     def grid(self) -> np.ndarray:
         """Times relative to the onset (s), both window ends included."""

@@ -16,10 +16,12 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
+from pydantic import with_config
 
 from metrics.spm import spm_test
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class PolicyChecks:
     """Pass rules of `evaluate_policy.checks` in params.yaml."""

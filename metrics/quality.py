@@ -16,10 +16,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
+from typing import Annotated, NamedTuple
 
 import numpy as np
 import pandas as pd
+from pydantic import Field, with_config
 
 QUALITY_COLUMNS = ["subject", "stage", "check", "value", "warn_above", "fail_above", "status", "cause",
                    "note"]
@@ -29,29 +31,36 @@ SIDES = ("left", "right")
 PAIRED_SEGMENTS = ("thigh", "shank", "foot", "upper_arm", "forearm", "hand")
 
 
-@dataclass(frozen=True)
-class Limits:
-    """Warn and fail thresholds of one check (the value is graded against them)."""
+class Limits(NamedTuple):
+    """Warn and fail thresholds of one check (the value is graded against them); params.yaml writes
+    them as [warn, fail]."""
 
     warn: float
     fail: float
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class QualityParams:
-    """The `quality` section of params.yaml."""
+    """The `quality` section of params.yaml: each limit is [warn, fail] in the check's unit."""
 
     marker_rms_m: Limits = field(default_factory=lambda: Limits(0.02, 0.04))
     asymmetry_pct: Limits = field(default_factory=lambda: Limits(5.0, 10.0))
     knee_alignment_deg: Limits = field(default_factory=lambda: Limits(5.0, 10.0))
     ik_angle_rms_deg: Limits = field(default_factory=lambda: Limits(5.0, 10.0))
-    edge_window_s: float = 0.05
+    edge_window_s: Annotated[float, Field(gt=0.0)] = 0.05
     edge_strike_share: Limits = field(default_factory=lambda: Limits(0.2, 0.5))
     span_samples: Limits = field(default_factory=lambda: Limits(1.0, 10.0))
     speed_gap_pct: Limits = field(default_factory=lambda: Limits(10.0, 25.0))
     missing_sides: Limits = field(default_factory=lambda: Limits(0.0, 1.0))
     non_steady_share: Limits = field(default_factory=lambda: Limits(0.0, 0.25))
     repeated_walks: Limits = field(default_factory=lambda: Limits(0.0, 1.0))
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if isinstance(value, tuple) and not value[0] <= value[1]:
+                raise ValueError(f"{f.name}: warn must not exceed fail (got {list(value)})")
 
 
 @dataclass(frozen=True)

@@ -14,16 +14,19 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Annotated
 
 import numpy as np
+from pydantic import Field, with_config
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class ScenarioChecks:
     """Pass rules of `evaluate_policy.scenario_checks` in params.yaml (issue 11)."""
 
-    seeds: int = 10                         # walks per scenario and condition
-    no_fall_fraction: float = 1.0           # 10 of 10 walks without a human fall
+    seeds: Annotated[int, Field(ge=1)] = 10                         # walks per scenario and condition
+    no_fall_fraction: Annotated[float, Field(ge=0.0, le=1.0)] = 1.0  # 10 of 10 walks without a human fall
     start_tolerance_pct: float = 30.0       # start time vs the subject's own
     start_range_s: tuple[float, float] = (1.0, 3.0)  # when the subject's recordings have no start
     steady_speed_tolerance_pct: float = 10.0  # steady speed vs real free walking

@@ -19,9 +19,11 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass, field
+from typing import Annotated, Literal
 
 import numpy as np
 import pandas as pd
+from pydantic import Field, with_config
 
 from metrics.curves import curve_groups
 from metrics.errors import MetricsError
@@ -41,13 +43,15 @@ CLUSTER_SCHEMA = {"test_id": "VARCHAR", "cluster": "BIGINT", "start_pct": "DOUBL
 TEST_COLUMNS, CURVE_COLUMNS, CLUSTER_COLUMNS = list(TEST_SCHEMA), list(CURVE_SCHEMA), list(CLUSTER_SCHEMA)
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class SpmParams:
-    """The `metrics.spm` section of params.yaml."""
+    """The `metrics.spm` section of params.yaml (`pool_sides` and `joints` are the `metrics` section's:
+    `metrics.section.MetricsParams` sets them)."""
 
-    alpha: float = 0.05            # Wang, Chan et al. ICRA 2025
-    test: str = "anova1"           # the paper's one-way ANOVA; or ttest2
-    min_cycles: int = 2            # per group; spm1d needs residual degrees of freedom
+    alpha: Annotated[float, Field(gt=0.0, lt=1.0)] = 0.05  # Wang, Chan et al. ICRA 2025
+    test: Literal["anova1", "ttest2"] = "anova1"  # the paper's one-way ANOVA; or ttest2
+    min_cycles: Annotated[int, Field(ge=2)] = 2  # per group; spm1d needs residual degrees of freedom
     reference_condition: str = "free"
     pool_sides: bool = True
     joints: tuple[str, ...] = JOINTS

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 from ingest.errors import GaitloopError
 from ingest.subject import UP_AXIS_CHOICES
 from pipeline.bench import SECTIONS
-from pipeline.params import load_params
+from pipeline.params import check_params, load_params
 from pipeline.paths import (
     BENCH_REPORT,
     METRICS_ROOT,
@@ -35,6 +35,12 @@ EXIT_ERROR = 2
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, as a shell reports a job ended by Ctrl-C
 
 
+def cmd_check_params(args: argparse.Namespace) -> int:
+    params = check_params(args.params)
+    print(f"{params.path}: every section valid", file=sys.stderr)
+    return 0
+
+
 def cmd_ingest(args: argparse.Namespace) -> int:
     from pipeline.stages.ingest import run_ingest
 
@@ -44,10 +50,10 @@ def cmd_ingest(args: argparse.Namespace) -> int:
 
 
 def cmd_events(args: argparse.Namespace) -> int:
-    from ingest.process import process_trial
+    from ingest.process import IngestParams, process_trial
     from pipeline.commands.quicklook import file_trial, format_events, quicklook_subject
 
-    p = load_params(args.params).ingest.build()
+    p = load_params(args.params).section("ingest", IngestParams)
     if args.method:
         p = dataclasses.replace(p, events=dataclasses.replace(p.events, method=args.method))
     subject = quicklook_subject(args.file, args.subject, args.up_axis, args.markerset)
@@ -87,12 +93,13 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     from sim.rollout.cluster import RAY_ADDRESS, local_head
 
+    params = check_params(args.params)  # every section, before any stage runs
     cmd = [sys.executable, "-m", "pipeline.commands.repro", *args.targets]
     if os.environ.get(RAY_ADDRESS):
         return subprocess.run(cmd).returncode
     with ExitStack() as stack:
         try:
-            env = stack.enter_context(local_head(load_params(args.params).ray.num_cpus, Path.cwd()))
+            env = stack.enter_context(local_head(params.ray.num_cpus, Path.cwd()))
         except (OSError, RuntimeError) as exc:  # no shared head: every stage starts its own Ray
             print(f"warning: {exc}; each stage starts its own Ray", file=sys.stderr)
             env = {}
@@ -113,7 +120,7 @@ def cmd_reference(args: argparse.Namespace) -> int:
 def cmd_tune_controllers(args: argparse.Namespace) -> int:
     from pipeline.commands.tune_controllers import run_tuning, write_gains
 
-    doc = run_tuning(load_params(args.params), args.out)
+    doc = run_tuning(check_params(args.params), args.out)
     for name, res in doc["controllers"].items():
         print(f"{name}: J {res['initial_objective']:.4f} -> {res['objective']:.4f} in {res['n_evaluations']} "
               f"rollouts ({res['wall_s']:.0f} s): {res['gains']}", file=sys.stderr)
@@ -227,7 +234,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 def cmd_tune(args: argparse.Namespace) -> int:
     from pipeline.commands.tune import run_tune
 
-    path = run_tune(args.subject, args.controller, load_params(args.params), variant=args.variant,
+    path = run_tune(args.subject, args.controller, check_params(args.params), variant=args.variant,
                     n_trials=args.n_trials)
     print(f"wrote {path}", file=sys.stderr)
     return 0
@@ -260,15 +267,16 @@ def format_frame(df: pandas.DataFrame, fmt: str) -> str:
 
 
 def cmd_query(args: argparse.Namespace) -> int:
-    from pipeline.store import query
+    from pipeline.store.connection import StoreParams
+    from pipeline.store.read import query
 
-    p = load_params(args.params).store.build()
+    p = load_params(args.params).section("store", StoreParams)
     print(format_frame(query(args.db or p.path, args.sql, p.busy_timeout_s), args.format))
     return 0
 
 
 def cmd_compare_stores(args: argparse.Namespace) -> int:
-    from pipeline.store import compare_views
+    from pipeline.store.read import compare_views
 
     doc = compare_views(args.before, args.after, rtol=args.rtol)
     for view, d in doc.items():
@@ -292,14 +300,16 @@ def cmd_add_subject(args: argparse.Namespace) -> int:
 
 
 def cmd_report(args: argparse.Namespace) -> int:
+    from pipeline.runs.studies import report_params
     from pipeline.stages.report import run_report
+    from pipeline.store.connection import StoreParams
 
     params = load_params(args.params)
-    p = params.store.build()
+    p = params.section("store", StoreParams)
     all_subjects = list(params.subjects)
     subjects = [] if args.summary_only else (args.subjects or all_subjects)
     written = run_report(subjects, all_subjects, args.db or p.path, args.reports, not args.no_summary,
-                         params.report_params(), p.busy_timeout_s)
+                         report_params(params), p.busy_timeout_s)
     print("wrote " + ", ".join(str(w) for w in written), file=sys.stderr)
     return 0
 
@@ -368,6 +378,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="python -m pipeline", description=__doc__.split(";")[0])
     parser.add_argument("--params", type=Path, default=PARAMS_FILE, help="params file (default: %(default)s)")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    check = commands.add_parser("check-params", help="validate every section of the params file (the stages "
+                                "each validate only the sections they read)")
+    check.set_defaults(func=cmd_check_params)
 
     ingest = commands.add_parser("ingest", help="process a subject's trials into events/strides/cycles")
     ingest.add_argument("subject", help="subject id (data/subjects/<id>.yaml)")

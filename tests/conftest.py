@@ -1,4 +1,4 @@
-"""Shared fixtures: params.yaml as the typed `Params`, committed folders the tests read, and stage
+"""Shared fixtures: params.yaml as the typed `CheckedParams`, committed folders the tests read, and stage
 outputs built by the stages themselves in a temporary root, so tests never depend on what
 `dvc repro` left in data/processed (a fresh clone has nothing there).
 
@@ -14,17 +14,26 @@ import pytest
 
 @pytest.fixture(scope="session")
 def params():
-    """params.yaml, loaded and checked (`pipeline.params.Params`); sections build the library's
-    parameter objects (`params.robot.build()`, `params.ingest.build()`, ...)."""
-    from pipeline.params import load_params
+    """params.yaml with every section checked (`pipeline.params.CheckedParams`): each section is an
+    attribute holding its library object (`params.ingest` is `ingest.process.IngestParams`)."""
+    from pipeline.params import check_params
 
-    return load_params()
+    return check_params()
+
+
+@pytest.fixture(scope="session")
+def train_params(params):
+    """`pipeline.runs.setup.train_params` of params.yaml: the training recipe with the scenarios'
+    timing and a cohort variant's body (`train_params("weak")`)."""
+    from pipeline.runs.setup import train_params as build
+
+    return lambda variant="healthy": build(params, variant)
 
 
 @pytest.fixture(scope="session")
 def ingest_params(params):
-    """The `ingest` section built (`ingest.process.IngestParams`): what processes a trial."""
-    return params.ingest.build()
+    """The `ingest` section (`ingest.process.IngestParams`): what processes a trial."""
+    return params.ingest
 
 
 @pytest.fixture(scope="session")

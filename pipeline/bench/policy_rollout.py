@@ -48,8 +48,10 @@ from ingest.subject import load_subject
 from pipeline import paths
 from pipeline.bench.rollout import raw_step_s
 from pipeline.params import Params
+from pipeline.runs.setup import batch_setup, train_params
 from sim.rollout.batch import RolloutJob, Worker
 from sim.rollout.loop import RolloutResult, recording_steps
+from sim.rollout.section import RolloutSection
 
 POLICY_ROLLOUT_TARGETS = {"ratio_to_mj_step": 0.8}
 SUBJECT = "camargo"
@@ -135,11 +137,11 @@ def time_policy_rollout(params: Params, repeat: int = 3, duration_s: float = 10.
     from sim.learn.train import BODY_FILE
 
     folder = paths.policy_dir(paths.POLICIES_ROOT, SUBJECT)
-    source = PolicySource(str(folder), params.train_params().env, rate_hz,
-                          params.evaluate_policy.fall_height_fraction,
-                          motor_noise=params.rollout.policy_motor_noise)
-    setup = params.batch_setup(SUBJECT, load_subject(SUBJECT).markerset, folder / BODY_FILE, source,
-                               process=False)
+    source = PolicySource(str(folder), train_params(params).env, rate_hz,
+                          params.section("evaluate_policy.fall_height_fraction", float),
+                          motor_noise=params.section("rollout", RolloutSection).policy_motor_noise)
+    setup = batch_setup(params, SUBJECT, load_subject(SUBJECT).markerset, folder / BODY_FILE, source,
+                        process=False)
     worker = Worker(setup)
     walls, replays, fixed = [], [], []
     max_diff, same_runs, calls = 0.0, True, 0

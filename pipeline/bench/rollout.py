@@ -30,11 +30,14 @@ import numpy as np
 
 from pipeline.params import Params
 from pipeline.paths import PROCESSED_ROOT, human_xml
+from pipeline.runs.setup import batch_setup
 from sim.motion.replay import Motion, ReplayHuman
 from sim.motion.synthetic import capsule_world, synthetic_walk
 from sim.robot.controllers import make_controller
+from sim.robot.section import RobotSection
 from sim.rollout.batch import BatchRunner, RolloutJob
 from sim.rollout.loop import RolloutParams, RolloutResult, rollout
+from sim.rollout.section import RolloutSection
 from sim.rollout.world import build_world, robot_info
 
 TARGETS = {"ratio_to_mj_step": 0.8}
@@ -42,8 +45,9 @@ HUMAN_XML = human_xml(PROCESSED_ROOT, "camargo")
 
 
 def _setup(params: Params, rate_hz: float):
-    robot, replay = params.robot.build(), params.rollout.replay.build()
-    walk = params.robot.tuning.build().walk
+    section = params.section("robot", RobotSection)
+    robot, replay = section.build(), params.section("rollout", RolloutSection).replay.build()
+    walk = section.tuning.build().walk
     if HUMAN_XML.exists():
         spec = mujoco.MjSpec.from_file(str(HUMAN_XML))
         m0 = spec.copy().compile()
@@ -55,7 +59,7 @@ def _setup(params: Params, rate_hz: float):
     else:
         spec, motion = capsule_world(walk.mass_kg, walk.pelvis_height_m), synthetic_walk(walk)
         world = "capsule"
-    ctrl = make_controller(params.robot.controller_specs()["adaptive"], robot_info(robot))
+    ctrl = make_controller(section.controller_specs()["adaptive"], robot_info(robot))
     return spec, ReplayHuman(motion, replay), ctrl, RolloutParams(robot=robot, sample_rate_hz=rate_hz), world
 
 
@@ -95,7 +99,7 @@ def run_rollout_bench(params: Params, rate_hz: float = 200.0, repeat: int = 9, n
     with tempfile.TemporaryDirectory() as tmp:
         xml = Path(tmp) / "world.xml"
         xml.write_text(spec.to_xml())
-        setup = params.batch_setup("bench", {}, xml, SyntheticSource(params, rate_hz), process=False)
+        setup = batch_setup(params, "bench", {}, xml, SyntheticSource(params, rate_hz), process=False)
         jobs = [RolloutJob("adaptive", s, f"bench_seed{s}", None) for s in range(n_parallel)]
         start = time.perf_counter()
         with BatchRunner(setup, workers=1) as runner:

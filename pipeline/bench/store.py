@@ -11,10 +11,13 @@ import tempfile
 import time
 from pathlib import Path
 
+from metrics.section import MetricsParams
 from pipeline.params import Params
 from pipeline.stages.ingest import run_ingest
 from pipeline.stages.metrics import compute, params_hash, read_inputs
-from pipeline.store import StoreParams, SubjectResults, query, store_results
+from pipeline.store.connection import StoreParams
+from pipeline.store.read import query
+from pipeline.store.write import SubjectResults, store_results
 
 SUBJECTS = ("camargo", "opencap4")
 STORE_TARGETS = {"store_unchanged_rerun_s": 2.0, "metrics_all_subjects_s": 10.0}
@@ -30,7 +33,7 @@ def _best(fn, repeat: int) -> float:
 
 
 def time_store(params: Params, repeat: int = 3) -> dict:
-    mp = params.metrics.build()
+    mp = params.section("metrics", MetricsParams)
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp)
         for sid in SUBJECTS:

@@ -28,6 +28,8 @@ from ingest.process import IngestParams, process_trial
 from ingest.subject import Subject, TrialSpec, load_subject
 from pipeline.bench import SECTIONS
 from pipeline.params import Params
+from sim.body.human_params import HumanParams
+from sim.motion.reference import ReferenceParams
 
 TARGETS = {"camargo_trial_s": 0.2, "camargo_floor_fraction": 0.5}  # ingest within 2x the bare floor
 INGEST_ROUNDS_PER_REPEAT = 10  # a Camargo round (trial + floor) takes ~60 ms: more rounds, less noise
@@ -54,7 +56,7 @@ def floor_once(path: Path, p: IngestParams) -> Callable[[], None]:
     def once() -> None:
         raw = pd.read_csv(path, sep="\t", header=None, skiprows=6, engine="c").to_numpy(float)
         rate = 1.0 / float(np.median(np.diff(raw[:, 1])))
-        sos = butter(p.filter_order // 2, p.cutoff_hz, fs=rate, output="sos")
+        sos = butter(p.filter.order // 2, p.filter.cutoff_hz, fs=rate, output="sos")
         sosfiltfilt(sos, np.nan_to_num(raw[:, 2:]), axis=0)
 
     return once
@@ -82,9 +84,9 @@ def time_retarget(params: Params, repeat: int) -> dict:
     from sim.body.scaling import scale_subject
     from sim.motion.retarget import retarget
 
-    manifest, p = Manifest.load(), params.ingest.build()
-    hp = params.human.build()
-    ik = params.retarget.build().ik
+    manifest, p = Manifest.load(), params.section("ingest", IngestParams)
+    hp = params.section("human", HumanParams)
+    ik = params.section("retarget", ReferenceParams).ik
     out = {}
     for sid, runs in (("camargo", min(repeat, 2)), ("opencap4", repeat)):
         subject = load_subject(sid)
@@ -115,7 +117,7 @@ def time_human(params: Params, repeat: int, standing_s: float = 5.0) -> dict:
     from sim.body.human import build_human, pose_hold_ctrl, pose_hold_gains
     from sim.body.scaling import scale_subject
 
-    manifest, hp = Manifest.load(), params.human.build()
+    manifest, hp = Manifest.load(), params.section("human", HumanParams)
     out = {}
     for sid in ("camargo", "opencap4"):
         subject = load_subject(sid)
@@ -181,7 +183,7 @@ def run_bench(params: Params, repeat: int = 5, sections: tuple[str, ...] = SECTI
     result: dict = {"repeat": repeat}
     for name in sections:
         if name == "ingest":
-            section, targets = run_ingest_bench(params.ingest.build(), repeat), TARGETS
+            section, targets = run_ingest_bench(params.section("ingest", IngestParams), repeat), TARGETS
         elif name == "retarget":
             section, targets = time_retarget(params, repeat), RETARGET_TARGETS
         elif name == "human":

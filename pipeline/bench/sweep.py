@@ -52,7 +52,7 @@ def time_sweep(params: Params, n_jobs: int = 8, walk_s: float = 6.0, repeat: int
     jobs, _ = sweep_jobs(p)
     resources = connect(2)
     setup_ref = ray.put(policy_setup(SUBJECT, p))
-    exclude = p.metrics.exclude_locked
+    exclude = p.section("metrics.exclude_locked", bool)
     _throughput(setup_ref, jobs[:2], 2, exclude)  # both workers started, imports done, world open
     pairs = []  # adjacent (1 worker, 2 workers) runs: each pair sees the same machine load
     for _ in range(repeat):

@@ -10,14 +10,17 @@ from pathlib import Path
 
 from pipeline.params import Params
 from pipeline.paths import POLICIES_ROOT, PROCESSED_ROOT
+from pipeline.runs.setup import train_params
 from sim.learn.pool import UniversalParams
 from sim.learn.throughput import measure
 from sim.learn.universal import sources_of
+from sim.rollout.scenarios import ScenariosSection
 
 TRAIN_TARGETS = {"train_to_env_all": 0.7}
 
 
 def time_training(params: Params, root: Path = PROCESSED_ROOT, policy_root: Path = POLICIES_ROOT) -> dict:
-    up = UniversalParams.from_dict(params.universal)
-    return measure(sources_of(up.subjects, root), up, params.train_params(), params.scenarios.build(),
+    up = params.section("universal", UniversalParams)
+    scenarios = params.section("scenarios", ScenariosSection).build()
+    return measure(sources_of(up.subjects, root), up, train_params(params), scenarios,
                    init_from=str(policy_root / up.init_from))

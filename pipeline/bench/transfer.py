@@ -23,6 +23,7 @@ from pipeline.paths import POLICIES_ROOT, PROCESSED_ROOT, policy_dir
 from pipeline.runs.gate import required_checks, source_evaluation
 from pipeline.stages.transfer import choose_source, fine_tune_until_gate
 from sim.errors import SimulationError
+from sim.learn.transfer import TransferSection
 
 TRANSFER_TARGETS = {"gate_passed": 1, "wall_s": 900.0}
 
@@ -30,7 +31,8 @@ TRANSFER_TARGETS = {"gate_passed": 1, "wall_s": 900.0}
 def time_transfer(params: Params, root: Path = PROCESSED_ROOT, policy_root: Path = POLICIES_ROOT,
                   max_wall_s: float | None = None) -> dict:
     """Steps and wall time of the stage's fine-tune-and-gate loop on `transfer.bench.subject`."""
-    b, t = params.transfer.bench, params.transfer
+    t = params.section("transfer", TransferSection)
+    b = t.bench
     budget = max_wall_s or b.max_wall_s
     start = time.perf_counter()
     try:

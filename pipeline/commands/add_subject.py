@@ -52,7 +52,7 @@ from ingest.manifest import DEFAULT_MANIFEST, DVC_SCHEME, Manifest, Source, sha2
 from ingest.markersets import REPO_ROOT, markerset_path
 from ingest.readers import read_markers, read_mot, read_robot_log
 from ingest.robot_log import robot_table
-from ingest.static import check_static, find_standing_window
+from ingest.static import StaticCheckParams, check_static, find_standing_window
 from ingest.subject import (
     MARKERSETS_DIR,
     STATIC_AUTO,
@@ -70,6 +70,7 @@ from pipeline.commands.quicklook import fitting_markerset
 from pipeline.params import load_params, parse_params
 from pipeline.paths import PARAMS_FILE
 from pipeline.stages.outputs import replacing
+from sim.motion.reference import ReferenceParams
 
 ID_PATTERN = re.compile(r"^[a-z0-9][a-z0-9_-]{0,63}$")
 MARKER_SUFFIXES = (".trc", ".c3d", ".csv")
@@ -276,7 +277,7 @@ def add_subject(subject_id: str, height_m: float, mass_kg: float, static: Path |
         raise SubjectError(subj_file, f"subject {subject_id!r} is already registered")
     if not trials:
         raise SubjectError(subject_id, "no trials given (--trial COND=FILE)")
-    needed = list(params.retarget.conditions)
+    needed = list(params.section("retarget", ReferenceParams).conditions)
     if needed and not any(t.condition in needed for t in trials):
         raise SubjectError(subject_id, f"no trial with condition in {needed} (params retarget.conditions): "
                            "the reference motion of the simulated human is built from those")
@@ -340,7 +341,7 @@ def add_subject(subject_id: str, height_m: float, mass_kg: float, static: Path |
         except GaitloopError as exc:
             raise IngestError(files.get(spec.markers, spec.markers), f"cannot be ingested as subject "
                               f"{subject_id!r}: {getattr(exc, 'problem', exc)}") from None
-    standing_check = params.ingest.static.build()
+    standing_check = params.section("ingest.static", StaticCheckParams)
     if static_none:
         static_doc, note = STATIC_NONE, "static: none: scaled from the walking trials (--static none).\n"
     elif static_auto:  # the standing before a walk, in the trials (its IK too, for the joint zeros)

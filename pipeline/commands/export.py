@@ -30,6 +30,8 @@ from sim.body.markers import trial_from_qpos
 from sim.errors import SimulationError
 from sim.robot.mrba import ROBOT_MARKERS, robot_markers
 from sim.rollout.batch import RolloutOutcome, Worker
+from sim.rollout.scenarios import ScenariosSection
+from sim.rollout.section import RolloutSection
 
 STATIC_S = 1.0
 
@@ -45,15 +47,17 @@ def run_export(subject: str, params: Params, out: Path | None = None, scenario: 
     """Export `subject`'s simulated trials of `scenario` (policy human; None: the replay human's
     straight bouts) in `conditions` (default `rollout.conditions`), `walks` per condition (default
     as in `simulate`); returns the folder."""
-    conditions = params.rollout.conditions if conditions is None else conditions
+    r = params.section("rollout", RolloutSection)
+    conditions = r.conditions if conditions is None else conditions
     if scenario is None:
         setup = replay_setup(subject, params, root)
         jobs = replay_jobs(subject, params, root, conditions=conditions,
-                           seeds=range(walks if walks is not None else params.rollout.n_seeds))
+                           seeds=range(walks if walks is not None else r.n_seeds))
     else:
-        if scenario not in params.scenarios.commands:
-            raise SimulationError(f"scenario {scenario!r}", f"not in params scenarios "
-                                  f"({', '.join(params.scenarios.commands)})")
+        commands = params.section("scenarios", ScenariosSection).commands
+        if scenario not in commands:
+            raise SimulationError(f"scenario {scenario!r}",
+                                  f"not in params scenarios ({', '.join(commands)})")
         setup = policy_setup(subject, params, root, policy_root)
         jobs = scenario_jobs(params, conditions, walks, (scenario,))
     folder = Path(out) if out is not None else export_folder(subject, scenario)

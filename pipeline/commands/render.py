@@ -17,7 +17,9 @@ from pipeline.params import Params
 from pipeline.runs.jobs import policy_setup, replay_jobs, replay_setup, scenario_jobs
 from pipeline.stages.outputs import replacing
 from sim.errors import SimulationError
+from sim.robot.section import RobotSection
 from sim.rollout.batch import Worker
+from sim.rollout.scenarios import ScenariosSection
 from sim.rollout.video import rollout_frames
 
 SIZE_PX, FPS = (640, 480), 30.0
@@ -35,16 +37,18 @@ def run_render(subject: str, condition: str, params: Params, root: Path = paths.
             raise SimulationError(subject, f"bout {bout} does not exist ({len(jobs)} straight bouts)")
         worker, job, name = Worker(replay_setup(subject, params, root)), jobs[bout], f"rollout_{condition}"
     else:
-        if scenario not in params.scenarios.commands:
-            raise SimulationError(f"scenario {scenario!r}", f"not in params scenarios "
-                                  f"({', '.join(params.scenarios.commands)})")
+        commands = params.section("scenarios", ScenariosSection).commands
+        if scenario not in commands:
+            raise SimulationError(f"scenario {scenario!r}",
+                                  f"not in params scenarios ({', '.join(commands)})")
         job = next(j for j in scenario_jobs(params, (condition,), seed + 1, (scenario,)) if j.seed == seed)
         worker = Worker(policy_setup(subject, params, root, policy_root))
         name = f"rollout_{scenario}_{condition}"
     outcome = worker.run(job, keep_result=True)
+    robot = params.section("robot", RobotSection).build()
     result, human = outcome.result, outcome.human
     frames = rollout_frames(outcome.world, result.world_qpos, worker.spec, result.human_qpos,
-                            human.sample_rate_hz, params.robot.build() if condition != "free" else None,
+                            human.sample_rate_hz, robot if condition != "free" else None,
                             float(human.driver.start_pose()[0][2]), SIZE_PX, FPS)
     out = paths.report_dir(reports, subject) / f"{name}.mp4"
     with replacing(out) as (tmp,):

@@ -19,10 +19,10 @@ from metrics.plots import (
     tracking_figure,
     tuning_figure,
 )
-from pipeline.params import ReportParams
 from pipeline.paths import PAPER_FILE
 from pipeline.report.published import load_paper, paper_compliance
 from pipeline.report.queries import of
+from pipeline.runs.report_params import ReportParams
 
 UNIVERSAL_FIGURE = "universal_progress.png"  # in reports/: the universal policy's gate against steps
 # Every figure a report can have, in the order the index shows them, with its caption.

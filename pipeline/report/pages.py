@@ -8,12 +8,12 @@ from pathlib import Path
 
 import pandas as pd
 
-from pipeline.params import ReportParams
 from pipeline.report import sections
 from pipeline.report.figures import FIGURES, UNIVERSAL_FIGURE, figure_names, paper_sensitivity
 from pipeline.report.published import ClinicalRange, PaperValues
 from pipeline.report.queries import of
 from pipeline.report.tables import PAPER_TABLES, TABLES, subjects_table
+from pipeline.runs.report_params import ReportParams
 
 
 def subject_page(subject: str, data: dict[str, pd.DataFrame], figures: set[str], p: ReportParams,

@@ -8,7 +8,7 @@ from pathlib import Path
 import duckdb
 import pandas as pd
 
-from pipeline.store import StoreError, open_store
+from pipeline.store.connection import StoreError, open_store
 from sim.rollout.scenarios import PHASES
 
 QUERIES = {

@@ -29,7 +29,7 @@ import pandas as pd
 
 from ingest.canonical import load_trial
 from ingest.manifest import Manifest
-from ingest.process import walk_phases
+from ingest.process import IngestParams, walk_phases
 from ingest.subject import load_subject
 from metrics.outcomes import compliance_headline
 from metrics.plots import policy_spm_figure
@@ -55,7 +55,10 @@ from metrics.scenario_checks import (
 )
 from pipeline import paths
 from pipeline.params import Params
+from pipeline.runs.evaluation import EvalParams
 from pipeline.runs.jobs import policy_job, policy_setup, require_inputs, scenario_jobs, scenario_profiles
+from pipeline.runs.report_params import ReportParams
+from pipeline.runs.setup import variant as variant_of
 from pipeline.stages.outputs import write_figure
 from sim.body.variant import HEALTHY
 from sim.learn.policy_human import PolicyWalk
@@ -63,6 +66,7 @@ from sim.learn.train import load_body
 from sim.motion.reference import load_reference
 from sim.rollout.batch import RolloutOutcome, batch_tables, reference_cycles, run_batch
 from sim.rollout.scenarios import CommandProfile
+from sim.rollout.section import RolloutSection
 
 SPM_JOINTS = ("hip_flexion", "knee_flexion")
 
@@ -70,16 +74,17 @@ SPM_JOINTS = ("hip_flexion", "knee_flexion")
 def evaluate_policy(subject: str, params: Params, root: Path = paths.PROCESSED_ROOT,
                     policy_root: Path = paths.POLICIES_ROOT, reports: Path = paths.REPORTS_ROOT,
                     progress: bool = True, variant: str = HEALTHY) -> dict:
-    ev, checks = params.evaluate_policy.build(), params.evaluate_policy.checks.build()
+    ev = params.section("evaluate_policy", EvalParams)
+    checks, ro = ev.checks, params.section("rollout", RolloutSection)
     start = time.perf_counter()
     seeds = range(ev.n_seeds)
-    controllers = [c for c in params.rollout.conditions if c != "free"]
+    controllers = [c for c in ro.conditions if c != "free"]
     push_s = min(ev.free_s, ev.push_time_s + ev.push_recovery_s)
     jobs = [policy_job("free", s, PolicyWalk(ev.free_s)) for s in seeds]
     jobs += [policy_job(c, s, PolicyWalk(ev.robot_s)) for c in controllers for s in seeds]
     jobs += [policy_job("free", s, PolicyWalk(push_s, ev.push_n * (1 if s % 2 == 0 else -1), ev.push_time_s,
                                               ev.push_duration_s), tag="push") for s in seeds]
-    sc = params.evaluate_policy.scenario_checks.build()
+    sc = ev.scenario_checks
     scenario_runs = scenario_jobs(params, ("free", *controllers), sc.seeds)
     real = paths.real_dir(root, subject)
     # read before the rollouts (minutes): a missing recording fails at once, naming its file
@@ -87,7 +92,7 @@ def evaluate_policy(subject: str, params: Params, root: Path = paths.PROCESSED_R
     real_strides = pd.read_parquet(real / "strides.parquet")
     real_cycles = pd.read_parquet(real / "cycles.parquet")
     setup = policy_setup(subject, params, root, policy_root, variant)
-    outcomes = run_batch(setup, jobs + scenario_runs, params.rollout.workers, f"policy rollouts {subject}",
+    outcomes = run_batch(setup, jobs + scenario_runs, ro.workers, f"policy rollouts {subject}",
                          progress)
     outcomes, scenario_outcomes = outcomes[:len(jobs)], outcomes[len(jobs):]
     pushed = [o for o in outcomes if o.job.human.push_n]
@@ -114,11 +119,11 @@ def evaluate_policy(subject: str, params: Params, root: Path = paths.PROCESSED_R
                   "human_falls": sum(o.human_fall_s is not None for o in groups[c]),
                   "robot_fall_detections": sum(o.robot_fall_s is not None for o in groups[c])}
     robot = batch_tables([o for c in controllers for o in groups[c]])["robot"]
-    doc["compliance"] = compliance_headline(robot, params.metrics.exclude_locked)
+    doc["compliance"] = compliance_headline(robot, params.section("metrics.exclude_locked", bool))
     policy_body, cycle = load_body(paths.policy_dir(policy_root, subject, variant))
     own_start = own_start_s(subject, params)
     real_speed = float(real_kept["gait_speed_mps"].mean())
-    speed = params.variant(variant).preferred_speed(cycle.speed_mps)
+    speed = variant_of(params, variant).preferred_speed(cycle.speed_mps)
     doc["scenarios"], scenario_rows = scenario_report(
         scenario_outcomes, scenario_profiles(params, speed, setup.drivers.sample_rate_hz), cycle.period_s,
         own_start, real_speed, sc)
@@ -128,7 +133,7 @@ def evaluate_policy(subject: str, params: Params, root: Path = paths.PROCESSED_R
                    "walk_s": push_s, "rollouts": len(pushed), "recovered": recovered, "pass": rows[-1].passed}
     xml, npz = paths.human_xml(root, subject), paths.reference_npz(root, subject)
     in_model = reference_cycles(mujoco.MjModel.from_xml_path(str(policy_body)), load_reference(npz), subject,
-                                load_subject(subject).markerset, params.ingest.build())
+                                load_subject(subject).markerset, params.section("ingest", IngestParams))
     spm, shown = {}, {}
     for joint in SPM_JOINTS:
         dataset, model_real = curves(real_free_cycles, joint), curves(in_model, joint)
@@ -149,7 +154,8 @@ def evaluate_policy(subject: str, params: Params, root: Path = paths.PROCESSED_R
     doc["spm"] = spm
     png = paths.report_dir(reports, subject) / ("policy_spm.png" if variant == HEALTHY
                                                  else f"policy_spm_{variant}.png")
-    write_figure(policy_spm_figure(shown, spm, subject), png, params.report.dpi)
+    dpi = params.section("report", ReportParams).dpi
+    write_figure(policy_spm_figure(shown, spm, subject), png, dpi)
     doc["policy_body_is_current_model"] = policy_body.read_bytes() == xml.read_bytes()
     doc["figure"] = paths.repo_relative(png)
     doc["unstable_rollouts"] = sum(not o.stable for o in outcomes)
@@ -167,7 +173,7 @@ def own_start_s(subject: str, params: Params) -> float | None:
     when no recording starts from standing."""
     subj = load_subject(subject)
     manifest = Manifest.load()
-    p = params.ingest.build()
+    p = params.section("ingest", IngestParams)
     found = []
     for spec in subj.trials:
         if spec.condition != "free":

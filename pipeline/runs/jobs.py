@@ -17,12 +17,14 @@ from ingest.strides import kept_stride_runs
 from ingest.subject import load_subject
 from pipeline import paths
 from pipeline.params import Params
+from pipeline.runs.setup import batch_setup, train_params
 from sim.body.variant import HEALTHY
 from sim.errors import SimulationError
 from sim.motion.reference import load_reference
 from sim.motion.replay import ReplaySegment, ReplaySource
 from sim.rollout.batch import BatchSetup, RolloutJob
-from sim.rollout.scenarios import CommandProfile, command_profile
+from sim.rollout.scenarios import CommandProfile, ScenariosSection, command_profile
+from sim.rollout.section import RolloutSection
 
 if TYPE_CHECKING:
     from sim.learn.policy_human import PolicyWalk
@@ -39,15 +41,15 @@ def replay_setup(subject: str, params: Params, root: Path = paths.PROCESSED_ROOT
     """The batch runner's setup for `subject`'s replay human (scaled model and reference motion)."""
     xml, npz = paths.human_xml(root, subject), paths.reference_npz(root, subject)
     require_inputs(xml, npz, what=f"`simulate {subject}`")
-    r = params.rollout
+    r = params.section("rollout", RolloutSection)
     source = ReplaySource(str(npz), r.replay.build(), r.lead_in_s, r.lead_in_ramp_s)
-    return params.batch_setup(subject, load_subject(subject).markerset, xml, source)
+    return batch_setup(params, subject, load_subject(subject).markerset, xml, source)
 
 
 def replay_jobs(subject: str, params: Params, root: Path = paths.PROCESSED_ROOT,
                 conditions: tuple[str, ...] | None = None, seeds: range | None = None) -> list[RolloutJob]:
     """One job per straight bout, condition and seed (default: `rollout.conditions`, `n_seeds`)."""
-    r = params.rollout
+    r = params.section("rollout", RolloutSection)
     strides_file = paths.real_dir(root, subject) / "strides.parquet"
     require_inputs(strides_file, what=f"`simulate {subject}`")
     strides = pd.read_parquet(strides_file)
@@ -80,11 +82,12 @@ def policy_setup(subject: str, params: Params, root: Path = paths.PROCESSED_ROOT
         if not (folder / f).exists():
             how = f"train {subject}" + ("" if variant == HEALTHY else f" --variant {variant}")
             raise SimulationError(folder / f, f"no trained policy: run `python -m pipeline {how}`")
-    scenarios = {name: tuple(segs) for name, segs in params.scenarios.build().items()}
-    source = PolicySource(str(folder), params.train_params(variant).env, params.rollout.policy_sample_rate_hz,
-                          params.evaluate_policy.fall_height_fraction, scenarios,
-                          params.scenarios.profile.build(), params.rollout.policy_motor_noise)
-    return params.batch_setup(subject, load_subject(subject).markerset, folder / BODY_FILE, source)
+    sc, r = params.section("scenarios", ScenariosSection), params.section("rollout", RolloutSection)
+    scenarios = {name: tuple(segs) for name, segs in sc.build().items()}
+    source = PolicySource(str(folder), train_params(params, variant).env, r.policy_sample_rate_hz,
+                          params.section("evaluate_policy.fall_height_fraction", float), scenarios,
+                          sc.profile, r.policy_motor_noise)
+    return batch_setup(params, subject, load_subject(subject).markerset, folder / BODY_FILE, source)
 
 
 def policy_job(condition: str, seed: int, walk: PolicyWalk, tag: str = "") -> RolloutJob:
@@ -98,8 +101,8 @@ def scenario_jobs(params: Params, conditions: tuple[str, ...] | None = None,
     `rollout.conditions`, `scenarios.walks(name)` walks); trial id `<scenario>_<condition>_seed<k>`."""
     from sim.learn.policy_human import PolicyWalk
 
-    sc = params.scenarios
-    conditions = params.rollout.conditions if conditions is None else conditions
+    sc = params.section("scenarios", ScenariosSection)
+    conditions = params.section("rollout", RolloutSection).conditions if conditions is None else conditions
     names = tuple(sc.commands) if scenarios is None else scenarios
     return [RolloutJob(c, k, f"{name}_{c}_seed{k}", PolicyWalk(scenario=name))
             for name in names for c in conditions for k in range(walks or sc.walks(name))]
@@ -107,9 +110,9 @@ def scenario_jobs(params: Params, conditions: tuple[str, ...] | None = None,
 
 def scenario_profiles(params: Params, speed_mps: float, rate_hz: float) -> dict[str, CommandProfile]:
     """Every scenario's command profile for a person whose preferred speed is `speed_mps`."""
-    profile = params.scenarios.profile.build()
-    return {name: command_profile(name, segs, speed_mps, rate_hz, profile)
-            for name, segs in params.scenarios.build().items()}
+    sc = params.section("scenarios", ScenariosSection)
+    return {name: command_profile(name, segs, speed_mps, rate_hz, sc.profile)
+            for name, segs in sc.build().items()}
 
 
 __all__ = ["policy_job", "policy_setup", "replay_jobs", "replay_setup", "require_inputs", "scenario_jobs",

@@ -12,7 +12,7 @@ from pathlib import Path
 import pandas as pd
 
 from ingest.manifest import Manifest
-from ingest.process import SubjectTables, process_subject
+from ingest.process import IngestParams, SubjectTables, process_subject
 from ingest.subject import load_subject
 from ingest.trial import SIDES
 from pipeline.params import Params
@@ -41,7 +41,7 @@ def run_ingest(subject_id: str, params: Params, out_root: Path = PROCESSED_ROOT,
                progress: bool = True) -> Path:
     """Process every trial of `subject_id` and write the stage outputs; returns their folder."""
     subject = load_subject(subject_id)
-    tables: SubjectTables = process_subject(subject, Manifest.load(), params.ingest.build(),
+    tables: SubjectTables = process_subject(subject, Manifest.load(), params.section("ingest", IngestParams),
                                             progress=progress)
     folder = real_dir(out_root, subject_id)
     write_outputs(folder, {name: getattr(tables, name) for name in TABLES},

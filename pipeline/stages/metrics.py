@@ -28,11 +28,20 @@ from ingest.readers import read_markers
 from ingest.readers.mot import read_mot
 from ingest.subject import load_subject
 from metrics.errors import MetricsError
-from metrics.quality import TrialSpan, ingest_checks, quality_table, scale_checks, sim_checks, transfer_checks
+from metrics.quality import (
+    QualityParams,
+    TrialSpan,
+    ingest_checks,
+    quality_table,
+    scale_checks,
+    sim_checks,
+    transfer_checks,
+)
 from metrics.sampling import paper_inputs, paper_strides, repeated_walks
+from metrics.section import MetricsParams
 from metrics.table import MetricInputs, MetricTable
 from metrics.tables import REGISTRY
-from pipeline.params import MetricsParams, Params
+from pipeline.params import Params
 from pipeline.paths import (
     METRICS_ROOT,
     PROCESSED_ROOT,
@@ -151,12 +160,19 @@ def trial_spans(subject: str) -> list[TrialSpan] | None:
         return None
 
 
+def paper_sampling(params: Params) -> tuple[str, int]:
+    """(scenario, complete cycles per walk) the paper's tables sample the policy human with (params
+    `scenarios.paper`, `sim.rollout.scenarios.PaperSampling`)."""
+    paper = "scenarios.paper"
+    return params.section(f"{paper}.scenario", str), params.section(f"{paper}.cycles_per_walk", int)
+
+
 def quality_checks(subject: str, params: Params, root: Path = PROCESSED_ROOT,
                    spans: list[TrialSpan] | None = None) -> pd.DataFrame:
     """The subject's quality gates (`QUALITY_COLUMNS`) from what the earlier stages wrote
     (`spans`: the raw files' time columns, read with `trial_spans` when None); a transferred
     policy's gate comes from the policy rollouts' summary (`sim_policy/summary.json`)."""
-    q = params.quality.build()
+    q, p = params.section("quality", QualityParams), params.section("metrics", MetricsParams)
     model = read_json(model_dir(root, subject) / "model.json")
     reference = read_json(model_dir(root, subject) / "reference.json")
     real = {n: _read_table(real_dir(root, subject) / f"{n}.parquet") for n in ("strides", "events", "cycles")}
@@ -164,10 +180,10 @@ def quality_checks(subject: str, params: Params, root: Path = PROCESSED_ROOT,
     policy = _read_table(sim_policy_dir(root, subject) / "strides.parquet")
     table_strides = walks = None
     if not policy.empty:
-        paper = params.scenarios.paper
-        scenario = policy[policy["scenario"] == paper.scenario]
+        scenario, per_walk = paper_sampling(params)
+        scenario = policy[policy["scenario"] == scenario]
         walks = repeated_walks(scenario) if not scenario.empty else None
-        table_strides = paper_strides(scenario, paper.cycles_per_walk, walks=walks)
+        table_strides = paper_strides(scenario, per_walk, walks=walks)
     sims["policy"] = table_strides if table_strides is not None else policy
     policy_summary = read_json(sim_policy_dir(root, subject) / "summary.json") or {}
     replay_summary = read_json(sim_dir(root, subject) / "summary.json") or {}
@@ -175,7 +191,7 @@ def quality_checks(subject: str, params: Params, root: Path = PROCESSED_ROOT,
     checks = [*scale_checks(subject, model, reference, q),
               *ingest_checks(subject, real["events"], real["cycles"],
                              spans if spans is not None else trial_spans(subject),
-                             params.metrics.spm.min_cycles, q),
+                             p.spm.min_cycles, q),
               *sim_checks(subject, real["strides"], sims, table_strides, q, walks, rollouts),
               *transfer_checks(subject, policy_summary.get("transfer"))]
     return quality_table(checks)
@@ -184,11 +200,10 @@ def quality_checks(subject: str, params: Params, root: Path = PROCESSED_ROOT,
 def run_metrics(subject: str, params: Params, root: Path = PROCESSED_ROOT,
                 out_root: Path = METRICS_ROOT, registry: tuple[MetricTable, ...] = REGISTRY) -> Path:
     """Compute and write a subject's metric tables (those of `registry`); returns the output folder."""
-    p = params.metrics.build()
+    p = params.section("metrics", MetricsParams)
     root = Path(root)
     try:
-        paper = params.scenarios.paper
-        tables = compute(read_inputs(subject, root, (paper.scenario, paper.cycles_per_walk)), p, registry)
+        tables = compute(read_inputs(subject, root, paper_sampling(params)), p, registry)
     except (KeyError, ValueError) as exc:
         raise MetricsError(str(subject_dir(root, subject)), f"cannot compute metrics ({exc})") from None
     quality = quality_checks(subject, params, root)

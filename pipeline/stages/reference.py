@@ -21,13 +21,15 @@ from ingest.canonical import load_trial
 from ingest.manifest import Manifest
 from ingest.process import IngestParams, process_trial
 from ingest.subject import load_subject
-from pipeline.params import Params, RetargetSection
+from pipeline.params import Params
 from pipeline.paths import PROCESSED_ROOT, REPORTS_ROOT, human_xml, model_dir, reference_npz, report_dir
+from pipeline.runs.report_params import ReportParams
 from pipeline.stages.outputs import json_text, replacing, write_figure
 from sim.errors import SimulationError
 from sim.motion.plots import retarget_figure
 from sim.motion.reference import (
     Reference,
+    ReferenceParams,
     RetargetedTrial,
     cycle_from_trials,
     cycle_summary,
@@ -47,25 +49,25 @@ def load_model(path: Path):
     return load_human_model(path)
 
 
-def retarget_subject(subject_id: str, model, ip: IngestParams, section: RetargetSection,
+def retarget_subject(subject_id: str, model, ip: IngestParams, section: ReferenceParams,
                      progress: bool = False) -> tuple[Reference, dict, list[RetargetedTrial],
                                                       dict[str, dict[str, np.ndarray]]]:
     """Retarget the subject's trials of the configured conditions; returns the reference, the
     metrics document, the retargeted trials and the real (filtered) angles per trial."""
     subject = load_subject(subject_id)
     manifest = Manifest.load()
-    specs = [s for s in subject.trials if s.condition in section.reference.conditions]
+    specs = [s for s in subject.trials if s.condition in section.conditions]
     if not specs:
-        raise SimulationError(subject.path, f"no trial with condition in {section.reference.conditions}")
+        raise SimulationError(subject.path, f"no trial with condition in {section.conditions}")
     trials, real, strides = [], {}, []
     for spec in specs:
         processed = process_trial(load_trial(subject, spec, manifest), subject.markerset, ip)
-        trials.append(retarget_trial(model, processed, section.ik, section.reference, progress=progress))
+        trials.append(retarget_trial(model, processed, section.ik, section, progress=progress))
         real[spec.id] = processed.trial.angles
         strides.append(processed.strides)
-    cycle, used = cycle_from_trials(model, trials, pd.concat(strides, ignore_index=True), section.reference)
+    cycle, used = cycle_from_trials(model, trials, pd.concat(strides, ignore_index=True), section)
     reference = Reference.from_trials(trials, cycle)
-    doc = fit_metrics(subject_id, model, trials, real, section.reference.conditions[0])
+    doc = fit_metrics(subject_id, model, trials, real, section.conditions[0])
     doc["cycle"] = cycle_summary(cycle, used) | {"left_right": left_right_shift(model, cycle)}
     return reference, doc, trials, real
 
@@ -74,16 +76,16 @@ def run_reference(subject_id: str, params: Params, root: Path = PROCESSED_ROOT,
                   reports: Path = REPORTS_ROOT, progress: bool = True) -> dict:
     """Retarget a subject and write reference.npz, reference.json and retarget.png; returns the
     metrics document."""
-    section = params.retarget.build()
+    section = params.section("retarget", ReferenceParams)
     folder = model_dir(root, subject_id)
     model = load_model(human_xml(root, subject_id))
-    reference, doc, trials, real = retarget_subject(subject_id, model, params.ingest.build(), section,
-                                                    progress=progress)
+    ip, dpi = params.section("ingest", IngestParams), params.section("report", ReportParams).dpi
+    reference, doc, trials, real = retarget_subject(subject_id, model, ip, section, progress=progress)
     npz, js = reference_npz(root, subject_id), folder / "reference.json"
     png = report_dir(reports, subject_id) / "retarget.png"
     with replacing(npz, js) as (t_npz, t_js):  # a failing figure leaves npz and json as they were
         with open(t_npz, "wb") as fh:
             save_reference(fh, reference)
         t_js.write_text(json_text(doc))
-        write_figure(retarget_figure(subject_id, model, trials, real), png, params.report.dpi)
+        write_figure(retarget_figure(subject_id, model, trials, real), png, dpi)
     return doc

@@ -17,7 +17,6 @@ from pathlib import Path
 import pandas as pd
 
 from metrics.plots import training_progress_figure
-from pipeline.params import ReportParams
 from pipeline.paths import PAPER_FILE, POLICIES_ROOT, REPORTS_ROOT, UNIVERSAL_DIR, policy_dir, report_dir
 from pipeline.report.figures import UNIVERSAL_FIGURE, subject_figures
 from pipeline.report.pages import subject_page, summary_page
@@ -30,8 +29,9 @@ from pipeline.report.published import (
 )
 from pipeline.report.queries import load_report_data, of
 from pipeline.report.render import index_html, subject_markdown, summary_markdown
+from pipeline.runs.report_params import ReportParams
 from pipeline.stages.outputs import read_json, replacing, replacing_folder, write_figure
-from pipeline.store import StoreError
+from pipeline.store.connection import StoreError
 
 
 def subject_report(subject: str, data: dict[str, pd.DataFrame], reports: Path = REPORTS_ROOT,

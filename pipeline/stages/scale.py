@@ -17,12 +17,13 @@ import mujoco
 import numpy as np
 
 from ingest.manifest import Manifest
-from ingest.static import read_static_trial
+from ingest.static import StaticCheckParams, read_static_trial
 from ingest.subject import STATIC_NONE, load_subject
 from pipeline.params import Params
 from pipeline.paths import PROCESSED_ROOT, REPORTS_ROOT, human_xml, model_dir, report_dir
 from pipeline.stages.outputs import json_text, replacing
 from sim.body.human import build_human, model_checks
+from sim.body.human_params import HumanParams
 from sim.body.render import render_model_png
 from sim.body.scaling import ScaledBody, knee_valgus_deg, scale_subject
 from sim.errors import SimulationError
@@ -45,9 +46,9 @@ def run_scale(subject_id: str, params: Params, root: Path = PROCESSED_ROOT,
               reports_root: Path = REPORTS_ROOT) -> Path:
     """Scale, build, check and render `subject_id`'s human; returns the model folder."""
     subject = load_subject(subject_id)
-    p = params.human.build()
-    static = read_static_trial(subject, Manifest.load(), check=params.ingest.static.build(),
-                               widths_per_height=p.widths_per_height)
+    p = params.section("human", HumanParams)
+    check = params.section("ingest.static", StaticCheckParams)
+    static = read_static_trial(subject, Manifest.load(), check=check, widths_per_height=p.widths_per_height)
     body = scale_subject(subject, static, p)
     synthesised = subject.static is not None and subject.static.markers == STATIC_NONE
     spec = build_human(body, p)

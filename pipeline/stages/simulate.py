@@ -25,11 +25,13 @@ from metrics.plots import tracking_figure
 from metrics.tracking import tracking_table
 from pipeline import paths
 from pipeline.params import Params
-from pipeline.runs.gate import gate_failed, gate_summary, read_gate
+from pipeline.runs.gate_record import gate_failed, gate_summary, read_gate
 from pipeline.runs.jobs import policy_setup, replay_jobs, replay_setup, scenario_jobs, scenario_profiles
+from pipeline.runs.report_params import ReportParams
 from pipeline.stages.outputs import write_figure, write_outputs
 from sim.rollout.batch import RolloutJob, RolloutOutcome, batch_tables, run_batch
-from sim.rollout.scenarios import measured_phases, phase_agreement, phase_at
+from sim.rollout.scenarios import ScenariosSection, measured_phases, phase_agreement, phase_at
+from sim.rollout.section import RolloutSection
 
 
 def run_summary(outcomes: list[RolloutOutcome], robot: pd.DataFrame, exclude_locked: bool) -> dict:
@@ -48,17 +50,18 @@ def run_summary(outcomes: list[RolloutOutcome], robot: pd.DataFrame, exclude_loc
 def run_simulate(subject: str, params: Params, root: Path = paths.PROCESSED_ROOT,
                  reports: Path = paths.REPORTS_ROOT, progress: bool = True) -> dict:
     """Replay-human rollouts of every straight bout x condition x seed -> `<root>/<subject>/sim/`."""
-    setup = replay_setup(subject, params, root)
-    outcomes = run_batch(setup, replay_jobs(subject, params, root), params.rollout.workers,
+    setup, workers = replay_setup(subject, params, root), params.section("rollout", RolloutSection).workers
+    outcomes = run_batch(setup, replay_jobs(subject, params, root), workers,
                          f"simulate {subject}", progress)
     tables = batch_tables(outcomes)
     summary = {"human_mode": "replay", "bouts": "straight bouts only (kept real strides)",
-               **run_summary(outcomes, tables["robot"], params.metrics.exclude_locked)}
+               **run_summary(outcomes, tables["robot"], params.section("metrics.exclude_locked", bool))}
     write_outputs(paths.sim_dir(root, subject), tables, {"summary": summary})
-    tracking = tracking_table(tables["robot"], params.metrics.tracking_rate_hz)
+    tracking = tracking_table(tables["robot"], params.section("metrics.tracking_rate_hz", float))
     fig = tracking_figure(tracking, f"{subject}: pelvis offset from the arm's neutral point, replay human, "
                           "first bout and seed")
-    write_figure(fig, paths.report_dir(reports, subject) / "robot_tracking.png", params.report.dpi)
+    dpi = params.section("report", ReportParams).dpi
+    write_figure(fig, paths.report_dir(reports, subject) / "robot_tracking.png", dpi)
     return summary
 
 
@@ -124,20 +127,21 @@ def run_simulate_policy(subject: str, params: Params, root: Path = paths.PROCESS
     from sim.learn.train import load_body
 
     setup = policy_setup(subject, params, root, policy_root)
-    jobs = scenario_jobs(params)
-    outcomes = run_batch(setup, jobs, params.rollout.workers, f"scenario rollouts {subject}", progress)
+    jobs, r = scenario_jobs(params), params.section("rollout", RolloutSection)
+    sc = params.section("scenarios", ScenariosSection)
+    outcomes = run_batch(setup, jobs, r.workers, f"scenario rollouts {subject}", progress)
     tables = batch_tables(outcomes)
     _, cycle = load_body(folder)
     profiles = scenario_profiles(params, cycle.speed_mps, setup.drivers.sample_rate_hz)
     tag_scenarios(tables, jobs, profiles)
-    agreement = commanded_vs_measured(outcomes, profiles, params.ingest.build(),
-                                      params.scenarios.phase_tolerance_s)
-    exclude = params.metrics.exclude_locked
+    agreement = commanded_vs_measured(outcomes, profiles, params.section("ingest", IngestParams),
+                                      sc.phase_tolerance_s)
+    exclude = params.section("metrics.exclude_locked", bool)
     summary = {"human_mode": "policy", **run_summary(outcomes, tables["robot"], exclude),
                "falls_by_scenario": {f"{name} {c}": sum(o.fell for o in outcomes if o.job.condition == c
                                                          and o.job.human.scenario == name)
-                                     for name in params.scenarios.commands
-                                     for c in params.rollout.conditions},
+                                     for name in sc.commands
+                                     for c in r.conditions},
                "phase_agreement": agreement, **transfer}
     write_outputs(out, tables, {"summary": summary})
     return summary

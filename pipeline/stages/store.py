@@ -29,15 +29,10 @@ from pipeline.paths import (
     policy_dir,
     sweep_dir,
 )
-from pipeline.runs.gate import EVALUATION_FILE, source_evaluation
-from pipeline.store import (
-    POLICY_CHECK_COLUMNS,
-    TUNING_COLUMNS,
-    StoreError,
-    StoreReport,
-    SubjectResults,
-    store_results,
-)
+from pipeline.runs.gate_record import EVALUATION_FILE, source_evaluation
+from pipeline.store.connection import StoreError, StoreParams
+from pipeline.store.records import POLICY_CHECK_COLUMNS, TUNING_COLUMNS
+from pipeline.store.write import StoreReport, SubjectResults, store_results
 from sim.body.variant import HEALTHY
 
 
@@ -109,15 +104,15 @@ def run_store(params: Params, root: Path = METRICS_ROOT, db: Path | None = None,
     """Store the metrics of every subject in params `subjects`, the rows of the params' studies (`sweep`,
     `fall_intervention`, `sensitivity`) and every tuning result, and the
     evaluate-policy checks of their policies."""
-    p = params.store.build()
+    p = params.section("store", StoreParams)
     subjects = list(params.subjects)
     results = [load_results(s, root) for s in subjects]
     bar = tqdm(desc="store", unit="table", disable=not progress, leave=False)
     try:
         return store_results(db or p.path, results, p, progress=lambda _: bar.update(),
-                             sweeps=[*load_sweep(params.sweep.study, sweeps_root),
-                                     *load_sweep(params.fall_intervention.study, sweeps_root),
-                                     *load_sweep(params.sensitivity.study, sweeps_root)],
+                             sweeps=[*load_sweep(params.section("sweep.study", str), sweeps_root),
+                                     *load_sweep(params.section("fall_intervention.study", str), sweeps_root),
+                                     *load_sweep(params.section("sensitivity.study", str), sweeps_root)],
                              tunings=load_tunings(tuning_root),
                              policy_checks=load_policy_checks(subjects, policies_root))
     finally:

@@ -39,14 +39,22 @@ from metrics.fall_intervention import FallRuleParams, event_metrics
 from metrics.gait_symmetry import symmetry_row
 from metrics.outcomes import run_row
 from pipeline import paths
-from pipeline.params import NO_EVENT, Params, ParamsError, SensitivitySchema, SweepSchema
+from pipeline.params import Params
 from pipeline.runs.jobs import policy_setup
+from pipeline.runs.studies import (
+    NO_EVENT,
+    FallInterventionSection,
+    RaySection,
+    SensitivitySection,
+    SweepSection,
+)
 from pipeline.stages.outputs import write_outputs
-from pipeline.store import DESIGN_COLUMNS, SWEEP_COLUMNS
+from pipeline.store.records import DESIGN_COLUMNS, SWEEP_COLUMNS
 from sim.body.balance_loss import BalanceLoss
 from sim.errors import SimulationError
 from sim.learn.policy_human import PolicyWalk
 from sim.robot.responsiveness import Responsiveness, for_controller, twin_responsiveness, with_responsiveness
+from sim.robot.section import RobotSection
 from sim.rollout.batch import BatchSetup, RolloutJob, Worker
 from sim.rollout.cluster import cached_worker, completed, connect
 
@@ -110,19 +118,21 @@ def policy_digest(folder: Path) -> str:
     return hashlib.sha256((folder / "policy.zip").read_bytes()).hexdigest()[:16]
 
 
-def study_params(params: Params, study: str | None = None) -> SweepSchema:
+def study_params(params: Params, study: str | None = None) -> SweepSection:
     """The study named `study`: params `sweep` (default), `fall_intervention` or `sensitivity`."""
-    if study is None or study == params.sweep.study:
-        return params.sweep
-    for sw in (params.fall_intervention, params.sensitivity):
+    sweep, fall = params.section("sweep", SweepSection), params.section("fall_intervention",
+                                                                        FallInterventionSection)
+    sensitivity = params.section("sensitivity", SensitivitySection)
+    if study is None or study == sweep.study:
+        return sweep
+    for sw in (fall, sensitivity):
         if study == sw.study:
             return sw
-    raise ParamsError(params.path, f"no study {study!r} (sweep.study {params.sweep.study!r}, "
-                                   f"fall_intervention.study {params.fall_intervention.study!r} or "
-                                   f"sensitivity.study {params.sensitivity.study!r})")
+    raise params.fail(f"no study {study!r} (sweep.study {sweep.study!r}, fall_intervention.study "
+                      f"{fall.study!r} or sensitivity.study {sensitivity.study!r})")
 
 
-def _policies(sw: SweepSchema, policy_root: Path, notes: list[str]) -> list[tuple[str, str, str]]:
+def _policies(sw: SweepSection, policy_root: Path, notes: list[str]) -> list[tuple[str, str, str]]:
     """(subject, variant, policy digest) of the study's subjects and variants that have a policy; a note
     in `notes` for each left out (a subject without a trained policy, a variant without its own)."""
     out = []
@@ -141,14 +151,15 @@ def _policies(sw: SweepSchema, policy_root: Path, notes: list[str]) -> list[tupl
 
 
 def sweep_jobs(params: Params, policy_root: Path = paths.POLICIES_ROOT,
-               sw: SweepSchema | None = None) -> tuple[list[SweepJob], list[str]]:
+               sw: SweepSection | None = None) -> tuple[list[SweepJob], list[str]]:
     """The study's jobs (default params `sweep`), grouped by subject; and notes on what was left out
     (a subject without a trained policy, a variant without its fine-tuned policy)."""
-    sw, controllers = sw or params.sweep, params.robot.controller_specs()
-    if isinstance(sw, SensitivitySchema):
+    sw = sw or params.section("sweep", SweepSection)
+    controllers = params.section("robot", RobotSection).controller_specs()
+    if isinstance(sw, SensitivitySection):
         jobs, _, notes = sensitivity_jobs(params, policy_root, sw)
         return jobs, notes
-    events = params.fall_intervention.events_of(sw.events)
+    events = params.section("fall_intervention", FallInterventionSection).events_of(sw.events)
     digest = rollout_params_hash(params)
     jobs, notes = [], []
     for subject, variant, policy in _policies(sw, policy_root, notes):
@@ -161,7 +172,7 @@ def sweep_jobs(params: Params, policy_root: Path = paths.POLICIES_ROOT,
 
 
 def sensitivity_jobs(params: Params, policy_root: Path = paths.POLICIES_ROOT,
-                     sw: SensitivitySchema | None = None) -> tuple[list[SweepJob], pd.DataFrame, list[str]]:
+                     sw: SensitivitySection | None = None) -> tuple[list[SweepJob], pd.DataFrame, list[str]]:
     """The responsiveness study's jobs (default params `sensitivity`), its design and notes.
 
     One factor at a time: each level of each factor (`sim.robot.responsiveness.FACTORS`) with the other
@@ -171,8 +182,9 @@ def sensitivity_jobs(params: Params, policy_root: Path = paths.POLICIES_ROOT,
     whatever factor it is a level of. The design (`DESIGN_COLUMNS` but the study) has one row per job and
     (factor, level) cell it belongs to; `twin`: the job's robot is the twin's.
     """
-    sw = sw or params.sensitivity
-    robot, controllers = params.robot.build(), params.robot.controller_specs()
+    sw = sw or params.section("sensitivity", SensitivitySection)
+    section = params.section("robot", RobotSection)
+    robot, controllers = section.build(), section.controller_specs()
     twin = twin_responsiveness(robot)
     digest = rollout_params_hash(params)
     cells: list[tuple[str, float, Responsiveness]] = []
@@ -269,23 +281,25 @@ def run_sweep(params: Params, root: Path = paths.SWEEPS_ROOT, policy_root: Path 
     params' `sweep` study (`study_params`)."""
     sw = study_params(params, study)
     design = None
-    if isinstance(sw, SensitivitySchema):
+    if isinstance(sw, SensitivitySection):
         jobs, design, notes = sensitivity_jobs(params, policy_root, sw)
     else:
         jobs, notes = sweep_jobs(params, policy_root, sw)
-    fall_rule = params.fall_intervention.rule(params.robot.fall.drop_m)
+    fall_rule = params.section("fall_intervention", FallInterventionSection).rule(
+        params.section("robot", RobotSection).fall.drop_m)
+    ray_params, exclude = params.section("ray", RaySection), params.section("metrics.exclude_locked", bool)
     folder = paths.sweep_dir(root, sw.study)
     job_dir = folder / "jobs"
     job_dir.mkdir(parents=True, exist_ok=True)
     todo = [j for j in jobs if not (job_dir / f"{j.key}.parquet").is_file()]
     failed: list[dict] = []
     if todo:
-        connect(params.ray.num_cpus)
+        connect(ray_params.num_cpus)
         bodies = dict.fromkeys((j.subject, j.variant) for j in todo)
         setups = {(s, v): ray.put(policy_setup(s, params, policy_root=policy_root, variant=v))
                   for s, v in bodies}
-        task = _run_remote.options(max_retries=params.ray.max_retries, retry_exceptions=True)
-        refs = {task.remote(setups[j.subject, j.variant], j, params.metrics.exclude_locked, fall_rule): j
+        task = _run_remote.options(max_retries=ray_params.max_retries, retry_exceptions=True)
+        refs = {task.remote(setups[j.subject, j.variant], j, exclude, fall_rule): j
                 for j in todo}
         for ref in completed(list(refs), f"sweep {sw.study}", progress):
             job = refs[ref]

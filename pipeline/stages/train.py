@@ -11,7 +11,8 @@ from pathlib import Path
 
 from pipeline import paths
 from pipeline.params import Params
-from sim.body.variant import HEALTHY
+from pipeline.runs.setup import fine_tune_steps, train_params
+from sim.body.variant import HEALTHY, CohortSection
 from sim.errors import SimulationError
 from sim.learn.train import POLICY_FILE, train
 from sim.learn.train_ray import train_on_ray
@@ -38,14 +39,15 @@ def run_train(subject: str, params: Params, *, n_envs: int | None, threads: int 
     `variant`: fine-tune cohort variant `variant` from the subject's own policy (params `cohort`:
     its body and goals, its `fine_tune_steps` unless `steps`; the body and speed ramp in over
     `curriculum_fraction` x `cohort.fine_tune_steps`) into `data/policies/<subject>/cohort/<variant>`."""
-    p = params.train_params(variant)
+    p = train_params(params, variant)
     start = None
     if variant != HEALTHY:
         if init_from is not None:
             raise SimulationError(f"train {subject} --variant {variant}",
                                   "a variant starts from the subject's own policy: drop --init-from")
-        init_from, steps = subject, steps or params.fine_tune_steps(variant)
-        curriculum = int(params.cohort.curriculum_fraction * params.cohort.fine_tune_steps)
+        init_from, steps = subject, steps or fine_tune_steps(params, variant)
+        cohort = params.section("cohort", CohortSection)
+        curriculum = int(cohort.curriculum_fraction * cohort.fine_tune_steps)
     else:
         curriculum = 0
     if init_from is not None and not resume:

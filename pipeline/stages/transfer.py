@@ -34,6 +34,8 @@ from typing import TYPE_CHECKING
 from pipeline import paths
 from pipeline.params import Params
 from pipeline.runs.gate import EVALUATION_FILE, GATE_FILE, required_checks, run_gate, source_evaluation
+from pipeline.runs.setup import train_params
+from sim.learn.transfer import TransferSection
 
 if TYPE_CHECKING:
     from sim.learn.transfer import BodyFeatures, NearestPolicy
@@ -65,17 +67,19 @@ def choose_source(subject: str, params: Params, root: Path = paths.PROCESSED_ROO
     """The nearest committed policy (`train.subjects` with a policy in `policy_root`) and the features
     of the subject (key `subject`) and of every candidate."""
     from sim.errors import SimulationError
-    from sim.learn.train import POLICY_FILE
+    from sim.learn.train import POLICY_FILE, TrainParams
     from sim.learn.transfer import nearest_policy
 
-    committed = [s for s in params.train.subjects
+    train_subjects = params.section("train", TrainParams).subjects
+    committed = [s for s in train_subjects
                  if s != subject and (paths.policy_dir(policy_root, s) / POLICY_FILE).is_file()]
     if not committed:
-        raise SimulationError(policy_root, f"no committed policy of {', '.join(params.train.subjects)} to "
+        raise SimulationError(policy_root, f"no committed policy of {', '.join(train_subjects)} to "
                               f"start {subject}'s from")
     features = {s: policy_features(paths.policy_dir(policy_root, s)) for s in committed}
     target = subject_features(subject, root)
-    return nearest_policy(target, features, params.transfer.weights.build()), {subject: target, **features}
+    weights = params.section("transfer", TransferSection).weights
+    return nearest_policy(target, features, weights), {subject: target, **features}
 
 
 # -- fine-tuning and the gate -----------------------------------------------------------------------
@@ -90,7 +94,7 @@ def fine_tune(subject: str, params: Params, out_dir: Path, *, steps: int, max_wa
 
     xml, npz = train_inputs(subject, root)
     command = f"python -m pipeline transfer {subject}"
-    return train(xml, load_reference(npz).cycle, params.train_params(), out_dir, total_steps=steps,
+    return train(xml, load_reference(npz).cycle, train_params(params), out_dir, total_steps=steps,
                  max_wall_s=max_wall_s, resume=init_from is None, init_from=init_from, progress=progress,
                  command=command)
 
@@ -114,7 +118,7 @@ def fine_tune_until_gate(subject: str, params: Params, work_root: Path, source_d
     """Fine-tune `subject`'s policy in `<work_root>/<subject>` from the one in `source_dir`, in chunks
     of `transfer.chunk_steps`, gating after each, until the gate passes, `transfer.steps` are done
     or `max_wall_s` is spent (the chunk running then stops; its gate still runs)."""
-    t = params.transfer
+    t = params.section("transfer", TransferSection)
     start = time.perf_counter()
     steps, rounds, train_s, gate_s = 0, 0, 0.0, 0.0
     while True:
@@ -138,8 +142,9 @@ def run_transfer(subject: str, params: Params, root: Path = paths.PROCESSED_ROOT
     """Choose, fine-tune and gate, write `<policy_root>/<subject>/` (module docstring); returns the
     gate record. `steps`, `max_wall_s`: override `transfer.steps` / `transfer.max_wall_s`."""
     if steps:
-        params = params.model_copy(update={"transfer": params.transfer.model_copy(update={"steps": steps})})
-    t = params.transfer
+        t = params.section("transfer", TransferSection)
+        params = params.replaced("transfer", TransferSection, t.model_copy(update={"steps": steps}))
+    t = params.section("transfer", TransferSection)
     start = time.perf_counter()
     choice, features = choose_source(subject, params, root, policy_root)
     source_dir = paths.policy_dir(policy_root, choice.source)

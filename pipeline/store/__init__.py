@@ -30,24 +30,8 @@ version per (subject, variant) when they change (`policy_checks_latest`: the new
 `paper_table1..3`, `phase_compliance`, `event_aligned`, `spm_clusters`,
 `subject_summary` are described in README.md; `sensitivity` (the responsiveness study) in docs/robot.md.
 
-Modules: `connection` (opening, the writer's lock, the copy swapped in), `schema` (the tables' DDL and
-the views, read from `views/*.sql`), `write` (`store_results`), `read` (`query`, `compare_views`).
+Modules (imported by name: the package itself imports nothing, so a stage pulls in only what it uses):
+`connection` (opening, the writer's lock, the copy swapped in), `records` (the store's own tables:
+studies, tuning, quality, policy checks), `schema` (the metric tables' DDL and the views, read from
+`views/*.sql`), `write` (`store_results`), `read` (`query`, `compare_views`).
 """
-
-from pipeline.store.connection import StoreError, StoreParams, code_rev, connect, open_store
-from pipeline.store.read import COMPARED_VIEWS, compare_views, query
-from pipeline.store.schema import (
-    DESIGN_COLUMNS,
-    POLICY_CHECK_COLUMNS,
-    SWEEP_COLUMNS,
-    TUNING_COLUMNS,
-    ensure_schema,
-    views,
-)
-from pipeline.store.write import StoreReport, SubjectResults, content_hash, store_results
-
-__all__ = [
-    "COMPARED_VIEWS", "DESIGN_COLUMNS", "POLICY_CHECK_COLUMNS", "SWEEP_COLUMNS", "TUNING_COLUMNS",
-    "StoreError", "StoreParams", "StoreReport", "SubjectResults", "code_rev", "compare_views", "connect",
-    "content_hash", "ensure_schema", "open_store", "query", "store_results", "views",
-]

@@ -13,9 +13,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import duckdb
+from pydantic import with_config
 
 from ingest.errors import GaitloopError
-from pipeline.paths import REPO_ROOT, STORE_FILE
+from pipeline.paths import REPO_ROOT, STORE_FILE, repo_path
 
 
 class StoreError(GaitloopError):
@@ -26,13 +27,17 @@ class StoreError(GaitloopError):
         super().__init__(f"{self.where}: {problem}")
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class StoreParams:
     """The `store` section of params.yaml."""
 
-    path: Path = STORE_FILE
-    busy_timeout_s: float = 10.0
+    path: Path = STORE_FILE  # a relative path is taken from the repository root
+    busy_timeout_s: float = 10.0  # a second writer waits this long (s) for the file lock, then "busy"
     retry_interval_s: float = 0.2
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "path", repo_path(self.path))
 
 
 

@@ -19,13 +19,8 @@ from metrics.groups import GROUP
 from metrics.table import MetricTable
 from metrics.tables import REGISTRY
 from pipeline.store.connection import StoreError, StoreParams, code_rev, open_store, writing_copy
-from pipeline.store.schema import (
-    DESIGN_COLUMNS,
-    POLICY_CHECK_COLUMNS,
-    SWEEP_COLUMNS,
-    TUNING_COLUMNS,
-    ensure_schema,
-)
+from pipeline.store.records import DESIGN_COLUMNS, POLICY_CHECK_COLUMNS, SWEEP_COLUMNS, TUNING_COLUMNS
+from pipeline.store.schema import ensure_schema
 
 
 @dataclass(frozen=True)

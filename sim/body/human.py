@@ -132,13 +132,13 @@ def build_human(body: ScaledBody, p: HumanParams) -> mujoco.MjSpec:
                 kind = joint_kind(joint)
                 if joint in BALL_JOINTS:
                     b.add_joint(name=joint, type=mujoco.mjtJoint.mjJNT_BALL,
-                                range=[0.0, np.radians(p.ball_range_deg[kind])],
+                                range=[0.0, np.radians(p.range_deg[kind])],
                                 limited=mujoco.mjtLimited.mjLIMITED_TRUE,
                                 damping=p.joint_damping_nms_per_rad, armature=p.armature_kg_m2)
                 else:
                     axis = body.hinge_axes.get(joint, HINGE_AXES[kind])
                     b.add_joint(name=joint, type=mujoco.mjtJoint.mjJNT_HINGE, axis=axis,
-                                range=np.radians(p.hinge_range_deg[kind]),
+                                range=np.radians(p.range_deg[kind]),
                                 limited=mujoco.mjtLimited.mjLIMITED_TRUE,
                                 damping=p.joint_damping_nms_per_rad, armature=p.armature_kg_m2)
         i = inert[name]

@@ -19,8 +19,10 @@ is evaluated on.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Annotated, Literal
 
 import mujoco
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 HEALTHY = "healthy"
 
@@ -64,8 +66,54 @@ def variant_from_dict(name: str, d: dict) -> Variant:
     """A variant from its params entry (`cohort.variants.<name>`)."""
     scale = tuple((str(k), float(v)) for k, v in (d.get("torque_scale") or {}).items())
     speed = d.get("speed_mps")
-    swing = d.get("swing_time_ratio") or {}  # one side at most (the params schema checks)
+    swing = d.get("swing_time_ratio") or {}  # one side at most (`VariantSpec` checks)
     return Variant(name, scale, float(d.get("speed_scale", 1.0)), None if speed is None else float(speed),
                    float(d.get("action_noise", 0.0)),
                    next(((str(k), float(v)) for k, v in swing.items()), None),
                    None if d.get("train_action_noise") is None else float(d["train_action_noise"]))
+
+
+class VariantSpec(BaseModel):
+    """One variant as params.yaml declares it (`cohort.variants.<name>`); `Variant` is what runs."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    torque_scale: dict[str, Annotated[float, Field(gt=0.0)]] = {}
+    speed_scale: Annotated[float, Field(gt=0.0)] = 1.0
+    speed_mps: Annotated[float, Field(gt=0.0)] | None = None
+    action_noise: Annotated[float, Field(ge=0.0)] = 0.0
+    train_action_noise: Annotated[float, Field(ge=0.0)] | None = None  # fine-tuning's (else action_noise)
+    swing_time_ratio: Annotated[dict[Literal["left", "right"], Annotated[float, Field(ge=1.0, le=2.0)]],
+                                Field(max_length=1)] = {}  # one side: its swing / the other's
+    fine_tune_steps: Annotated[int, Field(ge=1)] | None = None  # this variant's budget (cohort's unless set)
+
+
+class CohortSection(BaseModel):
+    """The `cohort` section of params.yaml: the subjects whose policy humans get variants, the variants
+    and their fine-tuning budget (env steps)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    subjects: tuple[str, ...]
+    fine_tune_steps: Annotated[int, Field(ge=1)]
+    curriculum_fraction: Annotated[float, Field(ge=0.0, le=1.0)]
+    variants: dict[Annotated[str, Field(pattern=r"^[a-z0-9][a-z0-9_]*$")], VariantSpec]
+
+    @model_validator(mode="after")
+    def _not_healthy(self) -> CohortSection:
+        if HEALTHY in self.variants:
+            raise ValueError(f"variants: {HEALTHY!r} is the subject's own policy, not a variant to declare")
+        return self
+
+    def variant(self, name: str) -> Variant:
+        """Variant `name` (`healthy`: nothing changed); a ValueError lists the declared ones."""
+        if name == HEALTHY:
+            return Variant()
+        if name not in self.variants:
+            raise ValueError(f"cohort.variants: no variant {name!r} ({', '.join([HEALTHY, *self.variants])})")
+        return variant_from_dict(name, self.variants[name].model_dump(exclude={"fine_tune_steps"}))
+
+    def budget(self, variant: str) -> int:
+        """Env steps of `variant`'s fine-tuning: its own `fine_tune_steps`, else the cohort's."""
+        self.variant(variant)
+        return self.variants[variant].fine_tune_steps or self.fine_tune_steps

@@ -17,14 +17,17 @@ D once per rollout, adds `w_style x r` to the buffer's rewards and recomputes re
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
+from typing import Annotated
 
 import numpy as np
 import torch
+from pydantic import Field, with_config
 from stable_baselines3.common.callbacks import BaseCallback
 from torch import nn
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class AMPParams:
     """Discriminator settings (params `train.amp`)."""
@@ -39,16 +42,7 @@ class AMPParams:
     reward_scale: float = 1.0
     # share of the reference transitions drawn from the subject's whole recorded motion (standing,
     # starting, turning, stopping: `sim.learn.walk_env.motion_amp_pairs`) instead of its cycle
-    motion_share: float = 0.0
-
-    @classmethod
-    def from_dict(cls, d: dict) -> AMPParams:
-        known = {f.name for f in fields(cls)}
-        if set(d) - known:
-            raise KeyError(f"train.amp: unknown key {sorted(set(d) - known)[0]!r}")
-        out = {k: (tuple(int(x) for x in v) if k == "hidden" else (int(v) if k in {
-            "epochs", "batch_size", "replay_size"} else float(v))) for k, v in d.items()}
-        return cls(**out)
+    motion_share: Annotated[float, Field(ge=0.0, le=1.0)] = 0.0
 
 
 class Discriminator(nn.Module):

@@ -18,6 +18,7 @@ from dataclasses import dataclass, replace
 
 import mujoco
 import numpy as np
+from pydantic import with_config
 
 from sim.body.human import standing_height
 from sim.learn.steering import geom_bottom, standing_pose, subtree
@@ -53,6 +54,7 @@ class BodyScales:
         return self.length[i], self.mass[i]
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class BodyDraw:
     """How far drawn bodies stray from their subject's (params `universal.bodies`): a whole-body

@@ -14,16 +14,21 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Annotated
+
+from pydantic import Field, with_config
 
 from sim.angles import wrap_angle
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class TwistParams:
     """`train.env.harness_twist` (probability, lag_s) with the harness's yaw spring from
-    `robot.harness` (`Params.train_params` fills those in)."""
+    `robot.harness` (`pipeline.runs.setup.train_params` fills those in)."""
 
-    probability: float = 0.0                  # share of training episodes with the twist (0: off)
+    # share of training episodes with the twist (0: off)
+    probability: Annotated[float, Field(ge=0.0, le=1.0)] = 0.0
     lag_s: tuple[float, float] = (0.2, 1.0)   # the virtual base heading's time constant, drawn per episode
     stiffness_nm_per_rad: float = 40.0
     damping_nms_per_rad: float = 3.0

@@ -13,6 +13,7 @@ from dataclasses import dataclass, fields
 import gymnasium as gym
 import mujoco
 import numpy as np
+from pydantic import with_config
 
 from sim.learn.bodies import (
     BODY_OBS_SIZE,
@@ -29,6 +30,7 @@ from sim.motion.reference import ReferenceCycle, load_reference
 UNIVERSAL_OBS_SIZE = OBS_SIZE + BODY_OBS_SIZE
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class UniversalParams:
     """The `universal` section of params.yaml, where the values and their units are (one place)."""

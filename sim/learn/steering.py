@@ -34,27 +34,34 @@ only its cycle.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import Annotated
 
 import mujoco
 import numpy as np
+from pydantic import Field, with_config
 
 from sim.angles import wrap_angle
 from sim.rollout.scenarios import CommandProfile, ProfileParams, Segment, command_profile
 
+Share = Annotated[float, Field(ge=0.0, le=1.0)]
+Fraction = Annotated[float, Field(gt=0.0, le=1.0)]
+Positive = Annotated[float, Field(gt=0.0)]
 
+
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class CommandSampling:
     """Random training commands (params `train.env.commands`): episode starts, segment lengths,
     speeds (x the cycle's speed) and turn angles."""
 
-    standing_start_probability: float = 0.5   # else the episode starts walking at a random phase
+    standing_start_probability: Share = 0.5   # else the episode starts walking at a random phase
     speed_range: tuple[float, float] = (0.6, 1.3)
     walk_s_range: tuple[float, float] = (1.5, 4.0)
     stand_s_range: tuple[float, float] = (0.5, 5.0)  # a start need not follow a stop soon
     turn_deg_range: tuple[float, float] = (30.0, 180.0)
     event_probabilities: tuple[float, float, float] = (0.25, 0.25, 0.5)  # turn, speed change, stop
-    full_gait_fraction: float = 1.0            # gait amplitude reaches 1 at this x the cycle's speed
-    stride_speed_exponent: float | None = 0.42  # stride ~ speed^this below it (None: the legacy law)
+    full_gait_fraction: Fraction = 1.0            # gait amplitude reaches 1 at this x the cycle's speed
+    stride_speed_exponent: Fraction | None = 0.42  # stride ~ speed^this below it (None: the legacy law)
     start_s_range: tuple[float, float] = (1.7, 4.0)  # gentler starts, stops and turns than the
     stop_s_range: tuple[float, float] = (1.4, 3.0)   # scenarios' too, so the policy meets easier
     turn_rate_deg_s_range: tuple[float, float] = (40.0, 90.0)  # versions of each transition
@@ -63,18 +70,18 @@ class CommandSampling:
     # ~0.3-0.4 to 0 while the phase moves ~3 % of a cycle: the reference slides the stance foot on
     # the floor instead of stepping. With a floor, steps keep coming and shorten with the speed.
     # 0.744: the law's cadence at 0.6 x the cycle's speed, the slowest trained.
-    min_cadence: float | None = 0.744
+    min_cadence: Fraction | None = 0.744
     # Lean into turns (None: off): the feet reference moves toward the outside of a turn by this x
     # the lateral offset of an inverted pendulum taking the turn's centripetal acceleration
     # (`turn_lean_offset`). The cycle is straight walking; without it the reference asks for the
     # straight walk's foot placement while the turn needs the ground force pointing inward.
-    turn_lean: float | None = None
-    turn_lean_time_constant_s: float = 0.3  # the lean builds and fades over about a step
-    max_lean_tan: float = 0.35               # tan of the largest lean taken (~19 deg)
+    turn_lean: Annotated[float, Field(gt=0.0, le=2.0)] | None = None
+    turn_lean_time_constant_s: Positive = 0.3  # the lean builds and fades over about a step
+    max_lean_tan: Fraction = 0.35               # tan of the largest lean taken (~19 deg)
     # Steering lead (None: off): the heading the human steers toward is held within this many degrees
     # of where its pelvis faces (`lead_heading`), so a turn commanded faster than the body turns is
     # followed at the body's own rate (a pursuit "carrot") instead of asking for a sidestep.
-    heading_lead_deg: float | None = 20.0
+    heading_lead_deg: Annotated[float, Field(gt=0.0, le=180.0)] | None = 20.0
 
 
 def sample_commands(rng: np.random.Generator, speed_mps: float, duration_s: float, rate_hz: float,

@@ -30,6 +30,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import torch
+from pydantic import with_config
 from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor, VecNormalize
@@ -54,9 +55,19 @@ LEAN_LAW = ("turn_lean_time_constant_s", "max_lean_tan")  # kept with `turn_lean
 STEERING_FILE = "steering.json"  # the speed law it was trained under (sim/learn/steering.py)
 
 
+@with_config(extra="forbid")
+@dataclass(frozen=True)
+class TrainSubject:
+    """A subject with a committed policy (data/policies/<subject>/): its dvc `train` stage's extra
+    `python -m pipeline train` arguments."""
+
+    args: str = ""
+
+
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class TrainParams:
-    """The `train` section of params.yaml."""
+    """The `train` section of params.yaml (PPO + AMP; `subjects` is the dvc `train` stage's list)."""
 
     total_steps: int = 3_700_000
     n_envs: int = 8
@@ -78,28 +89,7 @@ class TrainParams:
     seed: int = 0
     env: WalkEnvParams = field(default_factory=WalkEnvParams)
     amp: AMPParams = field(default_factory=AMPParams)
-
-    @classmethod
-    def from_dict(cls, d: dict) -> TrainParams:
-        d = dict(d)
-        out: dict = {}
-        if "env" in d:
-            out["env"] = WalkEnvParams.from_dict(d.pop("env"))
-        if "amp" in d:
-            out["amp"] = AMPParams.from_dict(d.pop("amp"))
-        types = {f.name: f.type for f in fields(cls)}
-        for k, v in d.items():
-            if k not in types:
-                raise KeyError(f"train: unknown key {k!r}")
-            if k == "net_arch":
-                out[k] = tuple(int(x) for x in v)
-            elif types[k] in ("int", int):
-                out[k] = int(v)
-            elif types[k] in ("bool", bool):
-                out[k] = bool(v)
-            else:
-                out[k] = float(v)
-        return cls(**out)
+    subjects: dict[str, TrainSubject] = field(default_factory=dict)
 
 
 def _make_env(model_path: str, cycle: ReferenceCycle, p: WalkEnvParams, seed: int) -> WalkEnv:

@@ -15,12 +15,16 @@ import math
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
+from typing import Annotated, Literal
 
 import mujoco
+from pydantic import BaseModel, ConfigDict, Field, with_config
 
 from sim.body.human import standing_height
 from sim.errors import SimulationError
 from sim.learn.bodies import leg_length
+
+NonNegative = Annotated[float, Field(ge=0.0)]
 
 
 @dataclass(frozen=True)
@@ -33,14 +37,19 @@ class BodyFeatures:
     speed_mps: float
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class FeatureWeights:
     """Weight of each feature's log ratio in the distance (`transfer.weights` of params.yaml)."""
 
-    height: float = 1.0
-    mass: float = 1.0
-    leg_length: float = 1.0
-    speed: float = 1.0
+    height: NonNegative = 1.0
+    mass: NonNegative = 1.0
+    leg_length: NonNegative = 1.0
+    speed: NonNegative = 1.0
+
+    def __post_init__(self) -> None:
+        if not any(v > 0 for v in asdict(self).values()):
+            raise ValueError("at least one weight must be positive")
 
 
 @dataclass(frozen=True)
@@ -97,3 +106,28 @@ def nearest_policy(target: BodyFeatures, candidates: Mapping[str, BodyFeatures],
 
 __all__ = ["BodyFeatures", "FeatureWeights", "NearestPolicy", "body_features", "feature_distance",
            "log_ratios", "nearest_policy"]
+
+
+class TransferBench(BaseModel):
+    """`python -m pipeline bench --only transfer`: the stage's procedure on one subject, timed."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    subject: str
+    max_wall_s: Annotated[float, Field(gt=0.0)]  # the bench run's budget (s)
+
+
+class TransferSection(BaseModel):
+    """The `transfer` section of params.yaml (`transfer@<subject>`, pipeline/stages/transfer.py):
+    fine-tune the nearest committed policy within a budget, gated every `chunk_steps`."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    subjects: tuple[str, ...]   # every subject of `subjects` without a committed policy (train.subjects)
+    steps: Annotated[int, Field(ge=1)]  # env steps of fine-tuning at most
+    chunk_steps: Annotated[int, Field(ge=1)]  # gated after every this many
+    max_wall_s: Annotated[float, Field(gt=0.0)]  # ... or this long in all (s)
+    gate_seeds: Annotated[int, Field(ge=1)]  # walks per check of the gate
+    gate: Literal["source", "all"]  # the checks its source policy passes, or all of them
+    weights: FeatureWeights = FeatureWeights()
+    bench: TransferBench

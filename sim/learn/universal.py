@@ -338,10 +338,10 @@ def sources_of(subjects: tuple[str, ...], processed: Path) -> tuple[Source, ...]
 def params_from_yaml(path: Path) -> tuple[TrainParams, UniversalParams, dict[str, list[Segment]]]:
     """`train` (with the scenarios' transition timing), `universal` and the scenarios' segments."""
     import yaml
+    from pydantic import TypeAdapter
 
     doc = yaml.safe_load(path.read_text())
-    train = {k: v for k, v in doc["train"].items() if k != "subjects"}
-    p = TrainParams.from_dict(train)
+    p = TypeAdapter(TrainParams).validate_python(doc["train"])
     p = replace(p, env=replace(p.env, profile=ProfileParams(**doc["scenarios"]["profile"])))
     up = UniversalParams.from_dict(doc["universal"])
     scenarios = {k: [Segment(**seg) for seg in v] for k, v in doc["scenarios"]["commands"].items()}

@@ -34,14 +34,16 @@ the physics runs `n_substeps` steps in one `mj_step` call.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Annotated
 
 import gymnasium as gym
 import mujoco
 import numpy as np
+from pydantic import Field, with_config
 
-from sim.body.human_params import joint_kind
+from sim.body.human_params import ByName, JointValues, joint_kind
 from sim.body.variant import Variant
 from sim.errors import SimulationError
 from sim.learn.harness_twist import HarnessTwist, TwistParams
@@ -68,19 +70,29 @@ LEGACY_OBS_SIZE = 72  # the straight-walking policies before steering (no amplit
 AMP_SIZE = 61
 
 
-def _number(b: float | list | tuple | None) -> float | tuple[float, ...] | None:
-    """A params value as the env's dataclasses hold it: a pair as a tuple of floats, null as None."""
-    return tuple(float(x) for x in b) if isinstance(b, list | tuple) else None if b is None else float(b)
+@with_config(extra="forbid")
+@dataclass(frozen=True)
+class Imitation(ByName):
+    """One value per imitation term of the reward."""
+
+    pose: float
+    velocity: float
+    feet: float
+    height: float
+    root_velocity: float
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class WalkEnvParams:
-    """Numbers of the walking environment (params `train.env`); units in names."""
+    """Numbers of the walking environment (params `train.env`); units in names. `profile`, `variant` and
+    the harness twist's spring are not read from params.yaml's `train.env`: `train_params` (pipeline)
+    sets them from `scenarios.profile`, the cohort variant and `robot.harness`."""
 
     control_dt_s: float = 0.03             # 33 Hz policy (DeepMimic uses 30 Hz)
     action_scale_rad: float = 0.25          # residual PD target range around the reference
-    pd_kp_nm_per_rad: dict[str, float] = field(default_factory=lambda: {
-        "lumbar": 1000.0, "hip": 800.0, "knee": 800.0, "ankle": 600.0, "shoulder": 200.0, "elbow": 100.0})
+    pd_kp_nm_per_rad: JointValues = JointValues(lumbar=1000.0, hip=800.0, knee=800.0, ankle=600.0,
+                                                shoulder=200.0, elbow=100.0)
     pd_kd_ratio_s: float = 0.1              # kd = ratio x kp (DeepMimic's humanoid gains: kd = kp / 10)
     episode_s: float = 10.0
     min_pelvis_height_fraction: float = 0.7  # terminate below this x the reference mean pelvis height
@@ -88,45 +100,23 @@ class WalkEnvParams:
     w_imitation: float = 0.6
     w_task: float = 0.2
     w_style: float = 0.2                    # applied by the AMP callback
-    imitation_weights: dict[str, float] = field(default_factory=lambda: {
-        "pose": 0.5, "velocity": 0.1, "feet": 0.15, "height": 0.1, "root_velocity": 0.15})
-    imitation_scales: dict[str, float] = field(default_factory=lambda: {
-        "pose": 2.0, "velocity": 0.02, "feet": 40.0, "height": 40.0, "root_velocity": 2.0})
+    imitation_weights: Imitation = Imitation(pose=0.5, velocity=0.1, feet=0.15, height=0.1,
+                                             root_velocity=0.15)
+    imitation_scales: Imitation = Imitation(pose=2.0, velocity=0.02, feet=40.0, height=40.0,
+                                            root_velocity=2.0)
     task_scale: float = 2.0                 # exp(-scale (dv_forward^2 + v_lateral^2))
     push_force_n: tuple[float, float] = (0.0, 250.0)
     push_duration_s: float = 0.2
     push_interval_s: tuple[float, float] = (1.0, 3.0)
     push_probability: float = 0.5           # share of episodes with pushes
     heading_scale: float = 2.0              # task x exp(-scale (1 - cos heading error))
-    turn_imitation_scale: float = 1.0       # the imitation term x this while a turn is commanded (the
-                                            #   cycle is straight walking; a turn departs from it)
+    # the imitation term x this while a turn is commanded (the cycle walks straight; a turn departs from it)
+    turn_imitation_scale: Annotated[float, Field(ge=0.0, le=1.0)] = 1.0
     harness_twist: TwistParams = field(default_factory=TwistParams)  # the robot's harness yaw load (off)
     commands: CommandSampling = field(default_factory=CommandSampling)
     profile: ProfileParams = field(default_factory=ProfileParams)  # the scenarios' transitions
     variant: Variant = field(default_factory=Variant)  # cohort variant: torque limits, speed, noise
 
-    @classmethod
-    def from_dict(cls, d: dict) -> WalkEnvParams:
-        known = {f.name for f in fields(cls)}
-        unknown = set(d) - known
-        if unknown:
-            raise KeyError(f"train.env: unknown key {sorted(unknown)[0]!r}")
-        out: dict = {}
-        for k, v in d.items():
-            if k == "commands":
-                out[k] = CommandSampling(**{a: _number(b) for a, b in v.items()})
-            elif k == "harness_twist":
-                out[k] = v if isinstance(v, TwistParams) else TwistParams(
-                    **{a: _number(b) for a, b in v.items()})
-            elif k == "profile":
-                out[k] = v if isinstance(v, ProfileParams) else ProfileParams(**v)
-            elif isinstance(v, dict):
-                out[k] = {str(a): float(b) for a, b in v.items()}
-            elif isinstance(v, list | tuple):
-                out[k] = tuple(float(x) for x in v)
-            else:
-                out[k] = float(v)
-        return cls(**out)
 
 
 def pd_servo_spec(spec: mujoco.MjSpec, p: WalkEnvParams) -> None:

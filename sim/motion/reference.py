@@ -13,12 +13,14 @@ is a pure function of arrays and a MuJoCo model.
 from __future__ import annotations
 
 import time
-from dataclasses import MISSING, dataclass, fields, replace
+from dataclasses import MISSING, dataclass, field, fields, replace
 from pathlib import Path
+from typing import Annotated, Literal
 
 import mujoco
 import numpy as np
 import pandas as pd
+from pydantic import Field, with_config
 
 from ingest.filtering import lowpass
 from ingest.process import ProcessedTrial
@@ -27,25 +29,18 @@ from sim.errors import SimulationError
 from sim.motion.retarget import ROOT_JOINT, MarkerFit, RetargetParams, joint_angles, retarget
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class ReferenceParams:
-    """The `retarget` section of params.yaml minus its `ik` block (`RetargetParams`)."""
+    """The `retarget` section of params.yaml: which trials become the reference motion and how, and
+    the marker IK that fits them (`ik`)."""
 
-    conditions: tuple[str, ...] = ("free",)  # trial conditions retargeted into reference.npz
-    qvel_cutoff_hz: float = 8.0     # low-pass on finite-difference velocities (zero-phase, 4th order)
+    conditions: tuple[str, ...] = ("free",)  # trial conditions retargeted; the first builds the cycle
+    qvel_cutoff_hz: Annotated[float, Field(gt=0.0)] = 8.0  # low-pass (zero-phase, 4th order) on velocities
     cycle_samples: int = 100        # samples per periodic reference cycle
-    cycle_side: str = "right"       # strides from this side's heel strike to its next one
+    cycle_side: Literal["left", "right"] = "right"  # strides from this side's heel strike to its next one
     floor_align: bool = True        # shift the cycle vertically so its lowest foot point is on z = 0
-
-    @classmethod
-    def from_dict(cls, d: dict) -> ReferenceParams:
-        d = {k: v for k, v in d.items() if k != "ik"}
-        unknown = set(d) - {f.name for f in fields(cls)}
-        if unknown:
-            raise SimulationError("params.yaml retarget", f"unknown keys {sorted(unknown)}")
-        if "conditions" in d:
-            d["conditions"] = tuple(d["conditions"])
-        return cls(**d)
+    ik: RetargetParams = field(default_factory=RetargetParams)
 
 
 @dataclass(frozen=True)

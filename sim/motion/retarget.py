@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
+from pydantic import with_config
 from scipy.spatial.transform import Rotation
 
 from sim.errors import SimulationError
@@ -38,6 +39,7 @@ ROOT_JOINT = "root"
 SUFFIX_OF_SIDE = {"left": "l", "right": "r"}  # canonical side names -> the model's suffixes
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class RetargetParams:
     """The `retarget.ik` block of params.yaml (see the module docstring for the problem solved)."""
@@ -50,17 +52,6 @@ class RetargetParams:
     default_marker_weight: float = 1.0
     marker_weights: dict[str, float] = field(default_factory=dict)  # fnmatch pattern -> weight
     min_markers: int = 4                 # frames with fewer present markers keep the previous pose
-
-    @classmethod
-    def from_dict(cls, d: dict) -> RetargetParams:
-        known = {f for f in cls.__dataclass_fields__}
-        unknown = set(d) - known
-        if unknown:
-            raise SimulationError("params.yaml retarget", f"unknown keys {sorted(unknown)}")
-        d = dict(d)
-        if "marker_weights" in d:
-            d["marker_weights"] = {str(k): float(v) for k, v in (d["marker_weights"] or {}).items()}
-        return cls(**d)
 
     def weight(self, name: str) -> float:
         """Weight of marker `name`: the first matching pattern in `marker_weights`, else the default."""

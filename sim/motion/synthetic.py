@@ -20,10 +20,12 @@ from dataclasses import dataclass
 
 import mujoco
 import numpy as np
+from pydantic import with_config
 
 from sim.motion.replay import Motion
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class WalkParams:
     """Synthetic walk (params `robot.tuning.walks`)."""

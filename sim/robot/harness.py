@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import mujoco
 import numpy as np
+from pydantic import with_config
 
 # DoF order of every per-DoF tuple and of the wrench: forces along x, y, z, torques about x, y, z.
 AXES = ("x", "y", "z", "roll", "pitch", "yaw")
@@ -21,14 +22,17 @@ HARNESS_JOINTS = tuple(f"mrba_harness_{a}" for a in AXES)
 # Kinematic order inside the body: slides x, y, z, then hinges yaw (z), pitch (y), roll (x).
 _CHAIN = (0, 1, 2, 5, 4, 3)
 
+Vec6 = tuple[float, float, float, float, float, float]  # x, y, z, roll, pitch, yaw
 
+
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class HarnessParams:
     """Per-DoF stiffness (N/m, N m/rad), damping (N s/m, N m s/rad), half ranges (m, rad)."""
 
-    stiffness: tuple[float, ...] = (3000.0, 3000.0, 8000.0, 60.0, 60.0, 40.0)
-    damping: tuple[float, ...] = (300.0, 300.0, 1000.0, 5.0, 5.0, 3.0)
-    range: tuple[float, ...] = (0.05, 0.05, 0.05, 0.5, 0.5, 0.7)
+    stiffness: Vec6 = (3000.0, 3000.0, 8000.0, 60.0, 60.0, 40.0)
+    damping: Vec6 = (300.0, 300.0, 1000.0, 5.0, 5.0, 3.0)
+    range: Vec6 = (0.05, 0.05, 0.05, 0.5, 0.5, 0.7)
     mass_kg: float = 0.5
     weld_timeconst_s: float = 0.005
     limit_timeconst_s: float = 0.005

@@ -38,6 +38,7 @@ from dataclasses import dataclass
 
 import mujoco
 import numpy as np
+from pydantic import with_config
 
 from sim.errors import SimulationError
 from sim.robot.harness import HARNESS_JOINTS, HarnessParams, add_harness
@@ -53,6 +54,7 @@ SENSORS = {"e": (0, 3), "base_pos": (3, 3), "base_vel": (6, 3), "harness_pos": (
 SENSOR_WIDTH = 27
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class BaseParams:
     """Mobile base: size, mass, drive servo and command limits (params `robot.base`)."""
@@ -74,6 +76,7 @@ class BaseParams:
     control_rate_hz: float = 100.0
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class ArmParams:
     """Passive arm (forward, lateral, vertical slides): per-joint values, params `robot.arm`."""
@@ -85,6 +88,7 @@ class ArmParams:
     lock_timeconst_s: float = 0.005
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class FallParams:
     """Fall rule on robot-sensed arm signals (params `robot.fall`)."""
@@ -94,6 +98,7 @@ class FallParams:
     deflection_m: float = 0.22
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class SensorParams:
     """Noise of the robot's own sensors (params `robot.sensors`)."""
@@ -104,31 +109,14 @@ class SensorParams:
 
 @dataclass(frozen=True)
 class RobotParams:
-    """The whole `robot` section of params.yaml, minus the controllers."""
+    """The MRBA's parts: `robot.base`, `robot.arm`, `robot.harness`, `robot.fall`, `robot.sensors` of
+    params.yaml (`sim.robot.section.RobotSection` is the whole section)."""
 
     base: BaseParams = BaseParams()
     arm: ArmParams = ArmParams()
     harness: HarnessParams = HarnessParams()
     fall: FallParams = FallParams()
     sensors: SensorParams = SensorParams()
-
-    @classmethod
-    def from_dict(cls, d: dict) -> RobotParams:
-        def tup(x):
-            return tuple(float(v) for v in x)
-
-        arm = d["arm"]
-        h = d["harness"]
-        return cls(
-            base=BaseParams(**{k: float(v) for k, v in d["base"].items()}),
-            arm=ArmParams(float(arm["link_mass_kg"]), tup(arm["damping_ns_per_m"]),
-                          tup(arm["frictionloss_n"]), tup(arm["range_m"]), float(arm["lock_timeconst_s"])),
-            harness=HarnessParams(tup(h["stiffness"]), tup(h["damping"]), tup(h["range"]),
-                                  float(h["mass_kg"]), float(h["weld_timeconst_s"]),
-                                  float(h["limit_timeconst_s"])),
-            fall=FallParams(**{k: float(v) for k, v in d["fall"].items()}),
-            sensors=SensorParams(**{k: float(v) for k, v in d["sensors"].items()}),
-        )
 
 
 def body_pose_at_qpos0(spec: mujoco.MjSpec, body: str) -> tuple[np.ndarray, np.ndarray]:

@@ -22,25 +22,29 @@ simulation can be checked against what it was asked (`phase_agreement`).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Annotated
 
 import numpy as np
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, model_validator, with_config
 
 from ingest.bouts import pelvis_path
 from ingest.phases import motion_phases
 from ingest.process import IngestParams
 from sim.errors import SimulationError
 
+Positive = Annotated[float, Field(gt=0.0)]
 PHASES = ("standing", "start", "steady", "speed_change", "turn", "stop")
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class Segment:
     """One step of a scenario; exactly one of `stand_s`, `walk_s`, `walk_m`, `turn_deg`, `stop`."""
 
-    stand_s: float | None = None
-    walk_s: float | None = None
-    walk_m: float | None = None
-    speed: float = 1.0          # walking speed, x the subject's preferred speed
+    stand_s: Annotated[float, Field(ge=0.0)] | None = None
+    walk_s: Annotated[float, Field(gt=0.0)] | None = None
+    walk_m: Annotated[float, Field(gt=0.0)] | None = None  # the steady part's length (m)
+    speed: Annotated[float, Field(gt=0.0)] = 1.0  # walking speed, x the subject's preferred speed
     turn_deg: float | None = None  # + left (counter-clockwise), - right
     stop: bool = False
 
@@ -54,15 +58,68 @@ class Segment:
         return kinds[0]
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class ProfileParams:
     """Transition timing of every scenario (params `scenarios.profile`)."""
 
-    start_s: float = 1.7
-    stop_s: float = 1.4
-    speed_change_s: float = 1.0
-    turn_rate_deg_s: float = 90.0
-    turn_speed_fraction: float = 0.75
+    start_s: Positive = 1.7  # rest to the commanded speed (s)
+    stop_s: Positive = 1.4  # speed to rest (s)
+    speed_change_s: Positive = 1.0  # one commanded speed to the next (s)
+    turn_rate_deg_s: Positive = 90.0  # heading rate while turning
+    turn_speed_fraction: Positive = 0.75  # speed while turning, x preferred
+
+
+SCENARIO_NAMES = ("walk_10m", "speed_change", "turn_90", "turnaround_180", "steady")
+
+
+def _one_kind(segment: Segment) -> Segment:
+    try:
+        segment.kind  # noqa: B018 (the segment's own check)
+    except SimulationError as exc:
+        raise ValueError(str(exc)) from None
+    return segment
+
+
+class PaperSampling(BaseModel):
+    """How the paper's tables sample the policy human (Wang, Chan et al. ICRA 2025)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    scenario: str  # the scenario the tables come from
+    walks: Annotated[int, Field(ge=1)]  # walks (seeds) per condition
+    cycles_per_walk: Annotated[int, Field(ge=1)]  # complete cycles per walk and side
+
+
+class ScenariosSection(BaseModel):
+    """The `scenarios` section of params.yaml: each scenario's segments, their shared transition
+    timing and how many walks `dvc repro` runs of each."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    paper: PaperSampling
+    seeds: Annotated[int, Field(ge=1)]  # walks per condition of every other scenario
+    phase_tolerance_s: Annotated[float, Field(ge=0.0)]  # the motion may lag its command this long (s)
+    profile: ProfileParams = ProfileParams()
+    commands: dict[str, list[Annotated[Segment, AfterValidator(_one_kind)]]]
+
+    @model_validator(mode="after")
+    def _named(self) -> ScenariosSection:
+        missing = [n for n in SCENARIO_NAMES if n not in self.commands]
+        if missing:
+            raise ValueError(f"missing scenario(s) {', '.join(missing)} (every subject walks "
+                             f"{', '.join(SCENARIO_NAMES)})")
+        if self.paper.scenario not in self.commands:
+            raise ValueError(f"paper.scenario: no scenario {self.paper.scenario!r} in commands")
+        return self
+
+    def walks(self, name: str) -> int:
+        """Walks per condition of scenario `name` in `dvc repro`."""
+        return self.paper.walks if name == self.paper.scenario else self.seeds
+
+    def build(self) -> dict[str, list[Segment]]:
+        """Scenario name -> its segments."""
+        return {name: list(segments) for name, segments in self.commands.items()}
 
 
 @dataclass(frozen=True)
@@ -162,8 +219,9 @@ def measured_phases(xy: np.ndarray, rate_hz: float, p: IngestParams) -> np.ndarr
     """Phase labels of a simulated pelvis path (n, 2), read as `ingest.phases` reads a recording
     (the same smoothing and thresholds); the facing is the direction of travel."""
     pelvis = np.column_stack([xy, np.zeros(len(xy))])
-    path = pelvis_path(pelvis, np.gradient(pelvis, axis=0), rate_hz, p.smooth_hz, p.min_walk_speed_mps,
-                       p.max_yaw_rate_deg_s, p.max_facing_angle_deg)
+    b = p.bouts
+    path = pelvis_path(pelvis, np.gradient(pelvis, axis=0), rate_hz, b.smooth_hz, b.min_walk_speed_mps,
+                       b.max_yaw_rate_deg_s, b.max_facing_angle_deg)
     return motion_phases(path, rate_hz, p.phases)
 
 

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from pydantic import TypeAdapter
 
 from ingest.canonical import load_trial
 from ingest.events import score_events, side_times
@@ -26,7 +27,8 @@ WALKING_SPEED_MPS = 1.0  # forward walking: within 1 s of the pelvis moving fast
 
 
 def _params(method: str) -> IngestParams:
-    p = IngestParams.from_dict(yaml.safe_load((ROOT / "params.yaml").read_text())["ingest"])
+    p = TypeAdapter(IngestParams).validate_python(
+        yaml.safe_load((ROOT / "params.yaml").read_text())["ingest"])
     return dataclasses.replace(p, events=dataclasses.replace(p.events, method=method))
 
 

@@ -6,6 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from pydantic import TypeAdapter
 
 from ingest.canonical import load_trial
 from ingest.kinematics import marker_angles
@@ -14,7 +15,8 @@ from ingest.process import IngestParams, clean_markers, landmarks, process_trial
 from ingest.subject import load_subject
 
 ROOT = Path(__file__).resolve().parents[2]
-PARAMS = IngestParams.from_dict(yaml.safe_load((ROOT / "params.yaml").read_text())["ingest"])
+PARAMS = TypeAdapter(IngestParams).validate_python(
+    yaml.safe_load((ROOT / "params.yaml").read_text())["ingest"])
 
 
 @pytest.mark.parametrize("subject_id", ["camargo", "opencap4"])

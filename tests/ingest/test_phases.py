@@ -6,6 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from pydantic import TypeAdapter
 
 from ingest.canonical import load_trial
 from ingest.manifest import Manifest
@@ -18,7 +19,8 @@ ROOT = Path(__file__).resolve().parents[2]
 
 @pytest.fixture(scope="module")
 def camargo_phases():
-    p = IngestParams.from_dict(yaml.safe_load((ROOT / "params.yaml").read_text())["ingest"])
+    p = TypeAdapter(IngestParams).validate_python(
+        yaml.safe_load((ROOT / "params.yaml").read_text())["ingest"])
     subject = load_subject("camargo")
     trial = load_trial(subject, subject.trials[0], Manifest.load())
     return trial.time_s, walk_phases(trial, subject.markerset, p)

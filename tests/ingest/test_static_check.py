@@ -33,7 +33,7 @@ def manifest() -> Manifest:
 
 
 def test_defaults_equal_params_yaml(params):
-    assert params.ingest.static.build() == StaticCheckParams()
+    assert params.ingest.static == StaticCheckParams()
 
 
 def test_camargo_declared_window_and_opencap_static_pass(manifest):

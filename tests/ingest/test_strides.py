@@ -129,8 +129,8 @@ def camargo_signals(ingest_params):
     kin = kinematic_events(heel, toe, pelvis, path.heading_rad, clean.time_s, clean.rate_hz, p.events)
     feet = {s: (heel[s][:, :2] + toe[s][:, :2]) / 2 for s in ("left", "right")}
     force = force_plate_events(clean.plates, feet, clean.time_s, p.events)
-    inputs = (clean.time_s, heel, toe, pelvis, path, straight_bouts(path, int(p.min_bout_s * clean.rate_hz)),
-              p.strides)
+    bouts = straight_bouts(path, int(p.bouts.min_bout_s * clean.rate_hz))
+    inputs = (clean.time_s, heel, toe, pelvis, path, bouts, p.strides)
     return inputs, kin, force
 
 

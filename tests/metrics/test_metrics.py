@@ -5,16 +5,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from metrics import (
-    MetricsError,
-    bands_table,
-    compliance_table,
-    gait_table,
-    harness_table,
-    intercycle_sd,
-    rom_table,
-    stability_table,
-)
+from metrics.compliance import compliance_table
+from metrics.curves import bands_table
+from metrics.errors import MetricsError
+from metrics.gait import gait_table
+from metrics.harness import harness_table
+from metrics.rom import rom_table
+from metrics.stability import intercycle_sd, stability_table
 from metrics.tracking import tracking_table
 
 ID = {"subject": "s1", "source": "sim", "condition": "pid"}

@@ -14,7 +14,7 @@ RATE_HZ = 100.0
 
 def _profile(params, name: str):
     return command_profile(name, list(params.scenarios.build()[name]), 1.5, RATE_HZ,
-                           params.scenarios.profile.build())
+                           params.scenarios.profile)
 
 
 def test_walk_window_is_between_the_standing_at_either_end(params):

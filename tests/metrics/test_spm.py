@@ -8,8 +8,8 @@ import spm1d
 from ingest.manifest import Manifest
 from ingest.process import process_subject
 from ingest.subject import load_subject
-from metrics import SpmParams, spm_tables, spm_test
 from metrics.errors import MetricsError
+from metrics.spm import SpmParams, spm_tables, spm_test
 
 
 def test_anova1_matches_spm1d_on_weather_dataset():
@@ -55,7 +55,7 @@ def test_too_few_cycles_and_identical_curves_are_skipped_not_raised():
 @pytest.fixture(scope="module")
 def opencap4_cycles(params) -> pd.DataFrame:
     t = process_subject(
-        load_subject("opencap4"), Manifest.load(), params.ingest.build(), progress=False
+        load_subject("opencap4"), Manifest.load(), params.ingest, progress=False
     )
     return t.cycles
 

@@ -150,8 +150,8 @@ def test_moissenet_c3d_points_are_markers_only(sid, manifest):
 def test_standing_pose_from_the_walks_scales_a_plausible_body(sid, manifest, params):
     """static: none is not refused; thighs and shanks 0.22-0.26 x height, left/right within 3 %."""
     subject = load_subject(sid)
-    hp = params.human.build()
-    static = read_static_trial(subject, manifest, check=params.ingest.static.build(),
+    hp = params.human
+    static = read_static_trial(subject, manifest, check=params.ingest.static,
                                widths_per_height=hp.widths_per_height)
     body = scale_subject(subject, static, hp)
     lengths = body.segment_lengths_m
@@ -247,7 +247,7 @@ def test_falisse2019_arm_markers_are_left_out_of_the_fit(falisse_model, params):
     pull the pelvis markers off; the retarget's marker RMS was 2.07 cm with them on the pelvis (warn),
     1.14 cm without them (measured). Asymmetry stays ok (< 5 %)."""
     model, reference = falisse_model
-    rows = {c.check: c for c in scale_checks("falisse2019", model, reference, params.quality.build())}
+    rows = {c.check: c for c in scale_checks("falisse2019", model, reference, params.quality)}
     assert {"LELB", "RELB", "LW1", "RW1"} <= set(model["markers_left_out"])
     assert 0.008 < rows["retarget_marker_rms_m"].value < 0.015
     assert rows["retarget_marker_rms_m"].status == "ok"
@@ -371,7 +371,7 @@ def test_kgc6_scales_from_its_walks_and_its_markers_fit(kgc6_model, params):
         left, right = lengths[f"{seg}_l"], lengths[f"{seg}_r"]
         assert lo < left / h < hi and lo < right / h < hi and abs(left - right) / left < 0.01
     assert model["joint_centre_sources"]["knee_l"] == "lateral marker + width ratio"
-    rows = {c.check: c for c in scale_checks("kgc6", model, reference, params.quality.build())}
+    rows = {c.check: c for c in scale_checks("kgc6", model, reference, params.quality)}
     assert reference["marker_rms_m"] < 0.015 and rows["retarget_marker_rms_m"].status == "ok"
     assert rows["segment_asymmetry_pct"].status == "ok" and rows["ik_angle_rms_deg"].status == "n/a"
     assert model["static_knee_valgus_deg"] is None

@@ -1,5 +1,6 @@
-"""dvc.yaml's code deps cover every project module a stage runs, so `dvc repro` never serves a
-result made by older code.
+"""dvc.yaml's code deps are exactly the project modules a stage runs: they cover every one, so `dvc
+repro` never serves a result made by older code, and nothing else, so a change to code a stage does
+not run does not rerun it (a change under metrics/ reruns the stages that import that module only).
 
 A stage's code is found from its `cmd` (`python -m pipeline <command> ...`): `pipeline/__main__.py`
 and, by AST, the transitive closure of the project modules (packages ingest, sim, metrics,
@@ -8,7 +9,9 @@ when the function is called), except the imports inside *other* commands' handle
 each command comes from the real argparse parser (`set_defaults(func=...)`), and only this
 command's handler runs. `from pkg import name` counts `pkg/name.py` when it exists, and every
 package's `__init__.py` along a module's path counts (Python executes it). Each of those files must
-lie under one of the stage's deps (the file itself or a folder holding it); data deps are not
+lie under one of the stage's deps (the file itself or a folder holding it), and every module under a
+code dep (a dep inside ingest, sim, metrics or pipeline) must be one the stage runs (`code_deps`
+gives the shortest such list: a folder whose modules all run, else its files); data deps are not
 checked. Dynamic imports (`importlib.import_module` of a controller named in params) are not seen.
 A package's data files (pyproject's `[tool.setuptools.package-data]`, e.g. the report templates)
 are read by its code, not imported: they count for every stage that runs the package.
@@ -218,10 +221,57 @@ def stages(doc: Mapping) -> dict[str, dict]:
     return out
 
 
+def python_files(folder: PurePosixPath) -> set[PurePosixPath]:
+    root = REPO / folder
+    if root.is_file():
+        return {folder}
+    return {PurePosixPath(p.relative_to(REPO).as_posix()) for p in root.rglob("*.py")
+            if "__pycache__" not in p.parts}
+
+
+def is_code(dep: str) -> bool:
+    return PurePosixPath(os.path.normpath(dep)).parts[0] in PACKAGES
+
+
+def unneeded(stage_deps: Iterable[str], modules: Iterable[Path | str]) -> list[str]:
+    """The project modules under the code deps (deps inside the packages) that the stage does not
+    run: a dep broader than the code (a change there would rerun the stage for nothing)."""
+    runs = {PurePosixPath(Path(m).as_posix()) for m in modules}
+    out: set[str] = set()
+    for dep in filter(is_code, stage_deps):
+        out |= {f.as_posix() for f in python_files(PurePosixPath(os.path.normpath(dep))) - runs}
+    return sorted(out)
+
+
+def code_deps(modules: Iterable[Path | str]) -> list[str]:
+    """The shortest list of code deps that is exactly `modules`: a folder whose every module is
+    among them, else its files and the subfolders that qualify."""
+    runs = {PurePosixPath(Path(m).as_posix()) for m in modules}
+
+    def cover(folder: PurePosixPath) -> list[str]:
+        files = python_files(folder)
+        if files and files <= runs:
+            return [folder.as_posix()]
+        out = []
+        for child in sorted((REPO / folder).iterdir()):
+            rel = PurePosixPath(child.relative_to(REPO).as_posix())
+            if child.is_dir() and python_files(rel) & runs:
+                out += cover(rel)
+            elif rel in runs:
+                out.append(rel.as_posix())
+        return out
+
+    return [d for package in PACKAGES for d in cover(PurePosixPath(package))]
+
+
 def problems(doc: Mapping) -> dict[str, list[str]]:
-    """Stage name -> the modules its command runs that its deps miss (stages with none left out)."""
-    found = {name: uncovered(s["deps"], stage_files(s["cmd"])) for name, s in stages(doc).items()}
-    return {name: missing for name, missing in found.items() if missing}
+    """Stage name -> what its command runs (modules and the package data they read) that its deps
+    miss, and the modules under its code deps that it does not run (stages with none left out)."""
+    found = {}
+    for name, st in stages(doc).items():
+        runs = stage_files(st["cmd"])
+        found[name] = [*uncovered(st["deps"], runs), *(f"unneeded {m}" for m in unneeded(st["deps"], runs))]
+    return {name: issues for name, issues in found.items() if issues}
 
 
 def load_dvc_yaml() -> dict:
@@ -251,6 +301,26 @@ def test_non_python_files_in_packages_are_package_data():
     assert uncovered(without_pipeline, read) == sorted(p.as_posix() for p in read)
 
 
+@pytest.mark.parametrize("stage", sorted(STAGES))
+def test_stage_code_deps_are_only_the_code_it_runs(stage):
+    spec = STAGES[stage]
+    runs = stage_modules(spec["cmd"])
+    extra = unneeded(spec["deps"], runs)
+    assert not extra, (f"dvc.yaml stage {stage!r} (`{spec['cmd']}`) depends on {extra}, which its command "
+                       f"never imports: a change there would rerun it for nothing. Its code deps: "
+                       f"{code_deps(runs)}")
+
+
+def test_a_metrics_module_reruns_only_the_stages_that_import_it():
+    """metrics/spm.py (SPM1D) is run by the metrics, store and report stages (the store's tables and
+    the report's titles come from the metric tables' registry), the bench that times them and the
+    transfer gate (its SPM checks), and by nothing upstream of them or the studies."""
+    spm = Path("metrics/spm.py")
+    running = {name for name, st in STAGES.items() if not uncovered(st["deps"], [spm])}
+    assert "metrics" in running
+    assert running <= {"metrics", "store", "report", "summary", "bench", "transfer"}, running
+
+
 def test_broken_dvc_yaml_is_reported():
     """The check fails on a copy of dvc.yaml whose simulate stage lost its sim deps."""
     broken = copy.deepcopy(load_dvc_yaml())
@@ -264,6 +334,12 @@ def test_broken_dvc_yaml_is_reported():
     assert list(found) == ["simulate"], found
     assert found["simulate"] == sim_modules
     assert {"sim/__init__.py", "sim/errors.py"} <= set(found["simulate"])
+
+    broad = copy.deepcopy(load_dvc_yaml())  # the ingest stage depending on the whole metrics package
+    broad["stages"]["ingest"]["do"]["deps"].append("metrics")
+    found = problems(broad)
+    assert list(found) == ["ingest"], found
+    assert "unneeded metrics/spm.py" in found["ingest"] and "unneeded metrics/__init__.py" in found["ingest"]
 
 
 def test_stage_modules_follow_function_imports_and_packages():
@@ -285,9 +361,20 @@ def test_report_templates_count_as_the_report_stages_code():
     for stage in ("report", "summary"):
         assert set(templates) <= {p.as_posix() for p in stage_files(STAGES[stage]["cmd"])}
     cmd = STAGES["summary"]["cmd"]
-    narrowed = [d for d in STAGES["summary"]["deps"] if d != "pipeline"] + [
+    narrowed = [d for d in STAGES["summary"]["deps"] if d not in ("pipeline", "pipeline/report",
+                                                                  "pipeline/report/templates")] + [
         m.as_posix() for m in stage_modules(cmd)]  # every module it runs, file by file, and no template
     assert [f for f in uncovered(narrowed, stage_files(cmd)) if not f.endswith(".sql")] == templates
+
+
+def test_code_deps_and_unneeded():
+    mods = [Path("metrics/__init__.py"), Path("metrics/spm.py"), Path("pipeline/params.py")]
+    assert code_deps(mods) == ["metrics/__init__.py", "metrics/spm.py", "pipeline/params.py"]
+    every = sorted(p.as_posix() for p in python_files(PurePosixPath("metrics")))
+    assert code_deps(every) == ["metrics"]
+    assert unneeded(["metrics/spm.py", "data/x.yaml"], mods) == []
+    extra = unneeded(["metrics"], mods)
+    assert "metrics/gait.py" in extra and "metrics/spm.py" not in extra
 
 
 def test_uncovered():

@@ -62,7 +62,7 @@ def test_scenario_check_rows_are_the_checks(params, fallen):
     from pipeline.runs.evaluate_policy import scenario_report
     from pipeline.runs.jobs import scenario_profiles
 
-    sc = params.evaluate_policy.scenario_checks.build()
+    sc = params.evaluate_policy.scenario_checks
     profiles = scenario_profiles(params, 1.3, 100.0)
     outcomes = [_walk(prof, lag, name, cond, 3.0 if (name, cond, lag) == (fallen, "free", 0.5) else None)
                 for name, prof in profiles.items() for cond in ("free", "pid") for lag in (0.2, 0.5)]

@@ -12,7 +12,9 @@ from metrics.fall_intervention import FallRuleParams, event_metrics
 from pipeline.params import parse_params
 from pipeline.runs.jobs import policy_setup
 from pipeline.stages.sweep import run_sweep
-from pipeline.store import SWEEP_COLUMNS, query, store_results
+from pipeline.store.read import query
+from pipeline.store.records import SWEEP_COLUMNS
+from pipeline.store.write import store_results
 from sim.body.balance_loss import BalanceLoss, body_geoms
 from sim.learn.policy_human import PolicyWalk
 from sim.learn.walk_env import HUMAN_ACTUATORS

@@ -9,15 +9,16 @@ import pytest
 import yaml
 
 from ingest.manifest import Manifest
-from ingest.process import process_subject
+from ingest.process import IngestParams, process_subject
 from ingest.subject import load_subject
+from metrics.section import MetricsParams
 from pipeline.params import PARAMS_FILE, load_params, parse_params
 from pipeline.stages.metrics import NON_RESULT_SECTIONS, compute, headline, params_hash
 
 
 @pytest.fixture(scope="module")
 def real_tables():
-    p = load_params().ingest.build()
+    p = load_params().section("ingest", IngestParams)
     out = {}
     for sid in ("camargo", "opencap4"):
         t = process_subject(load_subject(sid), Manifest.load(), p, progress=False)
@@ -26,7 +27,7 @@ def real_tables():
 
 
 def test_real_subjects_metrics(real_tables):
-    mp = load_params().metrics.build()
+    mp = load_params().section("metrics", MetricsParams)
     for inputs in real_tables.values():
         tables = compute(inputs, mp)
         gait = tables["gait"]

@@ -1,18 +1,30 @@
-"""params.yaml's schema (pipeline/params.py): library defaults equal the file, errors name the file
-and the key path, the CLI turns them into one line; the paths of pipeline/paths.py."""
+"""params.yaml (pipeline/params.py): each section validated by its library class (`SECTIONS`), errors
+name the file and the key path, the CLI turns them into one line; the paths of pipeline/paths.py."""
 
 from __future__ import annotations
 
-import dataclasses
 import pickle
 from pathlib import Path
 
 import pytest
 import yaml
 
+from ingest.process import IngestParams
 from pipeline.cli import main
 from pipeline.commands.tune_controllers import write_gains
-from pipeline.params import PARAMS_FILE, Params, ParamsError, load_params, parse_params
+from pipeline.params import (
+    HEALTHY as PARAMS_HEALTHY,
+)
+from pipeline.params import (
+    PARAMS_FILE,
+    SECTIONS,
+    ParamsError,
+    check_params,
+    checked,
+    load_params,
+    parse_params,
+    section_class,
+)
 from pipeline.paths import (
     PROCESSED_ROOT,
     REPO_ROOT,
@@ -28,11 +40,10 @@ from pipeline.paths import (
     sim_dir,
     sim_policy_dir,
 )
-from sim.rollout.loop import RolloutParams
-
-# Not a tunable default: the tuning walks are a list of specs (the per-walk optional keys default to
-# WalkParams' fields, which the schema uses as is).
-NOT_COMPARED = {"TuningParams.walks"}
+from pipeline.runs.setup import fine_tune_steps, train_params, variant
+from sim.body.variant import HEALTHY, CohortSection
+from sim.motion.reference import ReferenceParams
+from sim.rollout.scenarios import ScenariosSection
 
 
 def doc() -> dict:
@@ -45,55 +56,21 @@ def write(tmp_path: Path, document: dict, name: str = "params.yaml") -> Path:
     return path
 
 
-def built(params: Params) -> dict[str, object]:
-    """Every dataclass the sections turn into, by name."""
-    retarget = params.retarget.build()
-    return {
-        "IngestParams": params.ingest.build(),
-        "MetricsParams": params.metrics.build(),
-        "StoreParams": params.store.build(),
-        "ReportParams": params.report.build(),
-        "RetargetParams": retarget.ik,
-        "ReferenceParams": retarget.reference,
-        "RobotParams": params.robot.build(),
-        "TuningParams": params.robot.tuning.build(),
-        "ReplayParams": params.rollout.replay.build(),
-        "HumanParams": params.human.build(),
-        "TrainParams": params.train.build(),
-        "EvalParams": params.evaluate_policy.build(),
-        "PolicyChecks": params.evaluate_policy.checks.build(),
-        "ScenarioChecks": params.evaluate_policy.scenario_checks.build(),
-        "ProfileParams": params.scenarios.profile.build(),
-        "QualityParams": params.quality.build(),
-        "RolloutParams": RolloutParams(robot=params.robot.build(),
-                                       max_physics_dt_s=params.rollout.max_physics_dt_s,
-                                       start_offset_m=params.rollout.start_offset_m),
-    }
+def test_every_section_has_its_class_and_the_file_names_them_all(params):
+    assert list(SECTIONS) == list(doc())  # every section of the file is known, in the file's order
+    for name in SECTIONS:
+        assert params.section(name, section_class(name)) == getattr(params, name)
+    assert isinstance(params.ingest, IngestParams) and isinstance(params.retarget, ReferenceParams)
+    assert PARAMS_HEALTHY == HEALTHY  # the cross-section checks' name of a subject's own policy
 
 
-def drift(value, default, where: str) -> list[str]:
-    """Fields of `value` (from params.yaml) that differ from `default`, recursing into dataclasses."""
-    out = []
-    for f in dataclasses.fields(value):
-        name = f"{where}.{f.name}"
-        a, b = getattr(value, f.name), getattr(default, f.name)
-        if name in NOT_COMPARED:
-            continue
-        if dataclasses.is_dataclass(a) and type(a) is type(b):
-            out += drift(a, b, name)
-        elif a != b:
-            out.append(f"{name}: default {b!r}, params.yaml {a!r}")
-    return out
-
-
-def test_library_defaults_equal_params_yaml(params):
-    problems = []
-    for name, value in built(params).items():
-        cls = type(value)
-        required = {f.name: getattr(value, f.name) for f in dataclasses.fields(cls)
-                    if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING}
-        problems += drift(value, cls(**required), name)  # the defaults, required fields as in params
-    assert not problems, "library defaults drifted from params.yaml:\n" + "\n".join(problems)
+def test_a_key_left_out_takes_the_library_default(tmp_path):
+    document = doc()
+    document["ingest"]["bouts"].pop("smooth_hz")
+    del document["metrics"]["spm"]
+    loaded = load_params(write(tmp_path, document))
+    assert loaded.section("ingest", IngestParams).bouts.smooth_hz == IngestParams().bouts.smooth_hz
+    assert loaded.section("ingest", IngestParams) == load_params().section("ingest", IngestParams)
 
 
 def test_every_key_of_params_yaml_is_read_and_kept(params):
@@ -105,8 +82,8 @@ def test_every_key_of_params_yaml_is_read_and_kept(params):
 @pytest.mark.parametrize(("edit", "message"), [
     (lambda d: d["robot"]["base"].update(mass_kg="heavy"),
      r"params\.yaml: robot\.base\.mass_kg: Input should be a valid number.*\(got 'heavy'\)$"),
-    (lambda d: d["ingest"]["bouts"].pop("smooth_hz"),
-     r"params\.yaml: ingest\.bouts: missing key 'smooth_hz'$"),
+    (lambda d: d["rollout"].pop("workers"),
+     r"params\.yaml: rollout: missing key 'workers'$"),
     (lambda d: d["robot"]["harness"].update(stifness=[1.0] * 6),
      r"params\.yaml: robot\.harness: unknown key 'stifness'$"),
     (lambda d: d["robot"]["tuning"]["walks"][1].update(speed_mps=[1.2]),
@@ -144,17 +121,44 @@ def test_errors_name_the_file_and_the_key_path(tmp_path, edit, message):
     document = doc()
     edit(document)
     with pytest.raises(ParamsError, match=message):
+        check_params(write(tmp_path, document))
+
+
+@pytest.mark.parametrize(("edit", "message"), [
+    (lambda d: d["ingest"]["bouts"].update(smooth_hz="slow"),
+     r"params\.yaml: ingest\.bouts\.smooth_hz: Input should be a valid number.*\(got 'slow'\)$"),
+    (lambda d: d["ingest"]["static"].update(max_foot_sprad_m=0.04),
+     r"params\.yaml: ingest\.static: unknown key 'max_foot_sprad_m'$"),
+    (lambda d: d["ingest"]["filter"].update(cutoff_hz=-6.0),
+     r"params\.yaml: ingest\.filter\.cutoff_hz: Input should be greater than 0 \(got -6\.0\)$"),
+])
+def test_a_stage_loading_its_section_gets_the_same_errors(tmp_path, edit, message):
+    """The ingest stage validates only `ingest`; its errors are the whole file's."""
+    document = doc()
+    edit(document)
+    params = load_params(write(tmp_path, document))
+    with pytest.raises(ParamsError, match=message):
+        params.section("ingest", IngestParams)
+
+
+def test_values_other_sections_set_are_refused_in_the_file(tmp_path):
+    document = doc()
+    document["report"]["caught_drop_m"] = 0.3
+    document["train"]["env"]["profile"] = {"start_s": 1.0}
+    with pytest.raises(ParamsError, match=r"report\.caught_drop_m: set from robot\.fall\.drop_m \+ "
+                                          r"fall_intervention\.caught_margin_m, not in the file; "
+                                          r"train\.env\.profile: set from scenarios\.profile"):
         load_params(write(tmp_path, document))
 
 
 def test_several_errors_are_listed_in_one_message():
     document = doc()
     document["ingest"]["filter"]["order"] = 4.5
-    document["report"].pop("dpi")
+    document["rollout"].pop("workers")
     with pytest.raises(ParamsError) as err:
-        parse_params(document)
+        checked(parse_params(document))
     assert err.value.problem == ("ingest.filter.order: Input should be a valid integer, got a number with a "
-                                 "fractional part (got 4.5); report: missing key 'dpi'")
+                                 "fractional part (got 4.5); rollout: missing key 'workers'")
 
 
 @pytest.mark.parametrize(("text", "message"), [
@@ -173,12 +177,18 @@ def test_unreadable_files_name_the_file(tmp_path, text, message):
 def test_cli_bad_params_is_one_line_error(tmp_path, capsys):
     document = doc()
     document["robot"]["base"]["mass_kg"] = "heavy"
+    document["ingest"]["filter"]["cutoff_hz"] = "high"
     bad = write(tmp_path, document, "bad.yaml")
     assert main(["--params", str(bad), "ingest", "camargo", "--out-root", str(tmp_path)]) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and err.startswith(f"error: {bad}: robot.base.mass_kg: Input should be a "
-                                                   "valid number")
+    assert err.count("\n") == 1 and err.startswith(f"error: {bad}: ingest.filter.cutoff_hz: Input should be "
+                                                   "a valid number")
     assert not (tmp_path / "camargo").exists()
+    assert main(["--params", str(bad), "check-params"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"error: {bad}: ingest.filter.cutoff_hz: " in err
+    assert "; robot.base.mass_kg: Input should be a valid number" in err
+    assert main(["check-params"]) == 0
 
 
 def test_tuned_gains_written_to_the_file_load_back(tmp_path, params):
@@ -186,7 +196,7 @@ def test_tuned_gains_written_to_the_file_load_back(tmp_path, params):
     path.write_text(PARAMS_FILE.read_text())  # the real text: comments and layout as write_gains meets them
     gains = {"kp_x": 1.5, "ki_x": 2.0, "kd_x": 0.25, "kp_y": 3.0, "ki_y": 0.5, "kd_y": 0.75, "i_max": 0.1}
     write_gains(path, {"controllers": {"pid": {"gains": gains}}})
-    tuned = load_params(path)
+    tuned = check_params(path)
     assert tuned.robot.controllers["pid"].gains == gains
     assert tuned.robot.controllers["adaptive"] == params.robot.controllers["adaptive"]
     assert tuned.robot.controller_specs()["pid"] == {"class": "pid", "gains": gains}
@@ -198,21 +208,25 @@ def test_paths_build_the_documented_layout(params):
     assert reference_npz("root", "s") == Path("root/s/model/reference.npz")
     assert [f("root", "s") for f in (real_dir, sim_dir, sim_policy_dir, report_dir)] == [
         Path("root/s/real"), Path("root/s/sim"), Path("root/s/sim_policy"), Path("root/s")]
-    assert params.store.build().path == repo_path(params.store.path) == STORE_FILE
+    assert params.store.path == repo_path(doc()["store"]["path"]) == STORE_FILE
     assert repo_path("/abs/x.duckdb") == Path("/abs/x.duckdb")
     assert repo_relative(REPORTS_ROOT / "s" / "a.png") == "reports/s/a.png"
     assert repo_relative(Path("/elsewhere/a.png")) == "/elsewhere/a.png"
 
 
 def test_retarget_params_reject_unknown_keys():
-    section = load_params().retarget.build()
-    assert section.reference.conditions == ("free",) and section.ik.iterations >= 1
+    section = load_params().section("retarget", ReferenceParams)
+    assert section.conditions == ("free",) and section.ik.iterations >= 1
     doc = yaml.safe_load(PARAMS_FILE.read_text())
     retarget = doc["retarget"]
+
+    def load(section: dict) -> ReferenceParams:
+        return parse_params({**doc, "retarget": section}).section("retarget", ReferenceParams)
+
     with pytest.raises(ParamsError, match=r"params\.yaml: retarget: unknown key 'cycle_sample'$"):
-        parse_params({**doc, "retarget": {**retarget, "cycle_sample": 10}})
+        load({**retarget, "cycle_sample": 10})
     with pytest.raises(ParamsError, match=r"params\.yaml: retarget\.ik: unknown key 'iteration'$"):
-        parse_params({**doc, "retarget": {**retarget, "ik": {**retarget["ik"], "iteration": 3}}})
+        load({**retarget, "ik": {**retarget["ik"], "iteration": 3}})
     with pytest.raises(ParamsError, match=r"params\.yaml: missing section 'retarget'$"):
         parse_params({k: v for k, v in doc.items() if k != "retarget"})
 
@@ -221,11 +235,11 @@ def test_a_scenario_segment_of_two_kinds_is_refused_with_its_key_path(tmp_path):
     doc = yaml.safe_load(PARAMS_FILE.read_text())
     doc["scenarios"]["commands"]["walk_10m"][1] = {"walk_m": 10.0, "turn_deg": 90.0}
     with pytest.raises(ParamsError, match=r"scenarios\.commands\.walk_10m\[1\]: .*exactly one of"):
-        parse_params(doc, tmp_path / "params.yaml")
+        parse_params(doc, tmp_path / "params.yaml").section("scenarios", ScenariosSection)
     del doc["scenarios"]["commands"]["turn_90"]
     doc["scenarios"]["commands"]["walk_10m"][1] = {"walk_m": 10.0}
     with pytest.raises(ParamsError, match="missing scenario.*turn_90"):
-        parse_params(doc, tmp_path / "params.yaml")
+        parse_params(doc, tmp_path / "params.yaml").section("scenarios", ScenariosSection)
 
 
 def test_a_variant_may_have_its_own_budget_and_one_longer_swing(tmp_path, params):
@@ -236,18 +250,20 @@ def test_a_variant_may_have_its_own_budget_and_one_longer_swing(tmp_path, params
     variants["weak"] = {"torque_scale": {"all": 0.6}, "fine_tune_steps": 123}
     variants["slow"] = {"speed_mps": 0.6}
     loaded = load_params(write(tmp_path, document))
-    assert loaded.fine_tune_steps("weak") == 123
-    assert loaded.fine_tune_steps("slow") == document["cohort"]["fine_tune_steps"]
-    assert loaded.variant("weak").torque_factor("hip_l") == pytest.approx(0.6)
+    assert fine_tune_steps(loaded, "weak") == 123
+    assert fine_tune_steps(loaded, "slow") == document["cohort"]["fine_tune_steps"]
+    assert variant(loaded, "weak").torque_factor("hip_l") == pytest.approx(0.6)
     side, ratio = params.variant("hemiparetic_left").swing_time_ratio
     assert side == "left" and ratio > 1.0
     variants["slow"] = {"action_noise": 0.08, "train_action_noise": 0.15}
     noisy = load_params(write(tmp_path, document))
-    assert noisy.variant("slow").action_noise == 0.08
-    assert noisy.train_params("slow").env.variant.training_noise == 0.15
+    assert variant(noisy, "slow").action_noise == 0.08
+    assert train_params(noisy, "slow").env.variant.training_noise == 0.15
+    with pytest.raises(ParamsError, match=r"cohort\.variants: no variant 'stroke' \(healthy, weak"):
+        variant(noisy, "stroke")
     variants["slow"] = {"swing_time_ratio": {"left": 0.8}}
     with pytest.raises(ParamsError, match=r"cohort\.variants\.slow\.swing_time_ratio\.left"):
-        load_params(write(tmp_path, document))
+        load_params(write(tmp_path, document)).section("cohort", CohortSection)
     variants["slow"] = {"swing_time_ratio": {"left": 1.2, "right": 1.2}}
     with pytest.raises(ParamsError, match=r"cohort\.variants\.slow\.swing_time_ratio: .*at most 1 item"):
-        load_params(write(tmp_path, document))
+        load_params(write(tmp_path, document)).section("cohort", CohortSection)

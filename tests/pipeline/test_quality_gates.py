@@ -6,16 +6,18 @@ import json
 import pandas as pd
 
 from ingest.robot import ROBOT_COLUMNS, ROBOT_SIGNAL_COLUMNS
-from pipeline.params import load_params
+from pipeline.params import check_params
 from pipeline.stages.ingest import run_ingest
 from pipeline.stages.metrics import run_metrics
 from pipeline.stages.report import run_report
 from pipeline.stages.store import load_results
-from pipeline.store import StoreParams, query, store_results
+from pipeline.store.connection import StoreParams
+from pipeline.store.read import query
+from pipeline.store.write import store_results
 
 
 def test_a_failing_subject_fails_its_gates_everywhere(tmp_path):
-    params = load_params()
+    params = check_params()
     processed, metrics = tmp_path / "processed", tmp_path / "metrics"
     real = run_ingest("camargo", params, processed, progress=False)
     model = processed / "camargo" / "model"
@@ -54,7 +56,7 @@ def test_a_failing_subject_fails_its_gates_everywhere(tmp_path):
     assert latest.set_index("check").loc["retarget_marker_rms_m", "cause"] == "0.05 above the fail limit 0.04"
 
     reports = tmp_path / "reports"
-    run_report(["camargo"], ["camargo"], db, reports, p=params.report.build())
+    run_report(["camargo"], ["camargo"], db, reports, p=params.report)
     head = (reports / "camargo" / "report.md").read_text().splitlines()[:8]
     assert head[0].startswith("# camargo") and head[2] == "## Quality gates"
     first = next(line for line in head if line.startswith("| reference/") or line.startswith("| simulate/"))
@@ -69,7 +71,7 @@ def test_bundled_subjects_gates_name_their_cause_and_too_few_cycles_is_not_a_fai
     cycles for SPM, which used to `fail` like a 12 cm marker error. In the store's quality table every
     row with a status has a cause, those rows are `n/a` saying so, and neither subject's worst status
     is `fail` (here without model and simulation, whose checks are `n/a`: cannot be computed)."""
-    params = load_params()
+    params = check_params()
     processed, metrics = tmp_path / "processed", tmp_path / "metrics"
     subjects = ("opencap4", "lenhart2015")
     for s in subjects:

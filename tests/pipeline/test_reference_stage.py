@@ -15,6 +15,7 @@ from ingest.subject import load_subject
 from pipeline.cli import main
 from pipeline.params import load_params
 from sim.body.human import build_human
+from sim.body.human_params import HumanParams
 from sim.body.scaling import scale_subject
 from sim.motion.reference import load_reference
 
@@ -24,7 +25,7 @@ MAX_CYCLE_REL_ERROR = 0.05     # periodic cycle stride length and speed vs the r
 
 def test_reference_stage_writes_npz_json_and_figure(tmp_path):
     """`python -m pipeline reference opencap4` on a scaled model written like the scale stage's."""
-    hp = load_params().human.build()
+    hp = load_params().section("human", HumanParams)
     subject = load_subject("opencap4")
     static = read_static_trial(subject, Manifest.load(), widths_per_height=hp.widths_per_height)
     xml = build_human(scale_subject(subject, static, hp), hp).to_xml()

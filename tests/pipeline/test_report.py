@@ -28,7 +28,10 @@ from pipeline.stages.ingest import run_ingest
 from pipeline.stages.metrics import run_metrics
 from pipeline.stages.report import run_report, subject_report
 from pipeline.stages.store import load_results
-from pipeline.store import SWEEP_COLUMNS, StoreError, StoreParams, query, store_results
+from pipeline.store.connection import StoreError, StoreParams
+from pipeline.store.read import query
+from pipeline.store.records import SWEEP_COLUMNS
+from pipeline.store.write import store_results
 
 ROBOT_FORCES = [
     "harness_fx_n",
@@ -336,7 +339,7 @@ def test_unknown_subject_is_refused(store, tmp_path):
 KILLED_REPORT = """
 import sys, time
 from pathlib import Path
-from pipeline.params import ReportParams
+from pipeline.runs.report_params import ReportParams
 from pipeline.stages import report
 db, reports, marker = map(Path, sys.argv[1:])
 write = report.write_figure

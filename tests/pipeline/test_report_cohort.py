@@ -15,6 +15,7 @@ from pipeline.report import sections
 from pipeline.report.figures import FIGURES, figure_names
 from pipeline.report.published import CLINICAL_MEASURES, PaperError, load_clinical_ranges
 from pipeline.report.render import section_markdown
+from pipeline.runs.studies import report_params
 
 NAN = math.nan
 NO_COHORT = ("No cohort walks stored for this subject yet (run the sweep studies, `python -m pipeline sweep` "
@@ -307,9 +308,9 @@ def test_caught_threshold_and_variants_follow_params(params):
     """The report's caught threshold comes from params (robot.fall.drop_m + the margin); its variant
     order names every variant params declares."""
     rule = params.fall_intervention.rule(params.robot.fall.drop_m)
-    assert params.report_params().caught_drop_m == pytest.approx(rule.caught_drop_m)
-    assert params.report_params().caught_drop_m == pytest.approx(params.robot.fall.drop_m
-                                                                 + params.fall_intervention.caught_margin_m)
+    assert report_params(params).caught_drop_m == pytest.approx(rule.caught_drop_m)
+    assert report_params(params).caught_drop_m == pytest.approx(params.robot.fall.drop_m
+                                                                + params.fall_intervention.caught_margin_m)
     assert set(VARIANT_ORDER) == {"healthy", *params.cohort.variants}
     assert list(params.fall_intervention.variants) == [v for v in VARIANT_ORDER if v in
                                                        params.fall_intervention.variants]

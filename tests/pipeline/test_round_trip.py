@@ -22,10 +22,12 @@ from ingest.manifest import Manifest
 from ingest.process import process_subject
 from ingest.readers import read_mot, read_robot_log, read_trc
 from ingest.subject import FileFormat, load_subject
-from metrics import compliance_table, gait_table, stability_table
+from metrics.compliance import compliance_table
+from metrics.gait import gait_table
+from metrics.stability import stability_table
 from pipeline.commands.add_subject import NewTrial, Registry, add_subject
 from pipeline.commands.export import run_export
-from pipeline.params import load_params
+from pipeline.params import check_params
 from pipeline.paths import PARAMS_FILE, POLICIES_ROOT
 from pipeline.runs.jobs import policy_setup, scenario_jobs
 from sim.body.ground_reaction import GroundReactionProbe
@@ -42,7 +44,7 @@ pytestmark = pytest.mark.skipif(not (POLICIES_ROOT / "camargo" / "policy.zip").i
 @pytest.fixture(scope="module")
 def round_trip(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("round_trip")
-    params = load_params()
+    params = check_params()
     out = run_export("camargo", params, tmp / "export", "walk_10m", CONDITIONS, 1, progress=False)
     (tmp / "subjects").mkdir()
     shutil.copy(PARAMS_FILE, tmp / "params.yaml")
@@ -55,7 +57,7 @@ def round_trip(tmp_path_factory):
                 round_trip_of="camargo", registry=registry)
     subject = load_subject("camargo_rt", tmp / "subjects")
     manifest = Manifest.load(tmp / "sources.yaml", cache=tmp / "raw")
-    real = process_subject(subject, manifest, params.ingest.build())
+    real = process_subject(subject, manifest, params.ingest)
     worker = Worker(policy_setup("camargo", params))
     jobs = scenario_jobs(params, CONDITIONS, 1, ("walk_10m",))
     outcomes = [worker.run(j, probe=GroundReactionProbe) for j in jobs]
@@ -121,11 +123,11 @@ def test_exported_grf_gives_heel_strikes_at_contact_onsets(round_trip):
     feet = {s: (markers[roles[f"heel_{s}"]][:, :2] + markers[roles[f"toe_{s}"]][:, :2]) / 2
             for s in ("left", "right")}
     plates = plates_from_grf(read_mot(out / "walk_10m_pid_seed0_grf.mot"), FileFormat(up_axis="y"), 0.0)
-    events = force_plate_events(plates, feet, table.time_s, params.ingest.build().events)
+    events = force_plate_events(plates, feet, table.time_s, params.ingest.events)
     n = len(o.robot)
     ground = o.probe.arrays(len(o.probe.force) - n)
     t = table.time_s
-    threshold = params.ingest.build().events.force_threshold_n  # the plates' own contact threshold:
+    threshold = params.ingest.events.force_threshold_n  # the plates' own contact threshold:
     for side in ("left", "right"):  # a foot that shuffles without unloading fully still crosses it
         loaded = ground[side][0][:, 2] > threshold
         onsets = t[np.flatnonzero(loaded[1:] & ~loaded[:-1]) + 1]
@@ -168,7 +170,7 @@ def test_markers_on_the_robot_give_the_same_table1(round_trip, tmp_path):
     assert subject.robot_markers is not None and not any(t.robot_log for t in subject.trials)
     manifest = Manifest.load(round_trip["subject"].path.parent.parent / "sources.yaml",
                              cache=round_trip["subject"].path.parent.parent / "raw")
-    robot = process_subject(subject, manifest, round_trip["params"].ingest.build()).robot
+    robot = process_subject(subject, manifest, round_trip["params"].ingest).robot
     assert not robot["locked"].any()  # markers do not know the robot's fall state: compare before it
     end = {o.job.condition: min(t for t in (o.robot_fall_s, np.inf) if t is not None)
            for o in round_trip["outcomes"]}

@@ -9,13 +9,14 @@ import pytest
 
 from metrics.findings import region_text, responsiveness_comparisons
 from metrics.plots import sensitivity_figure
-from pipeline.params import ParamsError, load_params, parse_params
+from pipeline.params import ParamsError, check_params, load_params, parse_params
 from pipeline.paths import POLICIES_ROOT
 from pipeline.report import sections
 from pipeline.report.published import load_paper, paper_compliance
 from pipeline.report.render import section_markdown
 from pipeline.stages.sweep import run_sweep, sensitivity_jobs, sweep_jobs
-from pipeline.store import query, store_results
+from pipeline.store.read import query
+from pipeline.store.write import store_results
 
 pytestmark = pytest.mark.skipif(not (POLICIES_ROOT / "camargo" / "policy.zip").is_file(),
                                 reason="camargo's committed policy is missing")
@@ -30,7 +31,7 @@ def tiny(seeds: int = 2):
 
 
 def test_design_one_factor_at_a_time():
-    params = load_params()
+    params = check_params()
     jobs, design, notes = sensitivity_jobs(params)
     sw = params.sensitivity
     assert notes == []

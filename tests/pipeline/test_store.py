@@ -22,7 +22,9 @@ from pipeline.params import load_params, parse_params
 from pipeline.stages.ingest import run_ingest
 from pipeline.stages.metrics import run_metrics
 from pipeline.stages.store import load_results
-from pipeline.store import StoreError, StoreParams, open_store, query, store_results
+from pipeline.store.connection import StoreError, StoreParams, open_store
+from pipeline.store.read import query
+from pipeline.store.write import store_results
 
 ROOT = Path(__file__).resolve().parents[2]
 SUBJECTS = ("camargo", "opencap4")
@@ -236,7 +238,8 @@ def test_a_full_disk_is_named_and_the_store_keeps_its_state(processed, tmp_path,
 CRASH = """
 import sys, time
 from pathlib import Path
-from pipeline.store import StoreParams, store_results
+from pipeline.store.connection import StoreParams
+from pipeline.store.write import store_results
 from pipeline.stages.store import load_results
 root = Path(sys.argv[2])
 res = [load_results(s, root) for s in ("camargo", "opencap4")]

@@ -21,8 +21,11 @@ import yaml
 from pipeline.cli import EXIT_ERROR
 from pipeline.params import load_params, parse_params
 from pipeline.paths import POLICIES_ROOT
+from pipeline.runs.studies import RaySection
 from pipeline.stages.sweep import rollout_params_hash, run_sweep, sweep_jobs
-from pipeline.store import StoreParams, query, store_results
+from pipeline.store.connection import StoreParams
+from pipeline.store.read import query
+from pipeline.store.write import store_results
 from sim.rollout.cluster import RAY_ADDRESS, local_head
 from tests.pipeline.failing_controller import ATTEMPTS_ENV, MESSAGE
 
@@ -125,7 +128,7 @@ def test_a_job_that_raises_is_retried_once_then_reported_while_the_rest_complete
     doc = params.document()
     doc["ray"]["num_cpus"] = 1
     params = parse_params(doc)
-    assert params.ray.max_retries == 1
+    assert params.section("ray", RaySection).max_retries == 1
     jobs, _ = sweep_jobs(params)
     ok = sorted(j.key for j in jobs if j.condition != "failing")
     params_file = tmp_path / "params.yaml"

@@ -17,11 +17,13 @@ from metrics.groups import GROUP, with_identity
 from metrics.quality import QUALITY_COLUMNS
 from metrics.table import GROUP_COLUMNS, MetricTable
 from metrics.tables import REGISTRY, checked
-from pipeline.params import load_params
+from pipeline.params import check_params, load_params
 from pipeline.paths import METRICS_ROOT, REPO_ROOT
 from pipeline.stages.metrics import run_metrics
 from pipeline.stages.store import load_results
-from pipeline.store import StoreParams, query, store_results
+from pipeline.store.connection import StoreParams
+from pipeline.store.read import query
+from pipeline.store.write import store_results
 
 SUBJECT = "camargo"
 
@@ -38,7 +40,7 @@ TINY = MetricTable("kept_strides", {**GROUP_COLUMNS, "n_kept": "BIGINT", "share_
 
 @pytest.fixture(scope="module")
 def real_inputs() -> dict[str, pd.DataFrame]:
-    t = process_subject(load_subject(SUBJECT), Manifest.load(), load_params().ingest.build(), progress=False)
+    t = process_subject(load_subject(SUBJECT), Manifest.load(), check_params().ingest, progress=False)
     return {"strides": t.strides, "cycles": t.cycles, "robot": pd.DataFrame(),
             "scenario_robot": pd.DataFrame()}
 

@@ -16,18 +16,22 @@ import pytest
 import yaml
 
 from metrics.quality import transfer_checks
-from pipeline.params import PARAMS_FILE, ParamsError, ReportParams, load_params
+from pipeline.params import PARAMS_FILE, ParamsError, check_params
 from pipeline.report import sections
 from pipeline.report.render import section_markdown
 from pipeline.runs.gate import EVALUATION_FILE, GATE_FILE, judge, read_gate, required_checks, usable_policy
+from pipeline.runs.report_params import ReportParams
 from pipeline.stages.metrics import quality_checks, run_metrics
 from pipeline.stages.report import run_report
 from pipeline.stages.simulate import run_simulate_policy
 from pipeline.stages.store import load_results
 from pipeline.stages.transfer import choose_source, policy_features, run_transfer, subject_features
-from pipeline.store import StoreParams, query, store_results
+from pipeline.store.connection import StoreParams
+from pipeline.store.read import query
+from pipeline.store.write import store_results
 from sim.learn.train import BODY_FILE, CYCLE_FILE, NORM_FILE, POLICY_FILE, PROGRESS_FILE, policy_env
-from sim.learn.transfer import BodyFeatures, FeatureWeights, feature_distance, nearest_policy
+from sim.learn.transfer import BodyFeatures, FeatureWeights, TransferSection, feature_distance, nearest_policy
+from sim.rollout.section import RolloutSection
 
 REPO = Path(__file__).resolve().parents[2]
 TARGETS = ("lenhart2015", "moissenet_np1023", "moissenet_np1014")
@@ -76,19 +80,19 @@ def test_transfer_stage_depends_on_every_committed_policy(params):
 
 
 @pytest.mark.parametrize("subject", ["camargo", "opencap4"])
-def test_fine_tunes_train_under_the_law_their_source_learned(params, policies_root, subject):
+def test_fine_tunes_train_under_the_law_their_source_learned(train_params, policies_root, subject):
     """Transfers and cohort variants fine-tune a committed policy under params' `train` steering law
     (`sim.learn.train.train` records it in the new policy's steering.json, and its rollouts read it
     back); a law other than the one the source was trained under changes the reference under the
     policy's feet (with the law of before, lenhart2015's transfer from opencap4 fell in steady walking)."""
-    env = params.train_params().env
+    env = train_params().env
     source = policy_env(policies_root / subject, env)
     fields = ("stride_speed_exponent", "full_gait_fraction", "min_cadence", "turn_lean", "heading_lead_deg")
     assert {f: getattr(source.commands, f) for f in fields} == {f: getattr(env.commands, f) for f in fields}
 
 
 def test_params_schema_accepts_the_transfer_section(params):
-    assert params.transfer.weights.build() == FeatureWeights()
+    assert params.transfer.weights == FeatureWeights()
     assert params.transfer.gate in ("source", "all") and params.transfer.gate_seeds >= 1
 
 
@@ -98,7 +102,9 @@ def test_params_schema_accepts_the_transfer_section(params):
     (lambda t: t.update(max_wall_s="long"),
      r"params\.yaml: transfer\.max_wall_s: Input should be a valid number"),
     (lambda t: t.update(gate="some"), r"params\.yaml: transfer\.gate: Input should be 'source' or 'all'"),
-    (lambda t: t["weights"].pop("speed"), r"params\.yaml: transfer\.weights: missing key 'speed'$"),
+    (lambda t: t["weights"].update(sped=1.0), r"params\.yaml: transfer\.weights: unknown key 'sped'$"),
+    (lambda t: t.update(weights={"height": 0.0, "mass": 0.0, "leg_length": 0.0, "speed": 0.0}),
+     r"params\.yaml: transfer\.weights: at least one weight must be positive"),
     (lambda t: t.update(subjects=["camargo"]),
      r"params\.yaml: transfer\.subjects: 'camargo' has a committed policy \(train\.subjects\)$"),
 ])
@@ -108,7 +114,7 @@ def test_bad_transfer_params_name_params_yaml(tmp_path, edit, message):
     path = tmp_path / "params.yaml"
     path.write_text(yaml.safe_dump(document, sort_keys=False))
     with pytest.raises(ParamsError, match=message):
-        load_params(path)
+        check_params(path)
 
 
 # -- the nearest policy -------------------------------------------------------------------------------
@@ -158,7 +164,8 @@ def test_gate_requires_what_the_source_passes(params):
 
 def test_transfer_stage_writes_the_policy_and_the_gate_record(processed, policies, tmp_path, params):
     subject = "lenhart2015"
-    fast = params.model_copy(update={"rollout": params.rollout.model_copy(update={"conditions": ("free",)})})
+    free_only = params.rollout.model_copy(update={"conditions": ("free",)})
+    fast = params.replaced("rollout", RolloutSection, free_only)
     rec = run_transfer(subject, fast, processed, policies, tmp_path / "reports", steps=2048, progress=False)
     folder = policies / subject
     for f in (*POLICY_FILES, GATE_FILE):
@@ -180,7 +187,7 @@ def test_transfer_stage_writes_the_policy_and_the_gate_record(processed, policie
     # a passed gate: simulate_policy uses the policy and its rows go on to the metrics
     (folder / GATE_FILE).write_text(json.dumps({**gate, "pass": True, "failed": []}))
     pid_only = params.rollout.model_copy(update={"conditions": ("pid",)})
-    with_pid = params.model_copy(update={"rollout": pid_only})
+    with_pid = params.replaced("rollout", RolloutSection, pid_only)
     summary = run_simulate_policy(subject, with_pid, processed, policies, progress=False)
     assert summary["rollouts"] > 0 and summary["transfer"]["pass"] is True
     robot = pd.read_parquet(processed / subject / "sim_policy" / "robot.parquet")
@@ -239,8 +246,8 @@ def test_bench_section_reports_steps_wall_time_and_the_gate(processed, policies,
     from pipeline.bench.transfer import TRANSFER_TARGETS, time_transfer
 
     t = params.transfer.model_copy(update={"steps": 2048, "chunk_steps": 2048})
-    tiny = params.model_copy(update={"transfer": t, "rollout": params.rollout.model_copy(
-        update={"conditions": ("free",)})})
+    tiny = params.replaced("transfer", TransferSection, t).replaced(
+        "rollout", RolloutSection, params.rollout.model_copy(update={"conditions": ("free",)}))
     section = time_transfer(tiny, processed, policies, max_wall_s=60.0)
     assert section["subject"] == params.transfer.bench.subject and section["source"] == "opencap4"
     assert section["rounds"] == 1 and section["steps"] >= 2048  # transfer.steps ends it

@@ -12,8 +12,8 @@ import pytest
 from ingest.errors import GaitloopError
 from pipeline import paths
 from pipeline.commands.tune import run_tune
-from pipeline.params import Params, load_params, parse_params
-from pipeline.store import TUNING_COLUMNS
+from pipeline.params import Params, checked, load_params, parse_params
+from pipeline.store.records import TUNING_COLUMNS
 
 N_TRIALS = 3
 
@@ -24,7 +24,7 @@ def tiny() -> Params:
     doc = load_params().document()
     doc["tune"].update(scenarios=["steady"], seeds=[0], heldout_seeds=[100])
     doc["scenarios"]["commands"]["steady"] = [{"walk_s": 4.0, "speed": 1.0}]
-    return parse_params(doc)
+    return checked(parse_params(doc))
 
 
 def _has_policy(subject: str) -> bool:

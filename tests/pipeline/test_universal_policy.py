@@ -17,10 +17,11 @@ from sim.learn.walk_env import OBS_SIZE, make_walk_env
 from sim.rollout.batch import run_batch
 
 
-def test_an_exported_subject_policy_walks_its_own_body(params, camargo_model, policies_root, tmp_path):
+def test_an_exported_subject_policy_walks_its_own_body(params, train_params, camargo_model, policies_root,
+                                                         tmp_path):
     universal = UNIVERSAL_DIR
     src = Source("camargo", str(camargo_model / "human.xml"), str(camargo_model / "reference.npz"))
-    p = params.train_params()
+    p = train_params()
     folder = export_subject(universal, src, p.env, tmp_path / "camargo")
     assert (folder / UNIVERSAL_FILE).is_file()
     model, norm = load_policy(folder)

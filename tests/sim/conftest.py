@@ -10,7 +10,7 @@ from ingest.manifest import Manifest
 @pytest.fixture(scope="module")
 def hp(params):
     """The `human` section: scaling and model parameters."""
-    return params.human.build()
+    return params.human
 
 
 @pytest.fixture(scope="module")

@@ -303,13 +303,13 @@ def test_errors_name_the_problem(hp, manifest, tmp_path):
 def test_retargeted_walk_runs_through_ingest_like_the_recording(params, hp, manifest):
     """opencap4 walking1: real markers -> marker IK on the model -> virtual-marker Trial ->
     `process_trial`: the same kinematic gait events (within 40 ms) and stride length (3 cm)."""
-    ip = params.ingest.build()
+    ip = params.ingest
     ip = dataclasses.replace(ip, events=dataclasses.replace(ip.events, method="kinematic"))
     subject = load_subject("opencap4")
     body = scale_subject(subject, read_static_trial(subject, manifest), hp)
     model = build_human(body, hp).compile()
     real = process_trial(load_trial(subject, subject.trials[0], manifest), subject.markerset, ip)
-    fit = retarget(model, real.trial.markers, params.retarget.build().ik)
+    fit = retarget(model, real.trial.markers, params.retarget.ik)
     trial = trial_from_qpos(model, fit.qpos, real.trial.rate_hz, subject.id, "free", "walking1",
                             t0_s=real.trial.time_s[0])
     sim = process_trial(trial, subject.markerset, ip)

@@ -153,7 +153,7 @@ def test_joint_ranges_are_respected():
 
 
 def test_marker_weights_select_and_drop_markers():
-    p = RetargetParams.from_dict({"marker_weights": {"*heel": 0.0, "*knee": 2.0}})
+    p = RetargetParams(marker_weights={"*heel": 0.0, "*knee": 2.0})
     assert p.weight("r_heel") == 0.0 and p.weight("L_knee") == 2.0 and p.weight("r.ASIS") == 1.0
     ik = MarkerIK(toy_model(), site_names(toy_model()) + ["not_a_site"], p)
     assert "r_heel" not in ik.names and "not_a_site" not in ik.names
@@ -228,8 +228,8 @@ def real_fit(request, params):
     from sim.body.scaling import scale_subject
     from sim.motion.reference import retarget_trial
 
-    hp = params.human.build()
-    section = params.retarget.build()
+    hp = params.human
+    section = params.retarget
     manifest = Manifest.load()
     subject = load_subject(request.param)
     static = read_static_trial(subject, manifest, widths_per_height=hp.widths_per_height)
@@ -237,9 +237,9 @@ def real_fit(request, params):
     trial_id, window = SLICES[request.param]
     spec = next(s for s in subject.trials if s.id == trial_id)
     assert spec.condition == "free"
-    processed = process_trial(load_trial(subject, spec, manifest), subject.markerset, params.ingest.build())
-    rt = retarget_trial(model, processed, section.ik, section.reference, window_s=window)
-    return request.param, model, rt, processed, section.reference
+    processed = process_trial(load_trial(subject, spec, manifest), subject.markerset, params.ingest)
+    rt = retarget_trial(model, processed, section.ik, section, window_s=window)
+    return request.param, model, rt, processed, section
 
 
 def test_real_walk_virtual_markers_match_real_markers(real_fit):
@@ -291,8 +291,8 @@ def test_real_walk_periodic_cycle_matches_the_kept_strides(real_fit, params):
 
         subj, manifest = load_subject(subject), Manifest.load()
         spec = next(s for s in subj.trials if s.id == "walking2")
-        other = process_trial(load_trial(subj, spec, manifest), subj.markerset, params.ingest.build())
-        trials = [rt, retarget_trial(model, other, params.retarget.build().ik, p)]
+        other = process_trial(load_trial(subj, spec, manifest), subj.markerset, params.ingest)
+        trials = [rt, retarget_trial(model, other, params.retarget.ik, p)]
         strides = pd.concat([processed.strides, other.strides])
     else:
         trials, strides = [rt], processed.strides

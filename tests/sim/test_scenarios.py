@@ -15,7 +15,7 @@ V = 1.5  # preferred speed, m/s
 
 @pytest.fixture(scope="module")
 def profiles(params):
-    p = params.scenarios.profile.build()
+    p = params.scenarios.profile
     return {name: command_profile(name, segs, V, RATE, p) for name, segs in params.scenarios.build().items()}
 
 
@@ -56,7 +56,7 @@ def test_a_lagging_follower_is_labelled_like_its_commands(profiles, params):
         heading = np.r_[np.zeros(lag), c.heading_rad[:-lag]]
         path = PelvisPath(np.zeros((len(speed), 2)), speed, heading, np.zeros(len(speed)), speed > 0.3,
                           np.zeros(len(speed), bool))
-        agreement = phase_agreement(c.phase, motion_phases(path, RATE, params.ingest.build().phases), 30)
+        agreement = phase_agreement(c.phase, motion_phases(path, RATE, params.ingest.phases), 30)
         for phase, share in agreement.items():
             assert share >= (0.8 if phase in ("standing", "steady", "turn") else 0.4), (name, agreement)
 
@@ -68,7 +68,7 @@ def test_phases_read_from_a_simulated_pelvis_path(profiles, params):
         c = profiles[name]
         step = c.speed_mps / RATE
         xy = np.cumsum(np.column_stack([step * np.cos(c.heading_rad), step * np.sin(c.heading_rad)]), axis=0)
-        agreement = phase_agreement(c.phase, measured_phases(xy, RATE, params.ingest.build()), 50)
+        agreement = phase_agreement(c.phase, measured_phases(xy, RATE, params.ingest), 50)
         for phase, share in agreement.items():
             assert share >= (0.8 if phase in ("standing", "steady", "turn") else 0.4), (name, agreement)
 

@@ -37,12 +37,12 @@ def cycle(camargo_model):
 
 
 @pytest.fixture(scope="module")
-def env(params, camargo_model, cycle):
-    return make_walk_env(camargo_model / "human.xml", cycle, params.train_params().env, seed=0)
+def env(train_params, camargo_model, cycle):
+    return make_walk_env(camargo_model / "human.xml", cycle, train_params().env, seed=0)
 
 
-def test_random_commands_cover_every_transition(params, cycle):
-    tp = params.train_params()
+def test_random_commands_cover_every_transition(train_params, cycle):
+    tp = train_params()
     rng = np.random.default_rng(0)
     seen: set[str] = set()
     for _ in range(40):
@@ -98,8 +98,8 @@ def test_a_cadence_floor_keeps_steps_coming_to_the_end_of_a_stop():
     assert a0 == pytest.approx(speed_law(0.6 * (1 + 1e-9), 1.0, 0.42, floor)[0], rel=1e-6)
 
 
-def test_a_policy_keeps_the_speed_law_it_was_trained_under(tmp_path, params):
-    env = params.train_params().env
+def test_a_policy_keeps_the_speed_law_it_was_trained_under(tmp_path, train_params):
+    env = train_params().env
     assert env.commands.stride_speed_exponent == 0.42
     assert policy_env(tmp_path, env).commands.stride_speed_exponent is None  # trained before the law
     (tmp_path / STEERING_FILE).write_text('{"stride_speed_exponent": 0.3}')
@@ -160,8 +160,8 @@ def test_feet_lean_into_a_turn_and_back(env):
     assert abs(lean.lean_m) > 0.5 * abs(target)
 
 
-def test_a_policy_keeps_the_turn_lean_it_was_trained_with(tmp_path, params):
-    env = params.train_params().env
+def test_a_policy_keeps_the_turn_lean_it_was_trained_with(tmp_path, train_params):
+    env = train_params().env
     (tmp_path / STEERING_FILE).write_text('{"stride_speed_exponent": 0.42}')
     leaned = replace(env, commands=replace(env.commands, turn_lean=1.0))
     assert policy_env(tmp_path, leaned).commands.turn_lean is None  # trained without: none
@@ -171,7 +171,7 @@ def test_a_policy_keeps_the_turn_lean_it_was_trained_with(tmp_path, params):
     assert (c.turn_lean, c.turn_lean_time_constant_s, c.max_lean_tan) == (0.8, 0.5, 0.2)
 
 
-def test_a_steering_lead_holds_the_heading_near_the_pelvis_heading(env, tmp_path, params):
+def test_a_steering_lead_holds_the_heading_near_the_pelvis_heading(env, tmp_path, train_params):
     """`heading_lead_deg`: the steered heading stays within the lead of where the pelvis faces (across
     the +-180 deg seam too), is the command itself when nearer, and is recorded with the policy."""
     lead = np.radians(20.0)
@@ -189,17 +189,17 @@ def test_a_steering_lead_holds_the_heading_near_the_pelvis_heading(env, tmp_path
     assert led.heading == pytest.approx(0.1 + lead)
     assert np.array_equal(led.reference[0], plain.reference[0])  # the pose reference is unchanged
     (tmp_path / STEERING_FILE).write_text('{"stride_speed_exponent": 0.42}')
-    base = params.train_params().env
+    base = train_params().env
     with_lead = replace(base, commands=replace(base.commands, heading_lead_deg=25.0))
     assert policy_env(tmp_path, with_lead).commands.heading_lead_deg == 25.0  # none recorded: the params'
     (tmp_path / STEERING_FILE).write_text('{"stride_speed_exponent": 0.42, "heading_lead_deg": 15.0}')
     assert policy_env(tmp_path, with_lead).commands.heading_lead_deg == 15.0  # recorded: its own
 
 
-def test_widened_policy_acts_like_the_straight_walker(params, camargo_model, cycle):
+def test_widened_policy_acts_like_the_straight_walker(train_params, camargo_model, cycle):
     """A 72-input policy with trained-looking normalisation statistics, widened to 74 inputs, gives
     the same actions on the observations it knew, whatever the new slots hold."""
-    tp = replace(params.train_params(), net_arch=(32, 32), n_steps=64, batch_size=64)
+    tp = replace(train_params(), net_arch=(32, 32), n_steps=64, batch_size=64)
     legacy_env = make_walk_env(camargo_model / "human.xml", cycle, tp.env)
     from gymnasium import spaces
 

@@ -26,7 +26,7 @@ from sim.rollout.scenarios import Segment, command_profile
 
 @pytest.fixture(scope="module")
 def setup(params, camargo_model):
-    tp, ev = params.train.build(), params.evaluate_policy.build()
+    tp, ev = params.train, params.evaluate_policy
     cycle = load_reference(camargo_model / "reference.npz").cycle
     return params, tp, ev, cycle
 
@@ -47,7 +47,7 @@ def test_env_api_passes_gymnasium_checker(env):
 
 def test_servos_keep_the_literature_torque_limits(setup, env):
     params, _, _, _ = setup
-    hp = params.human.build()
+    hp = params.human
     mass = float(env.model.body_mass.sum())
     for a in range(env.model.nu):
         kind = joint_kind(env.model.joint(env.model.actuator_trnid[a, 0]).name)
@@ -305,7 +305,7 @@ def test_real_gait_in_the_model_matches_the_dataset_curves(params, camargo_model
 
     model = mujoco.MjModel.from_xml_path(str(camargo_model / "human.xml"))
     cycles = reference_cycles(model, load_reference(camargo_model / "reference.npz"), "camargo",
-                              load_subject("camargo").markerset, params.ingest.build())
+                              load_subject("camargo").markerset, params.ingest)
     real = pd.read_parquet(camargo_model.parent / "real" / "cycles.parquet")
     real = real[real["condition"] == "free"]
     for joint in ("hip_flexion", "knee_flexion"):
@@ -375,14 +375,14 @@ def test_longer_swing_warps_the_cycle_without_changing_stride_or_speed(setup, ca
 
 
 def test_a_hemiparetic_variant_trains_on_and_keeps_its_asymmetric_cycle(tmp_path, setup, camargo_model,
-                                                                       params):
+                                                                       train_params):
     """Training a variant with `swing_time_ratio` imitates the warped cycle and saves it beside the
     policy, so its rollouts (which load the policy's own cycle) walk the same reference; a resume
     warps the subject's cycle again to the same one."""
     from sim.motion.reference import foot_forward_m, swing_mask
 
     _, _, _, cycle = setup
-    tp = params.train_params("hemiparetic_right")
+    tp = train_params("hemiparetic_right")
     p = replace(tp, n_steps=128, batch_size=256, n_epochs=1, net_arch=(32, 32),
                 amp=replace(tp.amp, hidden=(32, 32)))
     xml = camargo_model / "human.xml"
