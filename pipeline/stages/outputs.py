@@ -13,9 +13,10 @@ import errno
 import json
 import os
 import shutil
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
+from typing import BinaryIO
 
 import pandas as pd
 
@@ -138,14 +139,20 @@ def json_text(doc: dict) -> str:
     return json.dumps(doc, indent=2) + "\n"
 
 
-def write_outputs(folder: Path, tables: Mapping[str, pd.DataFrame], metrics: Mapping[str, dict]) -> None:
-    """`<folder>/<name>.parquet` for each table and `<folder>/<name>.json` for each metrics dict."""
-    files = {folder / f"{n}.parquet": t for n, t in tables.items()}
+def write_outputs(folder: Path, tables: Mapping[str, pd.DataFrame], metrics: Mapping[str, dict],
+                  others: Mapping[str, Callable[[BinaryIO], None]] | None = None) -> None:
+    """`<folder>/<name>.parquet` for each table, `<folder>/<name>.json` for each metrics dict and
+    `<folder>/<name>` for each of `others`, written by its function into the open binary file."""
+    files: dict[Path, object] = {folder / f"{n}.parquet": t for n, t in tables.items()}
     files |= {folder / f"{n}.json": d for n, d in metrics.items()}
+    files |= {folder / n: write for n, write in (others or {}).items()}
     with replacing(*files) as temps:
         for temp, content in zip(temps, files.values(), strict=True):
             if isinstance(content, pd.DataFrame):
                 content.to_parquet(temp, index=False)
+            elif callable(content):
+                with open(temp, "wb") as fh:
+                    content(fh)
             else:
                 temp.write_text(json_text(content))
 

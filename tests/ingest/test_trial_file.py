@@ -1,0 +1,91 @@
+"""The processed trials' file (ingest/trial_file.py): real opencap4 walks, processed, written and read
+back with their rows of the subject's tables (themselves through parquet, as the ingest stage writes
+them), give the same trials: every marker and angle bit for bit and in the same order, the walk phases,
+identity, rate, provenance and treadmill recognition, and each trial's events and strides."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from ingest.canonical import load_trial
+from ingest.errors import IngestError
+from ingest.manifest import Manifest
+from ingest.process import ProcessedTrial, SubjectTables, process_trial
+from ingest.subject import load_subject
+from ingest.treadmill import Treadmill, TreadmillCheck
+from ingest.trial_file import TABLES, read_trials, trial_arrays, write_trials
+
+N_TRIALS = 3  # opencap4's first walks: 1.3-1.45 s each, 51 markers and the IK angles
+
+
+@pytest.fixture(scope="module")
+def processed(ingest_params) -> tuple[ProcessedTrial, ...]:
+    subject = load_subject("opencap4")
+    manifest = Manifest.load()
+    return tuple(process_trial(load_trial(subject, spec, manifest), subject.markerset, ingest_params)
+                 for spec in subject.trials[:N_TRIALS])
+
+
+def _through_parquet(trials: tuple[ProcessedTrial, ...], folder) -> SubjectTables:
+    """The subject's stacked tables written and read as the ingest stage does."""
+    out = []
+    for name in TABLES:
+        path = folder / f"{name}.parquet"
+        pd.concat([getattr(t, name) for t in trials], ignore_index=True).to_parquet(path, index=False)
+        out.append(pd.read_parquet(path))
+    return SubjectTables(*out)
+
+
+def _written(trials, path) -> None:
+    with open(path, "wb") as fh:
+        write_trials(fh, trials)
+
+
+def test_processed_trials_round_trip(processed, tmp_path):
+    path = tmp_path / "trials.npz"
+    _written(processed, path)
+    back = read_trials(path, _through_parquet(processed, tmp_path))
+    assert [b.trial.trial for b in back] == [p.trial.trial for p in processed]
+    for p, b in zip(processed, back, strict=True):
+        for f in ("subject", "source", "condition", "trial", "rate_hz", "provenance"):
+            assert getattr(b.trial, f) == getattr(p.trial, f), f
+        assert b.treadmill is None and p.treadmill is None
+        assert np.array_equal(b.trial.time_s, p.trial.time_s)
+        for kind in ("markers", "angles"):
+            got, want = getattr(b.trial, kind), getattr(p.trial, kind)
+            assert list(got) == list(want) and len(want) > 10, kind  # names and their order
+            for name, x in want.items():
+                assert got[name].dtype == np.float64 and np.array_equal(got[name], x, equal_nan=True), name
+        assert p.phases is not None and len(p.phases) == p.trial.n_frames
+        assert list(b.phases) == list(p.phases)
+        for name in ("events", "strides"):
+            want = getattr(p, name).reset_index(drop=True)
+            assert len(want) > 0
+            pd.testing.assert_frame_equal(getattr(b, name), want, check_dtype=False)
+        assert len(b.cycles) == len(p.cycles) and b.robot.empty
+
+
+def test_treadmill_recognition_round_trips(processed, tmp_path):
+    """A treadmill trial's recognition (numpy scalars, as detection makes them) comes back equal."""
+    check = TreadmillCheck(np.float64(0.05), np.float64(0.6), np.float64(1.2), np.float64(0.3))
+    found = Treadmill(False, np.float64(1.19), False, np.float64(0.3), check)
+    one = dataclasses.replace(processed[0], treadmill=found)
+    path = tmp_path / "trials.npz"
+    _written((one,), path)
+    (back,) = read_trials(path, _through_parquet((one,), tmp_path))
+    assert back.treadmill == found
+
+
+def test_missing_or_older_file_names_itself(processed, tmp_path):
+    tables = _through_parquet(processed[:1], tmp_path)
+    with pytest.raises(IngestError, match=r"trials\.npz: no processed trials here: ingest the subject first"):
+        read_trials(tmp_path / "trials.npz", tables)
+    arrays = trial_arrays(processed[:1])
+    arrays["meta"] = np.array(str(arrays["meta"]).replace('"format": 1', '"format": 0'))
+    np.savez_compressed(tmp_path / "old.npz", **arrays)
+    with pytest.raises(IngestError, match=r"old\.npz: processed trials of format 0, expected 1"):
+        read_trials(tmp_path / "old.npz", tables)
