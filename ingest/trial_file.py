@@ -7,10 +7,12 @@ The file is a compressed `.npz` (no pickles). For the k-th trial, in the subject
   gap-filled, filtered canonical trial (`ProcessedTrial.trial`; a treadmill trial's overground
   equivalent), float64 as ingest made it;
 - `<k>/phases` (n,): its walk phase labels (`ProcessedTrial.phases`);
+- `<k>/file_time_s/<kind>`: the time column of each file it was read from (`Trial.file_time_s`);
 
 and `meta`, one JSON text: the format version and per trial its identity (subject, source,
-condition, trial), `rate_hz`, the marker and angle names in the order of the arrays, its provenance
-and its treadmill recognition (`ingest.treadmill.Treadmill`, or null).
+condition, trial), `rate_hz`, the marker and angle names in the order of the arrays, the kinds of
+its file time columns, its provenance and its treadmill recognition (`ingest.treadmill.Treadmill`, or
+null).
 
 A trial's events, strides, cycles and robot rows are not repeated here: they are the subject's
 stacked tables (`SubjectTables`), which `trials_from_arrays` splits by trial. Force plates, a robot
@@ -50,8 +52,10 @@ def trial_arrays(trials: Sequence[ProcessedTrial]) -> dict[str, np.ndarray]:
                                else np.empty((0, n, 3)))
         out[f"{k}/angles"] = np.stack([t.angles[a] for a in t.angles]) if t.angles else np.empty((0, n))
         out[f"{k}/phases"] = np.asarray(pt.phases if pt.phases is not None else np.full(n, ""), str)
+        out |= {f"{k}/file_time_s/{kind}": np.asarray(x, float) for kind, x in t.file_time_s.items()}
         meta.append({"subject": t.subject, "source": t.source, "condition": t.condition, "trial": t.trial,
                      "rate_hz": float(t.rate_hz), "markers": list(t.markers), "angles": list(t.angles),
+                     "file_time_s": list(t.file_time_s),
                      "provenance": [[p.file, p.sha256, p.reader] for p in t.provenance],
                      "treadmill": None if pt.treadmill is None else asdict(pt.treadmill)})
     out["meta"] = np.array(json.dumps({"format": FORMAT, "trials": meta}, default=_plain))
@@ -84,7 +88,8 @@ def trials_from_arrays(arrays: Mapping[str, np.ndarray], tables: SubjectTables,
                       rate_hz=m["rate_hz"], time_s=arrays[f"{k}/time_s"],
                       markers={name: markers[j] for j, name in enumerate(m["markers"])},
                       angles={name: angles[j] for j, name in enumerate(m["angles"])},
-                      provenance=tuple(Provenance(*p) for p in m["provenance"]))
+                      provenance=tuple(Provenance(*p) for p in m["provenance"]),
+                      file_time_s={kind: arrays[f"{k}/file_time_s/{kind}"] for kind in m["file_time_s"]})
         tm = m["treadmill"]
         treadmill = None if tm is None else Treadmill(**(tm | {"check": TreadmillCheck(**tm["check"])}))
         rows = {name: _rows(getattr(tables, name), trial.trial) for name in TABLES}

@@ -1,7 +1,8 @@
 """The processed trials' file (ingest/trial_file.py): real opencap4 walks, processed, written and read
 back with their rows of the subject's tables (themselves through parquet, as the ingest stage writes
 them), give the same trials: every marker and angle bit for bit and in the same order, the walk phases,
-identity, rate, provenance and treadmill recognition, and each trial's events and strides."""
+identity, rate, provenance, the files' time columns and treadmill recognition, and each trial's events and
+strides."""
 
 from __future__ import annotations
 
@@ -55,6 +56,9 @@ def test_processed_trials_round_trip(processed, tmp_path):
             assert getattr(b.trial, f) == getattr(p.trial, f), f
         assert b.treadmill is None and p.treadmill is None
         assert np.array_equal(b.trial.time_s, p.trial.time_s)
+        assert list(b.trial.file_time_s) == list(p.trial.file_time_s) == ["markers", "angles", "grf"]
+        for kind, t in p.trial.file_time_s.items():
+            assert np.array_equal(b.trial.file_time_s[kind], t), kind
         for kind in ("markers", "angles"):
             got, want = getattr(b.trial, kind), getattr(p.trial, kind)
             assert list(got) == list(want) and len(want) > 10, kind  # names and their order
