@@ -23,6 +23,7 @@ log and robot markers are not kept either: ingest has turned them into the event
 from __future__ import annotations
 
 import json
+import zipfile
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict
 from pathlib import Path
@@ -107,8 +108,12 @@ def read_trials(path: Path, tables: SubjectTables) -> tuple[ProcessedTrial, ...]
     """The processed trials of the file at `path`, with their rows of the subject's `tables`."""
     if not path.is_file():
         raise IngestError(path, "no processed trials here: ingest the subject first")
-    with np.load(path, allow_pickle=False) as z:
-        return trials_from_arrays({name: z[name] for name in z.files}, tables, path)
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            arrays = {name: z[name] for name in z.files}
+        return trials_from_arrays(arrays, tables, path)
+    except (OSError, ValueError, KeyError, zipfile.BadZipFile) as exc:
+        raise IngestError(path, f"cannot read processed trials ({exc!r}): ingest the subject again") from None
 
 
 __all__ = ["read_trials", "trial_arrays", "trials_from_arrays", "write_trials"]

@@ -84,7 +84,7 @@ def test_treadmill_recognition_round_trips(processed, tmp_path):
     assert back.treadmill == found
 
 
-def test_missing_or_older_file_names_itself(processed, tmp_path):
+def test_a_missing_older_or_broken_file_names_itself(processed, tmp_path):
     tables = _through_parquet(processed[:1], tmp_path)
     with pytest.raises(IngestError, match=r"trials\.npz: no processed trials here: ingest the subject first"):
         read_trials(tmp_path / "trials.npz", tables)
@@ -93,3 +93,6 @@ def test_missing_or_older_file_names_itself(processed, tmp_path):
     np.savez_compressed(tmp_path / "old.npz", **arrays)
     with pytest.raises(IngestError, match=r"old\.npz: processed trials of format 0, expected 1"):
         read_trials(tmp_path / "old.npz", tables)
+    (tmp_path / "broken.npz").write_bytes(b"not a zip")
+    with pytest.raises(IngestError, match=r"broken\.npz: cannot read processed trials .*ingest the subject"):
+        read_trials(tmp_path / "broken.npz", tables)
