@@ -290,7 +290,7 @@ def plates_from_grf(mot: MotTable, fmt: FileFormat, heading_rad: float) -> Force
 
 
 def _provenance(manifest: Manifest, key: str, path, reader: str) -> Provenance:
-    return Provenance(str(path), manifest.sources[key].sha256, reader)
+    return Provenance(str(path), manifest.sources[key].sha256, reader, key)
 
 
 def _read_mot(manifest: Manifest, key: str, columns: Callable[[str], bool]) -> tuple[Path, MotTable]:

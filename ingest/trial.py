@@ -22,11 +22,13 @@ SIDES = ("left", "right")
 
 @dataclass(frozen=True)
 class Provenance:
-    """Where a trial came from: file path, its sha256 and the reader that parsed it."""
+    """Where a trial came from: file path, its sha256 and the reader that parsed it; `key`: the file's
+    manifest key (data/sources.yaml), the same on every machine, where it has one."""
 
     file: str
     sha256: str
     reader: str
+    key: str = ""
 
 
 @dataclass(frozen=True)

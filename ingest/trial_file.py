@@ -12,7 +12,8 @@ The file is a compressed `.npz` (no pickles). For the k-th trial, in the subject
 and `meta`, one JSON text: the format version and per trial its identity (subject, source,
 condition, trial), `rate_hz`, the marker and angle names in the order of the arrays, the kinds of
 its file time columns, its provenance and its treadmill recognition (`ingest.treadmill.Treadmill`, or
-null).
+null). A source file is named by its manifest key, not by its path on this machine, so that every
+clone writes the same bytes (DVC compares their hashes); read back, its `Provenance.file` is the key.
 
 A trial's events, strides, cycles and robot rows are not repeated here: they are the subject's
 stacked tables (`SubjectTables`), which `trials_from_arrays` splits by trial. Force plates, a robot
@@ -57,7 +58,7 @@ def trial_arrays(trials: Sequence[ProcessedTrial]) -> dict[str, np.ndarray]:
         meta.append({"subject": t.subject, "source": t.source, "condition": t.condition, "trial": t.trial,
                      "rate_hz": float(t.rate_hz), "markers": list(t.markers), "angles": list(t.angles),
                      "file_time_s": list(t.file_time_s),
-                     "provenance": [[p.file, p.sha256, p.reader] for p in t.provenance],
+                     "provenance": [[p.key or p.file, p.sha256, p.reader, p.key] for p in t.provenance],
                      "treadmill": None if pt.treadmill is None else asdict(pt.treadmill)})
     out["meta"] = np.array(json.dumps({"format": FORMAT, "trials": meta}, default=_plain))
     return out
