@@ -8,6 +8,7 @@ from ingest.process import IngestParams, ProcessedTrial, SubjectTables, process_
 from ingest.static import StaticTrial, read_static_trial
 from ingest.subject import Subject, load_subject
 from ingest.trial import Trial
+from ingest.trial_file import read_trials, write_trials
 
 __all__ = [
     "GaitloopError",
@@ -27,4 +28,6 @@ __all__ = [
     "process_subject",
     "process_trial",
     "read_static_trial",
+    "read_trials",
+    "write_trials",
 ]

@@ -290,7 +290,7 @@ def plates_from_grf(mot: MotTable, fmt: FileFormat, heading_rad: float) -> Force
 
 
 def _provenance(manifest: Manifest, key: str, path, reader: str) -> Provenance:
-    return Provenance(str(path), manifest.sources[key].sha256, reader)
+    return Provenance(str(path), manifest.sources[key].sha256, reader, key)
 
 
 def _read_mot(manifest: Manifest, key: str, columns: Callable[[str], bool]) -> tuple[Path, MotTable]:
@@ -323,6 +323,7 @@ def _canonical_trial(subject: Subject, spec: TrialSpec, manifest: Manifest, sour
     markers: dict[str, np.ndarray] = {}
     angles: dict[str, np.ndarray] = {}
     time = rate = None
+    file_time_s: dict[str, np.ndarray] = {}
     heading = 0.0
     up = subject.format.up_axis
     if marker_path is not None:
@@ -345,11 +346,13 @@ def _canonical_trial(subject: Subject, spec: TrialSpec, manifest: Manifest, sour
         markers = {n: turned[:, j] for j, n in enumerate(table.names)} | {
             n: rotate_z(v, heading) for n, v in markers.items() if n not in table.names}
         time, rate = table.time_s, table.rate_hz
+        file_time_s["markers"] = table.time_s
         reader = f"markers:{path.suffix.lower().lstrip('.')} up={up}{'(auto)' if detected else ''}"
         provenance.append(_provenance(manifest, spec.markers, path, reader))
     if angles_read is not None:
         path, mot = angles_read.result()
         angles.update(canonical_angles(mot, subject.format, time))
+        file_time_s["angles"] = mot.time_s
         if time is None:
             time, rate = mot.time_s, mot.rate_hz
         provenance.append(_provenance(manifest, spec.angles, path, "angles:mot"))
@@ -362,6 +365,7 @@ def _canonical_trial(subject: Subject, spec: TrialSpec, manifest: Manifest, sour
             raise IngestError(path, "up axis 'auto' is detected from the trial's marker file, and this trial "
                               "has none: declare format.up_axis in the subject file (or --up-axis)")
         plates = plates_from_grf(grf, dataclasses.replace(subject.format, up_axis=up), heading)
+        file_time_s["grf"] = grf.time_s
         provenance.append(_provenance(manifest, spec.grf, path, "grf:mot"))
     log = None
     if spec.robot_log:
@@ -370,7 +374,7 @@ def _canonical_trial(subject: Subject, spec: TrialSpec, manifest: Manifest, sour
         provenance.append(_provenance(manifest, spec.robot_log, path, "robot:csv"))
     robot_markers = subject.robot_markers if log is None and spec.condition != "free" else None
     return Trial(subject.id, spec.condition, source, spec.id, float(rate), np.asarray(time, float),
-                 markers, angles, plates, tuple(provenance), log, robot_markers)
+                 markers, angles, plates, tuple(provenance), log, robot_markers, file_time_s)
 
 
 __all__ = ["load_trial", "canonical_angles", "up_to_z", "rotate_z", "read_c3d", "detect_up_axis",

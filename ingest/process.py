@@ -95,6 +95,7 @@ class ProcessedTrial:
     cycles: pd.DataFrame
     robot: pd.DataFrame = field(default_factory=lambda: pd.DataFrame(columns=ROBOT_COLUMNS))
     treadmill: Treadmill | None = None  # a treadmill trial, processed as its overground equivalent
+    phases: np.ndarray | None = None  # walk phase label per frame of `trial` (`walk_phases`)
 
 
 def clean_markers(trial: Trial, markerset: dict[str, str], p: IngestParams) -> Trial:
@@ -174,7 +175,7 @@ def as_overground(clean: Trial, markerset: dict[str, str], p: IngestParams, trea
 def walk_phases(trial: Trial, markerset: dict[str, str], p: IngestParams) -> np.ndarray:
     """Phase label per frame (standing, start, steady, speed_change, turn, stop) from the trial's
     gap-filled, filtered pelvis path (`ingest.phases`); a treadmill trial's from its overground
-    equivalent."""
+    equivalent. `process_trial` keeps the same labels in `ProcessedTrial.phases`."""
     clean, _ = as_overground(clean_markers(trial, markerset, p), markerset, p)
     lm = landmarks(clean, markerset)
     if lm is None:
@@ -226,7 +227,8 @@ def process_trial(trial: Trial, markerset: dict[str, str], p: IngestParams, trea
     robot = (robot_table(log, trial.time_s, trial.subject, trial.condition, trial.trial) if log is not None
              else pd.DataFrame(columns=ROBOT_COLUMNS))
     return ProcessedTrial(clean, _with_id(events, ident), _with_id(strides, ident),
-                          _with_id(cycles, ident), robot, found)
+                          _with_id(cycles, ident), robot, found,
+                          motion_phases(path, clean.rate_hz, p.phases))
 
 
 def _with_id(df: pd.DataFrame, ident: dict[str, str]) -> pd.DataFrame:
@@ -237,12 +239,15 @@ def _with_id(df: pd.DataFrame, ident: dict[str, str]) -> pd.DataFrame:
 @dataclass(frozen=True)
 class SubjectTables:
     """A subject's processed tables, all trials stacked; `robot` holds the robot-assisted trials'
-    robot logs as robot tables (`ingest.robot`), empty when there are none."""
+    robot logs as robot tables (`ingest.robot`), empty when there are none. `trials`: each processed
+    trial in the subject file's order (the tables stack their rows in that order), which the ingest
+    stage writes once for the stages that need a trial's signals (`ingest.trial_file`)."""
 
     events: pd.DataFrame
     strides: pd.DataFrame
     cycles: pd.DataFrame
     robot: pd.DataFrame
+    trials: tuple[ProcessedTrial, ...] = ()
 
 
 def process_subject(subject, manifest, p: IngestParams, progress: bool = False) -> SubjectTables:
@@ -262,7 +267,7 @@ def process_subject(subject, manifest, p: IngestParams, progress: bool = False) 
     logs = [r.robot for r in results if not r.robot.empty]
     robot = pd.concat(logs, ignore_index=True) if logs else pd.DataFrame(columns=ROBOT_COLUMNS)
     tables = SubjectTables(*(pd.concat([getattr(r, name) for r in results], ignore_index=True)
-                             for name in ("events", "strides", "cycles")), robot)
+                             for name in ("events", "strides", "cycles")), robot, tuple(results))
     if not tables.strides["kept"].any():
         reasons = tables.strides["reason"].value_counts().to_dict() if len(tables.strides) else {}
         raise IngestError(subject.path, f"no steady complete stride in {len(subject.trials)} "

@@ -22,11 +22,13 @@ SIDES = ("left", "right")
 
 @dataclass(frozen=True)
 class Provenance:
-    """Where a trial came from: file path, its sha256 and the reader that parsed it."""
+    """Where a trial came from: file path, its sha256 and the reader that parsed it; `key`: the file's
+    manifest key (data/sources.yaml), the same on every machine, where it has one."""
 
     file: str
     sha256: str
     reader: str
+    key: str = ""
 
 
 @dataclass(frozen=True)
@@ -68,6 +70,9 @@ class Trial:
     provenance: tuple[Provenance, ...] = ()
     robot_log: RobotLog | None = None  # the robot's own log of a robot-assisted trial
     robot_markers: RobotMarkers | None = None  # or markers on the robot that give it (ingest.robot_log)
+    # the time column of each file read, by kind (markers, angles, grf), as the file gives it: whether
+    # the files cover each other is a quality gate (metrics.quality.ingest_checks)
+    file_time_s: dict[str, np.ndarray] = field(default_factory=dict)
 
     @property
     def n_frames(self) -> int:

@@ -266,7 +266,7 @@ def ingest_checks(subject: str, events: pd.DataFrame, cycles: pd.DataFrame, span
     out = []
     if spans is None:
         out.append(check(subject, "ingest", "edge_heel_strike_share", None, p.edge_strike_share,
-                         "raw trial files unavailable"))
+                         "no processed trials: the ingest stage's real/trials.npz is missing"))
     else:
         edges = {s.trial: (float(np.min(s.marker_t)), float(np.max(s.marker_t)))
                  for s in spans if s.marker_t is not None and len(s.marker_t)}

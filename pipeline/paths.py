@@ -5,7 +5,8 @@ Layout, relative to the repository root (each root can be moved by a command's `
 
     params.yaml
     data/processed/<subject>/model/       human.xml, model.json (scale); reference.npz/.json (reference)
-    data/processed/<subject>/real/        events, strides, cycles (ingest)
+    data/processed/<subject>/real/        events, strides, cycles, robot; trials.npz, the processed trials
+                                          the later stages read instead of the raw files (ingest)
     data/processed/<subject>/sim/         replay-human rollouts processed like the real trials (simulate)
     data/processed/<subject>/sim_policy/  policy-human rollouts (simulate --human policy)
     data/metrics/<subject>/               metrics.json, quality, provenance (metrics)
@@ -47,6 +48,7 @@ TUNING_ROOT = DATA_ROOT / "tuning"    # `tune`: <subject>/<variant>/<controller>
 
 HUMAN_XML = "human.xml"          # in model_dir: the scaled human (scale stage)
 REFERENCE_NPZ = "reference.npz"  # in model_dir: the retargeted motion and cycle (reference stage)
+REAL_TRIALS = "trials.npz"       # in real_dir: the processed trials (ingest stage)
 
 
 def repo_path(path: str | Path) -> Path:
@@ -92,6 +94,12 @@ def reference_npz(root: str | Path, subject: str) -> Path:
 def real_dir(root: str | Path, subject: str) -> Path:
     """`<root>/<subject>/real` (root: data/processed): the ingested real trials."""
     return subject_dir(root, subject) / "real"
+
+
+def real_trials(root: str | Path, subject: str) -> Path:
+    """`<root>/<subject>/real/trials.npz` (root: data/processed): the processed trials
+    (`ingest.trial_file`)."""
+    return real_dir(root, subject) / REAL_TRIALS
 
 
 def sim_dir(root: str | Path, subject: str) -> Path:

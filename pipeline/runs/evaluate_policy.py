@@ -20,16 +20,14 @@ The result's `checks` maps each check to its pass flag (the transfer gate and th
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
 
 import mujoco
 import numpy as np
-import pandas as pd
 
-from ingest.canonical import load_trial
-from ingest.manifest import Manifest
-from ingest.process import IngestParams, walk_phases
+from ingest.process import IngestParams, ProcessedTrial
 from ingest.subject import load_subject
 from metrics.outcomes import compliance_headline
 from metrics.plots import policy_spm_figure
@@ -56,9 +54,10 @@ from metrics.scenario_checks import (
 from pipeline import paths
 from pipeline.params import Params
 from pipeline.runs.evaluation import EvalParams
-from pipeline.runs.jobs import policy_job, policy_setup, require_inputs, scenario_jobs, scenario_profiles
+from pipeline.runs.jobs import policy_job, policy_setup, scenario_jobs, scenario_profiles
 from pipeline.runs.report_params import ReportParams
 from pipeline.runs.setup import variant as variant_of
+from pipeline.stages.ingest import read_ingested
 from pipeline.stages.outputs import write_figure
 from sim.body.variant import HEALTHY
 from sim.learn.policy_human import PolicyWalk
@@ -86,11 +85,9 @@ def evaluate_policy(subject: str, params: Params, root: Path = paths.PROCESSED_R
                                               ev.push_duration_s), tag="push") for s in seeds]
     sc = ev.scenario_checks
     scenario_runs = scenario_jobs(params, ("free", *controllers), sc.seeds)
-    real = paths.real_dir(root, subject)
     # read before the rollouts (minutes): a missing recording fails at once, naming its file
-    require_inputs(real / "strides.parquet", real / "cycles.parquet", what=f"`evaluate-policy {subject}`")
-    real_strides = pd.read_parquet(real / "strides.parquet")
-    real_cycles = pd.read_parquet(real / "cycles.parquet")
+    ingested = read_ingested(subject, root)
+    real_strides, real_cycles = ingested.strides, ingested.cycles
     setup = policy_setup(subject, params, root, policy_root, variant)
     outcomes = run_batch(setup, jobs + scenario_runs, ro.workers, f"policy rollouts {subject}",
                          progress)
@@ -121,7 +118,7 @@ def evaluate_policy(subject: str, params: Params, root: Path = paths.PROCESSED_R
     robot = batch_tables([o for c in controllers for o in groups[c]])["robot"]
     doc["compliance"] = compliance_headline(robot, params.section("metrics.exclude_locked", bool))
     policy_body, cycle = load_body(paths.policy_dir(policy_root, subject, variant))
-    own_start = own_start_s(subject, params)
+    own_start = own_start_s(ingested.trials)
     real_speed = float(real_kept["gait_speed_mps"].mean())
     speed = variant_of(params, variant).preferred_speed(cycle.speed_mps)
     doc["scenarios"], scenario_rows = scenario_report(
@@ -167,20 +164,15 @@ def evaluate_policy(subject: str, params: Params, root: Path = paths.PROCESSED_R
     return doc
 
 
-def own_start_s(subject: str, params: Params) -> float | None:
+def own_start_s(trials: Sequence[ProcessedTrial]) -> float | None:
     """The subject's own gait initiation (s): the median length of a `start` phase that follows
-    quiet standing (over 1 s) in its free-walking recordings (`ingest.process.walk_phases`); None
-    when no recording starts from standing."""
-    subj = load_subject(subject)
-    manifest = Manifest.load()
-    p = params.section("ingest", IngestParams)
+    quiet standing (over 1 s) in its free-walking recordings (`trials`, processed by the ingest stage:
+    `ingest.process.ProcessedTrial.phases`); None when no recording starts from standing."""
     found = []
-    for spec in subj.trials:
-        if spec.condition != "free":
+    for processed in trials:
+        if processed.trial.condition != "free":
             continue
-        trial = load_trial(subj, spec, manifest)
-        phase = walk_phases(trial, subj.markerset, p)
-        t = trial.time_s
+        phase, t = processed.phases, processed.trial.time_s
         change = np.flatnonzero(phase[1:] != phase[:-1]) + 1
         starts, ends = np.r_[0, change], np.r_[change, len(phase)]
         for i in range(1, len(starts)):

@@ -1,6 +1,7 @@
 """Stage `metrics <subject>`: a subject's real and simulated tables -> metric tables.
 
-Inputs: `<root>/<subject>/real/{strides,cycles}.parquet` and, once simulated,
+Inputs: `<root>/<subject>/real/{strides,cycles}.parquet` (and the processed trials' file time columns
+for the quality gates, `trial_spans`) and, once simulated,
 `<root>/<subject>/sim/{strides,cycles,robot}.parquet` (replay human) and `sim_policy/` (policy human
 in every scenario; root: data/processed). The policy human enters the paper's tables as the paper
 sampled its walks (`metrics.sampling.paper_inputs`: `scenarios.paper`), and every scenario's robot
@@ -23,9 +24,7 @@ from pathlib import Path
 import pandas as pd
 
 from ingest.errors import GaitloopError
-from ingest.manifest import Manifest, sha256_of
-from ingest.readers import read_markers
-from ingest.readers.mot import read_mot
+from ingest.manifest import sha256_of
 from ingest.subject import load_subject
 from metrics.errors import MetricsError
 from metrics.quality import (
@@ -53,6 +52,7 @@ from pipeline.paths import (
     sim_policy_dir,
     subject_dir,
 )
+from pipeline.stages.ingest import read_ingested
 from pipeline.stages.outputs import read_json, write_outputs
 
 SOURCES = ("real", "sim", "sim_policy")
@@ -144,20 +144,15 @@ def _read_table(path: Path) -> pd.DataFrame:
     return pd.read_parquet(path) if path.is_file() else pd.DataFrame()
 
 
-def trial_spans(subject: str) -> list[TrialSpan] | None:
-    """The time columns of each trial's marker, angles and GRF files (read as ingest reads them);
-    None when the subject's raw files cannot be read."""
+def trial_spans(subject: str, root: Path = PROCESSED_ROOT) -> list[TrialSpan] | None:
+    """The time columns of each trial's marker, angles and GRF files, as the ingest stage read them
+    (`ingest.trial.Trial.file_time_s` of its processed trials); None without the ingest outputs."""
     try:
-        manifest = Manifest.load()
-        spans = []
-        for spec in load_subject(subject).trials:
-            def times(key, reader):
-                return None if not key else reader(manifest.resolve(key)).time_s
-            spans.append(TrialSpan(spec.id, times(spec.markers, read_markers), times(spec.angles, read_mot),
-                                   times(spec.grf, read_mot)))
-        return spans
+        trials = read_ingested(subject, root).trials
     except (GaitloopError, OSError):
         return None
+    kinds = ("markers", "angles", "grf")
+    return [TrialSpan(p.trial.trial, *(p.trial.file_time_s.get(kind) for kind in kinds)) for p in trials]
 
 
 def paper_sampling(params: Params) -> tuple[str, int]:
@@ -170,7 +165,7 @@ def paper_sampling(params: Params) -> tuple[str, int]:
 def quality_checks(subject: str, params: Params, root: Path = PROCESSED_ROOT,
                    spans: list[TrialSpan] | None = None) -> pd.DataFrame:
     """The subject's quality gates (`QUALITY_COLUMNS`) from what the earlier stages wrote
-    (`spans`: the raw files' time columns, read with `trial_spans` when None); a transferred
+    (`spans`: the trial files' time columns, `trial_spans` when None); a transferred
     policy's gate comes from the policy rollouts' summary (`sim_policy/summary.json`)."""
     q, p = params.section("quality", QualityParams), params.section("metrics", MetricsParams)
     model = read_json(model_dir(root, subject) / "model.json")
@@ -190,7 +185,7 @@ def quality_checks(subject: str, params: Params, root: Path = PROCESSED_ROOT,
     rollouts = {"replay": replay_summary.get("rollouts"), "policy": policy_summary.get("rollouts")}
     checks = [*scale_checks(subject, model, reference, q),
               *ingest_checks(subject, real["events"], real["cycles"],
-                             spans if spans is not None else trial_spans(subject),
+                             spans if spans is not None else trial_spans(subject, root),
                              p.spm.min_cycles, q),
               *sim_checks(subject, real["strides"], sims, table_strides, q, walks, rollouts),
               *transfer_checks(subject, policy_summary.get("transfer"))]

@@ -13,9 +13,10 @@ import errno
 import json
 import os
 import shutil
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
+from typing import BinaryIO
 
 import pandas as pd
 
@@ -138,20 +139,26 @@ def json_text(doc: dict) -> str:
     return json.dumps(doc, indent=2) + "\n"
 
 
-def _write(temp: Path, content: pd.DataFrame | dict) -> None:
+def _write(temp: Path, content: pd.DataFrame | dict | Callable[[BinaryIO], None]) -> None:
     if isinstance(content, pd.DataFrame):
         content.to_parquet(temp, index=False)
+    elif callable(content):
+        with open(temp, "wb") as fh:
+            content(fh)
     else:
         temp.write_text(json_text(content))
 
 
 def write_outputs(folder: Path, tables: Mapping[str, pd.DataFrame], metrics: Mapping[str, dict],
-                  table_set: tuple[Path, Mapping[str, pd.DataFrame]] | None = None) -> None:
-    """`<folder>/<name>.parquet` for each table and `<folder>/<name>.json` for each metrics dict; with
+                  table_set: tuple[Path, Mapping[str, pd.DataFrame]] | None = None,
+                  others: Mapping[str, Callable[[BinaryIO], None]] | None = None) -> None:
+    """`<folder>/<name>.parquet` for each table, `<folder>/<name>.json` for each metrics dict and
+    `<folder>/<name>` for each of `others`, written by its function into the open binary file; with
     `table_set` (a folder, its tables), also `<that folder>/<name>.parquet` for each of its tables, the
     folder replaced as a set (`replacing_folder`: a table no longer written is gone)."""
-    files = {folder / f"{n}.parquet": t for n, t in tables.items()}
+    files: dict[Path, object] = {folder / f"{n}.parquet": t for n, t in tables.items()}
     files |= {folder / f"{n}.json": d for n, d in metrics.items()}
+    files |= {folder / n: write for n, write in (others or {}).items()}
     if table_set is None:
         with replacing(*files) as temps:
             for temp, content in zip(temps, files.values(), strict=True):

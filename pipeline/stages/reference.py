@@ -1,8 +1,9 @@
 """Stage `reference <subject>`: the subject's real walking retargeted onto the scaled human.
 
-Input: `<root>/<subject>/model/human.xml` (the `scale` stage). Each trial whose condition is in
-`retarget.conditions` is loaded, gap-filled, filtered and segmented by ingest exactly as in the
-`ingest` stage, then solved frame by frame by marker IK (`sim.motion.retarget`). Outputs:
+Inputs: `<root>/<subject>/model/human.xml` (the `scale` stage) and the subject's processed trials and
+tables in `<root>/<subject>/real/` (the `ingest` stage: `pipeline.stages.ingest.read_ingested`). Each
+trial whose condition is in `retarget.conditions` (gap-filled, filtered and segmented by ingest) is
+solved frame by frame by marker IK (`sim.motion.retarget`). Outputs:
 `<root>/<subject>/model/reference.npz` (`sim.motion.reference.Reference`), `reference.json` (fit metrics,
 `sim.motion.reference.fit_metrics` and `cycle_summary`; a DVC metrics file) and
 `reports/<subject>/retarget.png` (`sim.motion.plots.retarget_figure`: hip, knee, ankle of the
@@ -17,13 +18,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ingest.canonical import load_trial
-from ingest.manifest import Manifest
-from ingest.process import IngestParams, process_trial
-from ingest.subject import load_subject
+from ingest.process import SubjectTables
 from pipeline.params import Params
 from pipeline.paths import PROCESSED_ROOT, REPORTS_ROOT, human_xml, model_dir, reference_npz, report_dir
 from pipeline.runs.report_params import ReportParams
+from pipeline.stages.ingest import read_ingested
 from pipeline.stages.outputs import json_text, replacing, write_figure
 from sim.errors import SimulationError
 from sim.motion.plots import retarget_figure
@@ -49,21 +48,19 @@ def load_model(path: Path):
     return load_human_model(path)
 
 
-def retarget_subject(subject_id: str, model, ip: IngestParams, section: ReferenceParams,
+def retarget_subject(subject_id: str, model, ingested: SubjectTables, section: ReferenceParams,
                      progress: bool = False) -> tuple[Reference, dict, list[RetargetedTrial],
                                                       dict[str, dict[str, np.ndarray]]]:
-    """Retarget the subject's trials of the configured conditions; returns the reference, the
-    metrics document, the retargeted trials and the real (filtered) angles per trial."""
-    subject = load_subject(subject_id)
-    manifest = Manifest.load()
-    specs = [s for s in subject.trials if s.condition in section.conditions]
-    if not specs:
-        raise SimulationError(subject.path, f"no trial with condition in {section.conditions}")
+    """Retarget the subject's processed trials (`ingested.trials`) of the configured conditions;
+    returns the reference, the metrics document, the retargeted trials and the real (filtered) angles
+    per trial."""
+    chosen = [p for p in ingested.trials if p.trial.condition in section.conditions]
+    if not chosen:
+        raise SimulationError(subject_id, f"no trial with condition in {section.conditions}")
     trials, real, strides = [], {}, []
-    for spec in specs:
-        processed = process_trial(load_trial(subject, spec, manifest), subject.markerset, ip)
+    for processed in chosen:
         trials.append(retarget_trial(model, processed, section.ik, section, progress=progress))
-        real[spec.id] = processed.trial.angles
+        real[processed.trial.trial] = processed.trial.angles
         strides.append(processed.strides)
     cycle, used = cycle_from_trials(model, trials, pd.concat(strides, ignore_index=True), section)
     reference = Reference.from_trials(trials, cycle)
@@ -79,8 +76,8 @@ def run_reference(subject_id: str, params: Params, root: Path = PROCESSED_ROOT,
     section = params.section("retarget", ReferenceParams)
     folder = model_dir(root, subject_id)
     model = load_model(human_xml(root, subject_id))
-    ip, dpi = params.section("ingest", IngestParams), params.section("report", ReportParams).dpi
-    reference, doc, trials, real = retarget_subject(subject_id, model, ip, section, progress=progress)
+    ingested, dpi = read_ingested(subject_id, root), params.section("report", ReportParams).dpi
+    reference, doc, trials, real = retarget_subject(subject_id, model, ingested, section, progress=progress)
     npz, js = reference_npz(root, subject_id), folder / "reference.json"
     png = report_dir(reports, subject_id) / "retarget.png"
     with replacing(npz, js) as (t_npz, t_js):  # a failing figure leaves npz and json as they were

@@ -159,7 +159,7 @@ def test_ingest_writes_documented_tables_reproducibly(tmp_path):
     robot = pd.read_parquet(folder / "robot.parquet")  # no robot-assisted trial: empty, documented columns
     assert robot.empty and list(robot.columns) == ROBOT_COLUMNS
     assert sorted(p.name for p in folder.iterdir()) == sorted(
-        [f"{n}.parquet" for n in (*COLUMNS, "robot")] + ["summary.json"])  # no temp files left behind
+        [f"{n}.parquet" for n in (*COLUMNS, "robot")] + ["summary.json", "trials.npz"])  # no temp files left
 
 
 def test_bench_writes_report(tmp_path):

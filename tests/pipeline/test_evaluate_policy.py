@@ -3,6 +3,8 @@ own body at its own preferred speed, one walk per check (the transfer gate's red
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 
@@ -31,11 +33,13 @@ def test_a_cohort_variant_is_evaluated_at_its_own_speed(params, policies_root, c
 
 
 def test_a_missing_recording_fails_before_any_rollout(params, policies_root, tmp_path):
-    """Without the subject's ingested strides the command stops at once, naming the file, instead of
-    after minutes of rollouts."""
-    from sim.errors import SimulationError
+    """Without the subject's ingest outputs the command stops at once, naming the file and the command
+    that makes it, instead of after minutes of rollouts."""
+    from ingest.errors import IngestError
 
-    with pytest.raises(SimulationError, match="strides.parquet"):
+    file = tmp_path / "camargo" / "real" / "events.parquet"
+    message = f"{file}: missing: run `python -m pipeline ingest camargo --out-root {tmp_path}` first"
+    with pytest.raises(IngestError, match=re.escape(message)):
         evaluate_policy("camargo", gate_params(params, 1), tmp_path, policies_root, tmp_path, progress=False)
 
 

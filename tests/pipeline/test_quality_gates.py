@@ -8,7 +8,7 @@ import pandas as pd
 from ingest.robot import ROBOT_COLUMNS, ROBOT_SIGNAL_COLUMNS
 from pipeline.params import check_params
 from pipeline.stages.ingest import run_ingest
-from pipeline.stages.metrics import run_metrics
+from pipeline.stages.metrics import quality_checks, run_metrics
 from pipeline.stages.report import run_report
 from pipeline.stages.store import load_results
 from pipeline.store.connection import StoreParams
@@ -87,3 +87,20 @@ def test_bundled_subjects_gates_name_their_cause_and_too_few_cycles_is_not_a_fai
     assert few["cause"].str.startswith("too few cycles for SPM").all()
     assert "cannot be computed: no reference.json" in set(q["cause"])
     assert "fail" not in set(query(db, "SELECT quality FROM quality_worst")["quality"])
+
+
+def test_span_gates_read_the_processed_trials(tmp_path):
+    """The recording-edge and file-span gates take the trial files' time columns from the ingest stage's
+    processed trials (real/trials.npz), not from the raw recordings: without that file they cannot be
+    computed, and say why."""
+    params = check_params()
+    real = run_ingest("lenhart2015", params, tmp_path, progress=False)
+    graded = quality_checks("lenhart2015", params, tmp_path).set_index("check")
+    assert graded.loc["edge_heel_strike_share", "status"] != "n/a"
+    assert graded.index.str.startswith("grf_span_samples:").any()
+    (real / "trials.npz").unlink()
+    bare = quality_checks("lenhart2015", params, tmp_path).set_index("check")
+    assert bare.loc["edge_heel_strike_share", "status"] == "n/a"
+    assert bare.loc["edge_heel_strike_share", "cause"] == (
+        "cannot be computed: no processed trials: the ingest stage's real/trials.npz is missing")
+    assert not bare.index.str.startswith("grf_span_samples:").any()
