@@ -467,8 +467,8 @@ def build_parser() -> argparse.ArgumentParser:
                        "the subject's own policy into data/policies/<subject>/cohort/<variant>/")
     train.set_defaults(func=cmd_train)
 
-    transfer = commands.add_parser("transfer", help="a policy for a subject without one: fine-tune the "
-                                   "nearest committed policy and gate it (params transfer)")
+    transfer = commands.add_parser("transfer", help="a policy for a subject without one: the universal "
+                                   "or nearest committed policy, gated, fine-tuned (params transfer)")
     transfer.add_argument("subject")
     transfer.add_argument("--steps", type=int, help="env steps (default: params transfer.steps)")
     transfer.add_argument("--max-wall-s", type=float, help="fine-tuning time limit (default: params "

@@ -1,22 +1,26 @@
 """Stage `transfer <subject>`: a walking policy for a subject without a committed one.
 
-Picks the committed policy (params `train.subjects`) whose body and gait are nearest the subject's
-(`sim.learn.transfer`: height, mass, leg length, preferred speed; weighted RMS of log ratios),
-fine-tunes it on the subject's scaled human and reference cycle (`sim.learn.train.train` with
-`init_from`, as `train --init-from` does) in chunks of `transfer.chunk_steps`, and gates it after
-each chunk, until it passes or `transfer.steps` / `transfer.max_wall_s` are spent. The gate is
-`evaluate-policy` (pipeline/runs/evaluate_policy.py) with `transfer.gate_seeds` walks per check,
-judged on its scenario checks (metrics/scenario_checks.py). `transfer.gate:
-source` requires every scenario check the source policy passes in its own `evaluation.json` (a
-transfer must not be worse than where it started; the committed policies fail the walk_10m, turn
-and speed-change checks today), `all` every scenario check. It passes when at least one check is
-required and all required ones pass.
+Two sources (`transfer.source`). `universal`: the body-conditioned policy of `data/universal`
+(`sim.learn.universal`) on the subject's own body, gated zero-shot first (`export_subject`), then,
+while the gate fails, fine-tuned on that body alone (`fine_tune_body`). `nearest` (also when the
+universal policy is missing): the committed policy (`train.subjects`) whose body and gait are
+nearest the subject's (`sim.learn.transfer`: height, mass, leg length, preferred speed; weighted RMS
+of log ratios), fine-tuned on the subject's scaled human and reference cycle (`sim.learn.train.train`
+with `init_from`). Either way the fine-tune runs in chunks of `transfer.chunk_steps`, gated after
+each, until the gate passes or `transfer.steps` / `transfer.max_wall_s` are spent.
+
+The gate is `evaluate-policy` (pipeline/runs/evaluate_policy.py) with `transfer.gate_seeds` walks per
+check, judged on its scenario checks (metrics/scenario_checks.py). `transfer.gate: source` requires
+every scenario check the source policy passes in its own `evaluation.json` (a transfer must not be
+worse than where it started), `all` every scenario check (also what a universal source requires: it
+has no evaluation of the subject to start from). It passes when at least one check is required and
+all required ones pass.
 
 Outputs, all-or-nothing (built in a temporary folder beside it, then moved into place):
-`data/policies/<subject>/` as `train` writes it, plus `evaluation.json` (the gate's evaluate-policy
-result) and `transfer.json` (the gate record, `GATE_FILE`). A failed gate keeps the fine-tuned
-policy for inspection, but `simulate --human policy` does not use it (`usable_policy`; the gate and
-its records are `pipeline.runs.gate`): the subject keeps replay rows only, and the metrics stage
+`data/policies/<subject>/` as `train` (or `export_subject`) writes it, plus `evaluation.json` (the
+gate's evaluate-policy result) and `transfer.json` (the gate record, `GATE_FILE`). A failed gate keeps
+the policy for inspection, but `simulate --human policy` does not use it (`usable_policy`; the gate
+and its records are `pipeline.runs.gate`): the subject keeps replay rows only, and the metrics stage
 turns the gate into `policy` quality rows.
 """
 
@@ -136,33 +140,93 @@ def fine_tune_until_gate(subject: str, params: Params, work_root: Path, source_d
             return Tuned(steps, rounds, round(train_s, 1), round(gate_s, 1), doc, verdict)
 
 
+def universal_until_gate(subject: str, params: Params, work_root: Path, universal_dir: Path, *,
+                         max_wall_s: float, root: Path = paths.PROCESSED_ROOT,
+                         reports: Path = paths.REPORTS_ROOT, progress: bool = True) -> Tuned:
+    """`subject`'s policy in `<work_root>/<subject>` from the universal policy in `universal_dir`:
+    gated zero-shot, then fine-tuned on the subject's body in chunks of `transfer.chunk_steps` (in
+    `<work_root>/.fine_tune`), gated after each, until the gate (every scenario check) passes,
+    `transfer.steps` are done or `max_wall_s` is spent."""
+    from pipeline.stages.train import train_inputs
+    from sim.learn.pool import Source, UniversalParams
+    from sim.learn.train import PROGRESS_FILE
+    from sim.learn.universal import export_subject, fine_tune_body
+
+    t = params.section("transfer", TransferSection)
+    xml, npz = train_inputs(subject, root)
+    src, p = Source(subject, str(xml), str(npz)), train_params(params)
+    up = params.section("universal", UniversalParams)
+    dest, tune_dir = paths.policy_dir(work_root, subject), work_root / ".fine_tune"
+    start = time.perf_counter()
+    steps, rounds, train_s, gate_s = 0, 0, 0.0, 0.0
+    record = json.loads((universal_dir / PROGRESS_FILE).read_text())
+    record = {"steps": int(record["steps"]), "initialised_from": "universal",
+              "initial_steps": int(record["steps"]), "fine_tuned_steps": 0}
+    export_subject(universal_dir, src, p.env, dest, label="universal")
+    while True:
+        (dest / PROGRESS_FILE).write_text(json.dumps(record, indent=1) + "\n")
+        t1 = time.perf_counter()
+        doc, verdict = run_gate(subject, params, work_root, None, root=root, reports=reports,
+                                progress=progress)
+        gate_s, rounds = gate_s + time.perf_counter() - t1, rounds + 1
+        if verdict["pass"] or steps >= t.steps or time.perf_counter() - start >= max_wall_s:
+            return Tuned(steps, rounds, round(train_s, 1), round(gate_s, 1), doc, verdict)
+        t0 = time.perf_counter()
+        record = fine_tune_body(universal_dir, src, p, up, tune_dir,
+                                steps=min(steps + t.chunk_steps, t.steps),
+                                max_wall_s=max(max_wall_s - (t0 - start), 1.0),
+                                command=f"python -m pipeline transfer {subject}", progress=progress)
+        steps, train_s = int(record["fine_tuned_steps"]), train_s + time.perf_counter() - t0
+        export_subject(tune_dir, src, p.env, dest, label="universal")
+
+
+def universal_source(params: Params, universal_dir: Path | None) -> Path | None:
+    """The universal policy's folder when `transfer.source` is `universal` and it has a policy."""
+    from sim.learn.train import POLICY_FILE
+
+    if params.section("transfer", TransferSection).source != "universal" or universal_dir is None:
+        return None
+    return universal_dir if (universal_dir / POLICY_FILE).is_file() else None
+
+
 def run_transfer(subject: str, params: Params, root: Path = paths.PROCESSED_ROOT,
                  policy_root: Path = paths.POLICIES_ROOT, reports: Path = paths.REPORTS_ROOT, *,
-                 steps: int | None = None, max_wall_s: float | None = None, progress: bool = True) -> dict:
+                 steps: int | None = None, max_wall_s: float | None = None, progress: bool = True,
+                 universal_dir: Path | None = paths.UNIVERSAL_DIR) -> dict:
     """Choose, fine-tune and gate, write `<policy_root>/<subject>/` (module docstring); returns the
     gate record. `steps`, `max_wall_s`: override `transfer.steps` / `transfer.max_wall_s`."""
-    if steps:
+    from sim.learn.train import AMP_FILE
+
+    if steps is not None:
         t = params.section("transfer", TransferSection)
         params = params.replaced("transfer", TransferSection, t.model_copy(update={"steps": steps}))
     t = params.section("transfer", TransferSection)
+    budget = max_wall_s or t.max_wall_s
     start = time.perf_counter()
-    choice, features = choose_source(subject, params, root, policy_root)
-    source_dir = paths.policy_dir(policy_root, choice.source)
-    required = required_checks(params, source_evaluation(source_dir))
+    universal = universal_source(params, universal_dir)
     dest = paths.policy_dir(policy_root, subject)
     dest.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=dest.parent, prefix=f".{subject}.transfer-") as tmp:
-        tuned = fine_tune_until_gate(subject, params, Path(tmp), source_dir, required,
-                                     max_wall_s=max_wall_s or t.max_wall_s, root=root, reports=reports,
-                                     progress=progress)
-        record = {"subject": subject, "source": choice.source, "distance": round(choice.distance, 4),
-                  "distances": {k: round(v, 4) for k, v in choice.distances.items()},
-                  "features": {"subject": asdict(features[subject]),
-                               "source": asdict(features[choice.source])},
-                  "gate": t.gate, "gate_seeds": t.gate_seeds, "steps": tuned.steps, "rounds": tuned.rounds,
-                  "train_wall_s": tuned.train_wall_s, "gate_wall_s": tuned.gate_wall_s,
+        if universal is not None:
+            tuned = universal_until_gate(subject, params, Path(tmp), universal, max_wall_s=budget, root=root,
+                                         reports=reports, progress=progress)
+            chosen = {"source": "universal", "gate": "all"}
+        else:
+            choice, features = choose_source(subject, params, root, policy_root)
+            source_dir = paths.policy_dir(policy_root, choice.source)
+            tuned = fine_tune_until_gate(subject, params, Path(tmp), source_dir,
+                                         required_checks(params, source_evaluation(source_dir)),
+                                         max_wall_s=budget, root=root, reports=reports, progress=progress)
+            chosen = {"source": choice.source, "distance": round(choice.distance, 4),
+                      "distances": {k: round(v, 4) for k, v in choice.distances.items()},
+                      "features": {"subject": asdict(features[subject]),
+                                   "source": asdict(features[choice.source])}, "gate": t.gate}
+        record = {"subject": subject, **chosen, "gate_seeds": t.gate_seeds, "steps": tuned.steps,
+                  "rounds": tuned.rounds, "train_wall_s": tuned.train_wall_s,
+                  "gate_wall_s": tuned.gate_wall_s,
                   "wall_s": round(time.perf_counter() - start, 1), **tuned.verdict}
         work = paths.policy_dir(Path(tmp), subject)
+        (work / AMP_FILE).unlink(missing_ok=True)  # the discriminator: no rollout needs it
         (work / EVALUATION_FILE).write_text(json.dumps(tuned.evaluation, indent=2) + "\n")
         (work / GATE_FILE).write_text(json.dumps(record, indent=2) + "\n")
         if dest.exists():
@@ -172,4 +236,4 @@ def run_transfer(subject: str, params: Params, root: Path = paths.PROCESSED_ROOT
 
 
 __all__ = ["Tuned", "choose_source", "fine_tune", "fine_tune_until_gate", "policy_features", "run_transfer",
-           "subject_features"]
+           "subject_features", "universal_source", "universal_until_gate"]

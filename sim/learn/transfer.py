@@ -119,11 +119,13 @@ class TransferBench(BaseModel):
 
 class TransferSection(BaseModel):
     """The `transfer` section of params.yaml (`transfer@<subject>`, pipeline/stages/transfer.py):
-    fine-tune the nearest committed policy within a budget, gated every `chunk_steps`."""
+    the universal policy (gated zero-shot first) or the nearest committed one, fine-tuned within a
+    budget, gated every `chunk_steps`."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     subjects: tuple[str, ...]   # every subject of `subjects` without a committed policy (train.subjects)
+    source: Literal["universal", "nearest"] = "universal"  # data/universal's policy, or the nearest committed
     steps: Annotated[int, Field(ge=1)]  # env steps of fine-tuning at most
     chunk_steps: Annotated[int, Field(ge=1)]  # gated after every this many
     max_wall_s: Annotated[float, Field(gt=0.0)]  # ... or this long in all (s)

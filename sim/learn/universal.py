@@ -304,11 +304,12 @@ def _to_device(model: PPO, venv: VecNormalize, p: TrainParams, device: str) -> P
     return moved
 
 
-def export_subject(universal_dir: str | Path, src: Source, p: WalkEnvParams, out_dir: str | Path) -> Path:
+def export_subject(universal_dir: str | Path, src: Source, p: WalkEnvParams, out_dir: str | Path,
+                   label: str | None = None) -> Path:
     """A subject's policy folder from the universal policy, as `sim.learn.train.train` lays one out
     (policy, observation statistics, body, cycle, speed law), so the policy human, evaluate-policy and
     the rollout stages use it unchanged (`sim.learn.policy_human.BodyConditioned` adds the body);
-    `universal.json` names the checkpoint it came from."""
+    `universal.json` names the checkpoint it came from (`label`, default the folder's path)."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     src_dir = Path(universal_dir)
@@ -317,8 +318,36 @@ def export_subject(universal_dir: str | Path, src: Source, p: WalkEnvParams, out
     save_body(out, src.xml, load_reference(src.reference_npz).cycle)
     save_steering(out, p.commands)
     rec = json.loads((src_dir / PROGRESS_FILE).read_text())
-    (out / UNIVERSAL_FILE).write_text(json.dumps({"universal": str(src_dir), "steps": rec["steps"]}) + "\n")
+    origin = {"universal": label or str(src_dir), "steps": rec["steps"],
+              "fine_tuned_steps": rec.get("fine_tuned_steps", 0)}
+    (out / UNIVERSAL_FILE).write_text(json.dumps(origin) + "\n")
     return out
+
+
+def fine_tune_body(universal_dir: str | Path, src: Source, p: TrainParams, up: UniversalParams,
+                   work_dir: str | Path, *, steps: int, max_wall_s: float | None = None, command: str = "",
+                   progress: bool = False) -> dict:
+    """The universal policy fine-tuned on one body (`src`'s own, no drawn bodies): the transfer
+    stage's fine-tune of a subject the universal policy does not walk yet. The run continues the
+    universal one's weights, observation statistics (frozen) and discriminator in `work_dir`,
+    resuming there; `steps`: env steps of fine-tuning in all. Returns the progress record, with
+    `fine_tuned_steps` (this fine-tune's env steps) and `initial_steps` (the universal policy's)."""
+    work = Path(work_dir)
+    if not (work / PROGRESS_FILE).exists():
+        work.mkdir(parents=True, exist_ok=True)
+        for name in (POLICY_FILE, NORM_FILE, AMP_FILE):
+            shutil.copyfile(Path(universal_dir) / name, work / name)
+        start = int(json.loads((Path(universal_dir) / PROGRESS_FILE).read_text())["steps"])
+        first = {"steps": start, "wall_s": 0.0, "initialised_from": "universal", "initial_steps": start,
+                 "obs_stats_frozen": True, "runs": [], "checkpoints": []}
+        (work / PROGRESS_FILE).write_text(json.dumps(first, indent=1) + "\n")
+    start = int(json.loads((work / PROGRESS_FILE).read_text())["initial_steps"])
+    rec = train_universal((src,), p, replace(up, drawn=0, adaptive_share=0.0), work, {},
+                          resume=True, total_steps=start + steps, max_wall_s=max_wall_s, command=command,
+                          progress=progress, gate=False)
+    rec = {**rec, "fine_tuned_steps": int(rec["steps"]) - start}
+    (work / PROGRESS_FILE).write_text(json.dumps(rec, indent=1) + "\n")
+    return rec
 
 
 # -- command line: reads params.yaml and data/processed directly (no pipeline imports) -------------

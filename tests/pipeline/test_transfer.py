@@ -29,13 +29,23 @@ from pipeline.stages.transfer import choose_source, policy_features, run_transfe
 from pipeline.store.connection import StoreParams
 from pipeline.store.read import query
 from pipeline.store.write import store_results
-from sim.learn.train import BODY_FILE, CYCLE_FILE, NORM_FILE, POLICY_FILE, PROGRESS_FILE, policy_env
+from sim.learn.pool import UNIVERSAL_OBS_SIZE
+from sim.learn.train import (
+    BODY_FILE,
+    CYCLE_FILE,
+    NORM_FILE,
+    POLICY_FILE,
+    PROGRESS_FILE,
+    load_norm,
+    policy_env,
+)
 from sim.learn.transfer import BodyFeatures, FeatureWeights, TransferSection, feature_distance, nearest_policy
+from sim.learn.universal import UNIVERSAL_FILE
 from sim.rollout.section import RolloutSection
 
 REPO = Path(__file__).resolve().parents[2]
 TARGETS = ("lenhart2015", "moissenet_np1023", "moissenet_np1014")
-POLICY_FILES = (POLICY_FILE, NORM_FILE, "amp.pt", BODY_FILE, CYCLE_FILE, PROGRESS_FILE, EVALUATION_FILE)
+POLICY_FILES = (POLICY_FILE, NORM_FILE, BODY_FILE, CYCLE_FILE, PROGRESS_FILE, EVALUATION_FILE)
 
 
 @pytest.fixture(scope="module")
@@ -165,11 +175,13 @@ def test_gate_requires_what_the_source_passes(params):
 def test_transfer_stage_writes_the_policy_and_the_gate_record(processed, policies, tmp_path, params):
     subject = "lenhart2015"
     free_only = params.rollout.model_copy(update={"conditions": ("free",)})
-    fast = params.replaced("rollout", RolloutSection, free_only)
+    near = params.transfer.model_copy(update={"source": "nearest"})
+    fast = params.replaced("rollout", RolloutSection, free_only).replaced("transfer", TransferSection, near)
     rec = run_transfer(subject, fast, processed, policies, tmp_path / "reports", steps=2048, progress=False)
     folder = policies / subject
     for f in (*POLICY_FILES, GATE_FILE):
         assert (folder / f).is_file(), f
+    assert not (folder / "amp.pt").exists()  # the discriminator stays out of a subject's folder
     assert [p.name for p in policies.iterdir() if p.name.startswith(".")] == []  # the work folder is gone
     gate = json.loads((folder / GATE_FILE).read_text())
     assert gate == rec == read_gate(folder)
@@ -192,6 +204,33 @@ def test_transfer_stage_writes_the_policy_and_the_gate_record(processed, policie
     assert summary["rollouts"] > 0 and summary["transfer"]["pass"] is True
     robot = pd.read_parquet(processed / subject / "sim_policy" / "robot.parquet")
     assert not robot.empty and set(robot["human_mode"]) == {"policy"}
+
+
+def test_universal_source_is_gated_zero_shot_then_fine_tuned_on_the_body(processed, policies, tmp_path,
+                                                                          params):
+    universal = tmp_path / "universal"
+    universal.mkdir()
+    for f in (POLICY_FILE, NORM_FILE, "amp.pt", PROGRESS_FILE):
+        shutil.copy(REPO / "data" / "universal" / f, universal / f)
+    subject = "moissenet_np1023"
+    free_only = params.rollout.model_copy(update={"conditions": ("free",)})
+    chunks = params.transfer.model_copy(update={"chunk_steps": 2048})
+    fast = params.replaced("rollout", RolloutSection, free_only).replaced("transfer", TransferSection, chunks)
+    rec = run_transfer(subject, fast, processed, policies, tmp_path / "reports", steps=2048, progress=False,
+                       universal_dir=universal)
+    folder = policies / subject
+    assert rec["source"] == "universal" and rec["gate"] == "all" and read_gate(folder) == rec
+    assert rec["checks"] and all(c["required"] for c in rec["checks"].values())  # every scenario check
+    # zero-shot first: a pass stops there, a failure fine-tunes one chunk on the body and gates again
+    assert (rec["rounds"], rec["steps"] >= 2048) == ((1, False) if rec["pass"] else (2, True))
+    progress = json.loads((folder / PROGRESS_FILE).read_text())
+    start = json.loads((universal / PROGRESS_FILE).read_text())["steps"]
+    assert progress["initialised_from"] == "universal" and progress["initial_steps"] == start
+    assert progress["fine_tuned_steps"] == rec["steps"] == progress["steps"] - start
+    assert json.loads((folder / UNIVERSAL_FILE).read_text())["universal"] == "universal"
+    assert [p.name for p in policies.iterdir() if p.name.startswith(".")] == []  # work folders are gone
+    assert usable_policy(folder) == rec["pass"]
+    assert load_norm(folder).observation_space.shape == (UNIVERSAL_OBS_SIZE,)
 
 
 def test_failed_gate_gives_fail_quality_rows_and_no_policy_rows(processed, policies, params, tmp_path):
