@@ -43,7 +43,7 @@ from metrics.phases import EventWindow
 from metrics.policy_checks import PolicyChecks
 from metrics.quality import Limits, QualityParams
 from metrics.scenario_checks import ScenarioChecks
-from pipeline.paths import PARAMS_FILE, repo_path
+from pipeline.paths import PARAMS_FILE, TUNED_GAINS, repo_path
 from pipeline.store import StoreParams
 from sim.body.balance_loss import BalanceLoss
 from sim.body.human_params import HumanParams
@@ -425,24 +425,11 @@ class TuningSchema(Schema):
 
 
 class ControllerSchema(Schema):
+    """A `robot.controllers` entry; its gains are checked against the class's declaration, with the
+    tuned gains on top, by `parse_params` (`sim.robot.controllers.specs.merge_specs`)."""
+
     class_: str = Field(alias="class")  # registry name or package.module:Class
     gains: dict[str, float]
-
-    @model_validator(mode="after")
-    def _gains_fit_the_class(self) -> ControllerSchema:
-        """The gains its class needs and reads (`Controller.gain_problems`); a class that does not
-        resolve here (registered later) is left to `make_controller`."""
-        from sim.errors import SimulationError
-        from sim.robot.controllers import resolve
-
-        try:
-            cls = resolve(self.class_)
-        except SimulationError:
-            return self
-        problem = cls.gain_problems(self.gains)
-        if problem:
-            raise ValueError(f"gains: {problem}")
-        return self
 
     def spec(self) -> dict:
         """The {class, gains} dict `sim.robot.controllers.make_controller` takes."""
@@ -458,12 +445,16 @@ class RobotSchema(Schema):
     tuning: TuningSchema
     controllers: dict[str, ControllerSchema]
 
+    _specs: dict[str, dict] | None = PrivateAttr(default=None)  # with the tuned gains (`with_tuned_gains`)
+
     def build(self) -> RobotParams:
         return RobotParams.from_dict(self.model_dump(include={"base", "arm", "harness", "fall", "sensors"}))
 
     def controller_specs(self) -> dict[str, dict]:
-        """`robot.controllers`: name -> {class, gains}."""
-        return {name: c.spec() for name, c in self.controllers.items()}
+        """name -> {class, gains}: `robot.controllers` with the tuned-gains file's gains on top
+        (`sim.robot.controllers.specs`; as params.yaml has them before `parse_params` adds those)."""
+        specs = self._specs if self._specs is not None else {n: c.spec() for n, c in self.controllers.items()}
+        return {name: {"class": s["class"], "gains": dict(s["gains"])} for name, s in specs.items()}
 
 
 # rollout
@@ -1068,8 +1059,9 @@ class Params(Schema):
 
 # -- loading --------------------------------------------------------------------------------------
 
-def load_params(path: str | Path = PARAMS_FILE) -> Params:
-    """Read and validate the params file; raises `ParamsError` naming the file (and the key path)."""
+def load_params(path: str | Path = PARAMS_FILE, tuned: str | Path = TUNED_GAINS) -> Params:
+    """Read and validate the params file, the tuned-gains file `tuned` on top of its controllers'
+    gains; raises `ParamsError` naming the file (and the key path)."""
     path = Path(path)
     try:
         doc = yaml.safe_load(path.read_text())
@@ -1077,18 +1069,48 @@ def load_params(path: str | Path = PARAMS_FILE) -> Params:
         raise ParamsError(path, f"cannot read params file ({exc.strerror})") from None
     except yaml.YAMLError as exc:
         raise ParamsError(path, f"not valid YAML ({exc})") from None
-    return parse_params(doc, path)
+    return parse_params(doc, path, tuned)
 
 
-def parse_params(doc: Any, path: str | Path = PARAMS_FILE) -> Params:
-    """`Params` from a parsed params document (`path` names it in errors)."""
+def parse_params(doc: Any, path: str | Path = PARAMS_FILE, tuned: str | Path = TUNED_GAINS) -> Params:
+    """`Params` from a parsed params document (`path` names it in errors), the tuned-gains file
+    `tuned` on top of its controllers' gains (`with_tuned_gains`)."""
     if not isinstance(doc, dict):
         raise ParamsError(path, "expected a mapping of sections (subjects, ingest, ...)")
     try:
         params = Params.model_validate(doc)
     except ValidationError as exc:
         raise ParamsError(path, describe(exc)) from None
+    params = with_tuned_gains(params, path, tuned)
     params._path = Path(path)
+    return params
+
+
+def with_tuned_gains(params: Params, path: str | Path, tuned: str | Path) -> Params:
+    """`params` whose `robot.controller_specs()` have the tuned-gains file's gains on top of
+    `robot.controllers` (`document()` keeps the file's own), every controller's gains and tuning
+    starts checked against its class's declaration (`sim.robot.controllers.specs`); a problem raises
+    `ParamsError` naming its file and key path."""
+    from sim.robot.controllers.specs import TUNED, merge_specs, read_tuned, search_problems
+
+    try:
+        top = read_tuned(tuned)
+    except SimulationError as exc:
+        raise ParamsError(tuned, exc.problem) from None
+    r = params.robot
+    specs, problems = merge_specs({n: c.spec() for n, c in r.controllers.items()}, top)
+    if problems:  # the first file's problems (params.yaml or the tuned-gains file)
+        source = problems[0][0]
+        said = "; ".join(p for s, p in problems if s == source)
+        raise ParamsError(tuned if source == TUNED else path, said)
+    checks = [p for name, start in r.tuning.initial.items()
+              for p in search_problems(specs[name]["class"], start, f"robot.tuning.initial.{name}",
+                                       boxes=False)]
+    checks += [p for name, space in params.tune.search.items()
+               for p in search_problems(specs[name]["class"], space, f"tune.search.{name}")]
+    if checks:
+        raise ParamsError(path, "; ".join(checks))
+    r._specs = specs
     return params
 
 

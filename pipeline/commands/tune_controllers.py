@@ -1,18 +1,27 @@
 """Command `tune-controllers`: the fair tuning procedure of sim/rollout/tuning.py for every controller in
-`robot.tuning.initial`, results to reports/controller_tuning.json; `--write-params` puts the tuned
-gains into params.yaml (`robot.controllers.<name>.gains`, one line each)."""
+`robot.tuning.initial`. Results, not edits: the record goes to reports/controller_tuning.json and the
+searched gains to the tuned-gains file (data/tuning/controllers.yaml, committed), which params load
+reads on top of params.yaml `robot.controllers` (sim/robot/controllers/specs.py); params.yaml itself
+is never written."""
 
 from __future__ import annotations
 
 import dataclasses
-import re
 from pathlib import Path
 
 from tqdm import tqdm
 
-from pipeline.params import Params, ParamsError
+from pipeline.params import Params
 from pipeline.stages.outputs import write_json
+from sim.robot.controllers import resolve
+from sim.robot.controllers.gains import searched
+from sim.robot.controllers.specs import read_tuned, write_tuned
 from sim.rollout.tuning import tune
+
+HEADER = """The follow-me controllers' tuned gains: written by `python -m pipeline tune-controllers` (params
+robot.tuning: {procedure}; the whole record in reports/controller_tuning.json). Read on top of params.yaml
+robot.controllers.<name>.gains (sim/robot/controllers/specs.py: this file, then params.yaml, then the
+class's declared default); checked against each class's declared gains. Do not edit by hand: rerun."""
 
 
 def run_tuning(params: Params, out: Path) -> dict:
@@ -27,7 +36,8 @@ def run_tuning(params: Params, out: Path) -> dict:
     for name in tqdm(list(initial), desc="tune-controllers"):
         spec = {"class": specs[name]["class"], "gains": {**specs[name]["gains"], **initial[name]}}
         res = tune(name, spec, robot, replay, p)
-        doc["controllers"][name] = {"gains": {k: round(v, 4) for k, v in res.gains.items()},
+        doc["controllers"][name] = {"class": spec["class"],
+                                    "gains": {k: round(v, 4) for k, v in res.gains.items()},
                                     "objective": round(res.objective, 5),
                                     "initial_objective": round(res.initial_objective, 5),
                                     "n_evaluations": res.n_evaluations, "wall_s": round(res.wall_s, 1),
@@ -36,13 +46,13 @@ def run_tuning(params: Params, out: Path) -> dict:
     return doc
 
 
-def write_gains(path: Path, doc: dict) -> None:
-    """Replace the `gains:` line of each tuned controller in the params file (text edit, comments kept)."""
-    text = path.read_text()
+def write_gains(path: Path, doc: dict, params: Params) -> None:
+    """The searched gains of each tuned controller of `doc` into the tuned-gains file `path` (other
+    controllers' entries there kept); the unsearched ones stay where they are (params.yaml)."""
+    tuned = read_tuned(path)
     for name, res in doc["controllers"].items():
-        flow = ", ".join(f"{k}: {v}" for k, v in res["gains"].items())
-        pattern = re.compile(rf"(\n    {re.escape(name)}:\n      class: [^\n]*\n      gains: )\{{[^\n]*\}}")
-        text, n = pattern.subn(lambda m, flow=flow: m.group(1) + "{" + flow + "}", text)
-        if n != 1:
-            raise ParamsError(path, f"cannot find robot.controllers.{name}.gains to update")
-    path.write_text(text)
+        cls = resolve(res.get("class", params.robot.controller_specs()[name]["class"]))
+        tuned[name] = {g: res["gains"][g] for g in searched(cls)}
+    procedure = f"{params.robot.tuning.method}, {params.robot.tuning.max_evaluations} rollouts x " \
+                f"{len(params.robot.tuning.walks)} synthetic walks each, seed {params.robot.tuning.seed}"
+    write_tuned(path, tuned, HEADER.format(procedure=procedure))

@@ -7,9 +7,10 @@ Each job is one policy-human rollout, a pure function of (subject, variant and i
 condition and its gains, scenario, event and its definition, seed, params hash); its key is the hash
 of exactly those, so a job that ran (or was retried after its worker died) gives the same row, a
 rerun with nothing changed runs nothing, and a retrained policy reruns its jobs. Jobs run as Ray
-tasks (`sim.rollout.cluster`: local, or the cluster of `RAY_ADDRESS`) on the batch runner's
-worker (`sim.rollout.batch.Worker`); a task is retried `ray.max_retries` times, whether its worker
-died or it raised, and a job that still fails is reported with its error while the rest completes.
+tasks (`sim.rollout.batch.dispatch`, the one Ray dispatch; `sim.rollout.cluster`: local, or the cluster
+of `RAY_ADDRESS`) on the batch runner's worker (`sim.rollout.batch.Worker`); a task is retried
+`ray.max_retries` times, whether its worker died or it raised, and a job that still fails is reported
+with its error while the rest completes.
 
 Outputs in `<root>/<study>/` (root: data/sweeps): `jobs/<key>.parquet` (one row per finished job,
 written as results come back: an interrupted study resumes where it stopped), `results.parquet`
@@ -40,15 +41,15 @@ from metrics.gait_symmetry import symmetry_row
 from metrics.outcomes import run_row
 from pipeline import paths
 from pipeline.params import NO_EVENT, Params, ParamsError, SensitivitySchema, SweepSchema
-from pipeline.runs.jobs import policy_setup
+from pipeline.runs.jobs import policy_digest, policy_setup
 from pipeline.stages.outputs import write_outputs
 from pipeline.store import DESIGN_COLUMNS, SWEEP_COLUMNS
 from sim.body.balance_loss import BalanceLoss
 from sim.errors import SimulationError
 from sim.learn.policy_human import PolicyWalk
 from sim.robot.responsiveness import Responsiveness, for_controller, twin_responsiveness, with_responsiveness
-from sim.rollout.batch import BatchSetup, RolloutJob, Worker
-from sim.rollout.cluster import cached_worker, completed, connect
+from sim.rollout.batch import RolloutJob, Worker, dispatch
+from sim.rollout.cluster import connect
 
 ROLLOUT_SECTIONS = ("ingest", "metrics", "robot", "rollout", "human", "train", "evaluate_policy", "scenarios",
                     "cohort")
@@ -103,11 +104,6 @@ def rollout_params_hash(params: Params) -> str:
     doc = {k: params.document()[k] for k in ROLLOUT_SECTIONS}
     doc["robot"] = {k: v for k, v in doc["robot"].items() if k not in ("controllers", "tuning")}
     return hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()[:16]
-
-
-def policy_digest(folder: Path) -> str:
-    """sha256 (16 hex) of the policy file in `folder`: which policy a result came from."""
-    return hashlib.sha256((folder / "policy.zip").read_bytes()).hexdigest()[:16]
 
 
 def study_params(params: Params, study: str | None = None) -> SweepSchema:
@@ -255,12 +251,6 @@ def error_text(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {message[:300]}"
 
 
-@ray.remote(num_cpus=1)
-def _run_remote(setup: BatchSetup, job: SweepJob, exclude_locked: bool,
-                fall_rule: FallRuleParams | None = None) -> dict:
-    return job_row(cached_worker(setup, Worker), job, exclude_locked, fall_rule)
-
-
 def run_sweep(params: Params, root: Path = paths.SWEEPS_ROOT, policy_root: Path = paths.POLICIES_ROOT,
               progress: bool = True, on_result: Callable[[SweepJob], None] | None = None,
               study: str | None = None) -> dict:
@@ -282,13 +272,11 @@ def run_sweep(params: Params, root: Path = paths.SWEEPS_ROOT, policy_root: Path 
     if todo:
         connect(params.ray.num_cpus)
         bodies = dict.fromkeys((j.subject, j.variant) for j in todo)
-        setups = {(s, v): ray.put(policy_setup(s, params, policy_root=policy_root, variant=v))
-                  for s, v in bodies}
-        task = _run_remote.options(max_retries=params.ray.max_retries, retry_exceptions=True)
-        refs = {task.remote(setups[j.subject, j.variant], j, params.metrics.exclude_locked, fall_rule): j
-                for j in todo}
-        for ref in completed(list(refs), f"sweep {sw.study}", progress):
-            job = refs[ref]
+        setups = {(s, v): policy_setup(s, params, policy_root=policy_root, variant=v) for s, v in bodies}
+        tasks = [(setups[j.subject, j.variant], j, (params.metrics.exclude_locked, fall_rule)) for j in todo]
+        for i, ref in dispatch(tasks, job_row, params.ray.max_retries, retry_exceptions=True,
+                               desc=f"sweep {sw.study}", progress=progress):
+            job = todo[i]
             try:
                 write_outputs(job_dir, {job.key: pd.DataFrame([ray.get(ref)])}, {})
             except Exception as exc:  # retried already: report it, finish the rest

@@ -1,0 +1,113 @@
+"""A run's controllers: params entries ``{class, gains}`` with the tuned gains on top, checked against
+each class's declared gains (`sim.robot.controllers.gains`).
+
+Where a gain's value comes from, highest first:
+
+1. the tuned-gains file (`data/tuning/controllers.yaml`, written by `tune-controllers`): controller
+   name -> {gain: value}, the gains a tuner searched;
+2. params.yaml `robot.controllers.<name>.gains`: the design constants (and any gain of a controller
+   that was never tuned);
+3. the class's declared default.
+
+A gain that none of them gives and that has no default, an unknown gain, a value outside its declared
+bounds, or a tuned controller that `robot.controllers` lacks is reported with its key path
+(`merge_specs`); params load (`pipeline.params.parse_params`) raises them naming the file.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+
+import yaml
+
+from sim.errors import SimulationError
+from sim.robot.controllers.gains import gain_problems, searched
+from sim.robot.controllers.registry import resolve
+
+PARAMS, TUNED = "params", "tuned"  # the source a problem is in
+
+
+def read_tuned(path: str | Path) -> dict[str, dict[str, float]]:
+    """The tuned-gains file: controller name -> {gain: value}; {} when there is none."""
+    path = Path(path)
+    if not path.is_file():
+        return {}
+    try:
+        doc = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        raise SimulationError(path, f"not valid YAML ({exc})") from None
+    doc = {} if doc is None else doc
+    if not isinstance(doc, dict) or not all(isinstance(v, dict) for v in doc.values()):
+        raise SimulationError(path, "expected controller name -> {gain: value}")
+    return {str(name): dict(gains) for name, gains in doc.items()}
+
+
+def write_tuned(path: str | Path, tuned: Mapping[str, Mapping[str, float]], header: str = "") -> None:
+    """Write the tuned-gains file (one flow mapping per controller, a `# ` comment header)."""
+    lines = [f"# {ln}" if ln else "#" for ln in header.splitlines()]
+    for name, gains in tuned.items():
+        lines.append(f"{name}: {{{', '.join(f'{k}: {float(v)!r}' for k, v in gains.items())}}}")
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text("\n".join(lines) + "\n")
+
+
+def merge_specs(entries: Mapping[str, Mapping], tuned: Mapping[str, Mapping[str, float]]
+                ) -> tuple[dict[str, dict], list[tuple[str, str]]]:
+    """name -> {class, gains} with `tuned` on top of each entry's gains; and the problems, each
+    (source: `PARAMS` or `TUNED`, ``key.path: problem``). A class that does not resolve (a plug-in
+    registered later) is not checked here: `make_controller` is."""
+    problems: list[tuple[str, str]] = []
+    for name in tuned:
+        if name not in entries:
+            problems.append((TUNED, f"{name}: no controller {name!r} in robot.controllers"))
+    specs = {}
+    for name, entry in entries.items():
+        given, top = dict(entry.get("gains", {})), dict(tuned.get(name, {}))
+        specs[name] = {"class": entry["class"], "gains": {**given, **top}}
+        try:
+            cls = resolve(str(entry["class"]))
+        except SimulationError:
+            continue
+        if cls.declared_gains is not None:  # in declaration order
+            merged = specs[name]["gains"]
+            specs[name]["gains"] = {**{k: merged[k] for k in cls.declared_gains if k in merged}, **merged}
+        for gain, problem in gain_problems(cls, given, complete=False).items():
+            problems.append((PARAMS, f"robot.controllers.{name}.gains.{gain}: {problem}"))
+        for gain, problem in gain_problems(cls, top, complete=False).items():
+            problems.append((TUNED, f"{name}.{gain}: {problem}"))
+        for gain, problem in gain_problems(cls, specs[name]["gains"]).items():
+            if problem.startswith("missing"):
+                problems.append((PARAMS, f"robot.controllers.{name}.gains.{gain}: {problem}, given neither "
+                                         "there nor in the tuned-gains file"))
+    return specs, problems
+
+
+def search_problems(cls_name: str, space: Mapping[str, object], key: str,
+                    boxes: bool = True) -> list[str]:
+    """`key.gain: problem` of each gain of `space` (a tuner's start values, or with `boxes` its
+    (low, high) search boxes) that `cls_name` does not declare as searched, or whose box leaves the
+    declared bounds."""
+    try:
+        cls = resolve(cls_name)
+    except SimulationError:
+        return []
+    tunable = searched(cls)
+    if cls.declared_gains is None:
+        return []
+    out = []
+    for gain, value in space.items():
+        if gain not in tunable:
+            out.append(f"{key}.{gain}: not a searched gain of {cls.__name__} "
+                       f"(searched: {', '.join(tunable) or 'none'})")
+            continue
+        lo, hi = tunable[gain].bounds
+        values = value if boxes else (value,)
+        if any(not lo <= float(v) <= hi for v in values):
+            out.append(f"{key}.{gain}: {list(values) if boxes else value} outside the declared bounds "
+                       f"[{lo:g}, {hi:g}]")
+    return out
+
+
+__all__ = ["PARAMS", "TUNED", "merge_specs", "read_tuned", "search_problems", "write_tuned"]
