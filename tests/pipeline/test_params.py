@@ -201,10 +201,12 @@ def test_tuned_gains_file_is_read_on_top_of_params(tmp_path, params):
     assert loaded.robot.controller_specs()["pid"] == {"class": "pid", "gains": {**gains, "i_max": 0.1}}
     assert loaded.robot.controller_specs()["adaptive"] == params.robot.controller_specs()["adaptive"]
     assert loaded.document() == params.document()  # params.yaml's own text is untouched by tuning
-    # the tuned file wins over params.yaml (documented precedence); declared defaults fill the rest
+    # a gain is set in one place: in params.yaml too it would be silently overridden, so it is an error
     document = doc()
     document["robot"]["controllers"]["pid"]["gains"]["kp_x"] = 99.0
-    assert parse_params(document, PARAMS_FILE, tuned).robot.controller_specs()["pid"]["gains"]["kp_x"] == 1.5
+    with pytest.raises(ParamsError, match=r"robot\.controllers\.pid\.gains\.kp_x: also set in the "
+                                          r"tuned-gains file \(1\.5 there, 99\.0 here\)"):
+        parse_params(document, PARAMS_FILE, tuned)
 
 
 def test_tune_controllers_writes_results_not_params(tmp_path, params):

@@ -9,8 +9,10 @@ Where a gain's value comes from, highest first:
    that was never tuned);
 3. the class's declared default.
 
-A gain that none of them gives and that has no default, an unknown gain, a value outside its declared
-bounds, or a tuned controller that `robot.controllers` lacks is reported with its key path
+A gain set in both files is an error, so that neither silently overrides the other (edit the tuned file,
+or rerun tuning, to change a searched gain). A gain that none of them gives and that has no default, an
+unknown gain, a value outside its declared bounds, or a tuned controller that `robot.controllers` lacks
+is reported with its key path
 (`merge_specs`); params load (`pipeline.params.parse_params`) raises them naming the file.
 """
 
@@ -73,6 +75,10 @@ def merge_specs(entries: Mapping[str, Mapping], tuned: Mapping[str, Mapping[str,
         if cls.declared_gains is not None:  # in declaration order
             merged = specs[name]["gains"]
             specs[name]["gains"] = {**{k: merged[k] for k in cls.declared_gains if k in merged}, **merged}
+        for gain in sorted(given.keys() & top.keys()):
+            said = (f"also set in the tuned-gains file ({top[gain]!r} there, {given[gain]!r} here): a gain "
+                    "is set in one place (the tuned file holds the searched gains); remove one")
+            problems.append((PARAMS, f"robot.controllers.{name}.gains.{gain}: {said}"))
         for gain, problem in gain_problems(cls, given, complete=False).items():
             problems.append((PARAMS, f"robot.controllers.{name}.gains.{gain}: {problem}"))
         for gain, problem in gain_problems(cls, top, complete=False).items():
