@@ -35,6 +35,7 @@ from pydantic import BaseModel, ConfigDict, Field, RootModel, ValidationError, m
 
 from ingest.errors import GaitloopError
 from metrics.findings import (
+    Pair,
     compliance_findings,
     level_text,
     region_text,
@@ -44,7 +45,6 @@ from metrics.findings import (
 )
 from metrics.plots import (
     EVENT_ORDER,
-    ROBOT_CONDITIONS,
     VARIANT_ORDER,
     cohort_heatmap,
     event_figure,
@@ -74,6 +74,10 @@ from sim.rollout.scenarios import PHASES
 Source = Literal["real", "sim"]
 
 
+# The paper's two controllers (Wang, Chan et al. ICRA 2025): its finding is its speed-adaptive controller
+# below its PID baseline. The report names them here, once; metrics/ takes them as data.
+PAPER_PAIR = Pair("adaptive", "pid")
+CONTROLLER_ORDER = (PAPER_PAIR.b, PAPER_PAIR.a)  # tables and figures: the baseline first; others after
 UNIVERSAL_FIGURE = "universal_progress.png"  # in reports/: the universal policy's gate against steps
 
 
@@ -474,12 +478,14 @@ def subject_figures(subject: str, data: dict[str, pd.DataFrame], p: ReportParams
         "spm": lambda: spm_figure(tests, curves, f"{subject}: SPM{{{statistic}}} (alpha 0.05)"),
         "tuning": lambda: tuning_figure(tuning, f"{subject}: controller tuning, held-back objective "
                                                 "(mean, 95 % CI)"),
-        "cohort": lambda: cohort_heatmap(cohort, f"{subject}: virtual cohort with each controller"),
+        "cohort": lambda: cohort_heatmap(cohort, f"{subject}: virtual cohort with each controller",
+                                         CONTROLLER_ORDER),
         "fall_intervention": lambda: fall_intervention_figure(
-            fall, f"{subject}: scripted balance losses per controller", p.caught_drop_m),
+            fall, f"{subject}: scripted balance losses per controller", p.caught_drop_m, CONTROLLER_ORDER),
         "sensitivity": lambda: sensitivity_figure(
             sens, paper_compliance(load_paper(PAPER_FILE)),
-            f"{subject}: follow-me responsiveness, {p.paper_scenario} (mean, 95 % CI across walks)"),
+            f"{subject}: follow-me responsiveness, {p.paper_scenario} (mean, 95 % CI across walks)",
+            CONTROLLER_ORDER),
     }
     present = {"events": not events.empty, "kinematics_policy": not policy.empty,
                "tracking": not tracking.empty, "harness": not harness.empty, "tuning": not tuning.empty,
@@ -624,11 +630,13 @@ def findings_lines(phases: pd.DataFrame, table2: pd.DataFrame, table3: pd.DataFr
     paper_sd = {c: v["sim"] for c, v in paper.table3.items() if "sim" in v}
     sens = pd.DataFrame() if sens is None else sens
     axes = (("e_x", "mean_abs_ex_cm"), ("e_y", "mean_abs_ey_cm"))
-    regions = {axis: region_text(responsiveness_comparisons(sens, col)) for axis, col in axes if len(sens)}
+    regions = {axis: region_text(responsiveness_comparisons(sens, col, PAPER_PAIR), PAPER_PAIR)
+               for axis, col in axes if len(sens)}
     found = [*compliance_findings(phases[phases["human_mode"] == mode], scenario, FINDING_PHASES, paper_ex,
-                                  regions),
-             *speed_findings(table2[table2["sim_human_mode"] == mode], paper_speed),
-             *variability_findings(table3[table3["sim_human_mode"] == mode], paper_sd)]
+                                  regions, pair=PAPER_PAIR),
+             *speed_findings(table2[table2["sim_human_mode"] == mode], paper_speed,
+                             controllers=CONTROLLER_ORDER),
+             *variability_findings(table3[table3["sim_human_mode"] == mode], paper_sd, pair=PAPER_PAIR)]
     rows = [[f.claim, f.paper, f.measured, f.verdict, f.region] for f in found]
     return [f"## The paper's findings beside this simulation ({mode} human)", "",
             "Each finding of the paper (its own participant, simulated) against this subject's simulation: "
@@ -653,7 +661,7 @@ def sensitivity_lines(sens: pd.DataFrame, paper: PaperValues, scenario: str, fig
     if sens.empty:
         return lines + ["No responsiveness study for this subject yet (`python -m pipeline sweep --study "
                         "responsiveness`, then `store`).", ""]
-    ex, ey = (responsiveness_comparisons(sens, c) for c in ("mean_abs_ex_cm", "mean_abs_ey_cm"))
+    ex, ey = (responsiveness_comparisons(sens, c, PAPER_PAIR) for c in ("mean_abs_ex_cm", "mean_abs_ey_cm"))
     rows = []
     for a, b in zip(ex.itertuples(index=False), ey.itertuples(index=False), strict=True):
         rows.append([f"{a.factor}{' (twin)' if a.twin else ''}", level_text(a.factor, a.level),
@@ -671,7 +679,7 @@ def sensitivity_lines(sens: pd.DataFrame, paper: PaperValues, scenario: str, fig
               "participant).", "",
               md_table(["Factor", "Level", "e_x pid vs adaptive (cm)", "adaptive vs pid",
                         "e_y pid vs adaptive (cm)", "adaptive vs pid", "Falls pid vs adaptive"], rows),
-              f"e_x: {region_text(ex)}.", "", f"e_y: {region_text(ey)}.", ""]
+              f"e_x: {region_text(ex, PAPER_PAIR)}.", "", f"e_y: {region_text(ey, PAPER_PAIR)}.", ""]
     return lines + (_image("sensitivity") if figure else [])
 
 
@@ -722,7 +730,7 @@ NO_COHORT = ("No cohort walks stored for this subject yet (run the sweep studies
              "and `python -m pipeline sweep --study fall_intervention`, then `store`).")
 NO_FALLS = ("No fall-intervention rollouts stored for this subject yet (run `python -m pipeline sweep "
             "--study fall_intervention`, then `store`).")
-ORDERS = {"variant": VARIANT_ORDER, "event": EVENT_ORDER, "condition": ROBOT_CONDITIONS}
+ORDERS = {"variant": VARIANT_ORDER, "event": EVENT_ORDER, "condition": CONTROLLER_ORDER}
 
 
 def _in_order(df: pd.DataFrame, *columns: str) -> pd.DataFrame:
