@@ -1091,25 +1091,19 @@ def with_tuned_gains(params: Params, path: str | Path, tuned: str | Path) -> Par
     `robot.controllers` (`document()` keeps the file's own), every controller's gains and tuning
     starts checked against its class's declaration (`sim.robot.controllers.specs`); a problem raises
     `ParamsError` naming its file and key path."""
-    from sim.robot.controllers.specs import TUNED, merge_specs, read_tuned, search_problems
+    from sim.robot.controllers.specs import TUNED, controller_specs, read_tuned
 
     try:
         top = read_tuned(tuned)
     except SimulationError as exc:
         raise ParamsError(tuned, exc.problem) from None
     r = params.robot
-    specs, problems = merge_specs({n: c.spec() for n, c in r.controllers.items()}, top)
+    specs, problems = controller_specs({n: c.spec() for n, c in r.controllers.items()}, top, r.tuning.initial,
+                                       params.tune.search)
     if problems:  # the first file's problems (params.yaml or the tuned-gains file)
         source = problems[0][0]
         said = "; ".join(p for s, p in problems if s == source)
         raise ParamsError(tuned if source == TUNED else path, said)
-    checks = [p for name, start in r.tuning.initial.items()
-              for p in search_problems(specs[name]["class"], start, f"robot.tuning.initial.{name}",
-                                       boxes=False)]
-    checks += [p for name, space in params.tune.search.items()
-               for p in search_problems(specs[name]["class"], space, f"tune.search.{name}")]
-    if checks:
-        raise ParamsError(path, "; ".join(checks))
     r._specs = specs
     return params
 

@@ -116,4 +116,20 @@ def search_problems(cls_name: str, space: Mapping[str, object], key: str,
     return out
 
 
-__all__ = ["PARAMS", "TUNED", "merge_specs", "read_tuned", "search_problems", "write_tuned"]
+def controller_specs(entries: Mapping[str, Mapping], tuned: Mapping[str, Mapping[str, float]],
+                     initial: Mapping[str, Mapping[str, float]], search: Mapping[str, Mapping[str, object]]
+                     ) -> tuple[dict[str, dict], list[tuple[str, str]]]:
+    """`merge_specs`, and the tuners' inputs checked against the declarations: `initial` (params
+    `robot.tuning.initial`: controller -> start values) and `search` (params `tune.search`: controller
+    -> gain -> (low, high)); their problems are params.yaml's (`PARAMS`)."""
+    specs, problems = merge_specs(entries, tuned)
+    for key, given, boxes in (("robot.tuning.initial", initial, False), ("tune.search", search, True)):
+        for name, space in given.items():
+            if name in specs:  # an unknown controller name is the params schema's to report
+                found = search_problems(specs[name]["class"], space, f"{key}.{name}", boxes)
+                problems += [(PARAMS, p) for p in found]
+    return specs, problems
+
+
+__all__ = ["PARAMS", "TUNED", "controller_specs", "merge_specs", "read_tuned", "search_problems",
+           "write_tuned"]
