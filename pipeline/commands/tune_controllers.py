@@ -18,10 +18,11 @@ from sim.robot.controllers.gains import searched
 from sim.robot.controllers.specs import read_tuned, write_tuned
 from sim.rollout.tuning import tune
 
-HEADER = """The follow-me controllers' tuned gains: written by `python -m pipeline tune-controllers` (params
-robot.tuning: {procedure}; the whole record in reports/controller_tuning.json). Read on top of params.yaml
-robot.controllers.<name>.gains (sim/robot/controllers/specs.py: this file, then params.yaml, then the
-class's declared default); checked against each class's declared gains. Do not edit by hand: rerun."""
+HEADER = """The follow-me controllers' tuned gains, written by `python -m pipeline tune-controllers`
+(params robot.tuning: {procedure};
+the whole record in reports/controller_tuning.json). Read on top of params.yaml
+robot.controllers.<name>.gains and checked against each class's declared gains
+(sim/robot/controllers/specs.py): a gain is set here or there, never in both."""
 
 
 def run_tuning(params: Params, out: Path) -> dict:
