@@ -21,9 +21,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pipeline.params import ReportParams, load_params
+from pipeline.params import load_params
 from pipeline.paths import UNIVERSAL_DIR
 from pipeline.report.queries import load_report_data
+from pipeline.runs.report_params import ReportParams
 from pipeline.stages.ingest import run_ingest
 from pipeline.stages.metrics import run_metrics
 from pipeline.stages.report import run_report, subject_report
