@@ -248,7 +248,6 @@ def tuning_figure(tuning: pd.DataFrame, title: str = "Controller tuning: held-ba
 # Cohort variants in the order params `cohort` lists them, the subject's own (healthy) twin first; a
 # variant the tables hold that is not named here follows, sorted.
 VARIANT_ORDER = ("healthy", "weak", "hemiparetic_left", "hemiparetic_right", "slow", "unsteady")
-ROBOT_CONDITIONS = ("pid", "adaptive")  # the controllers; a condition not named here follows, sorted
 
 
 def ordered(names, known: tuple[str, ...]) -> list[str]:
@@ -264,16 +263,17 @@ COHORT_PANELS = {"mean_abs_ex_cm": ("mean |e_x| (cm)", "viridis"),
                  "speed_change_pct": ("gait speed vs free (%)", "RdBu_r")}
 
 
-def cohort_heatmap(controllers: pd.DataFrame, title: str) -> Figure:
+def cohort_heatmap(controllers: pd.DataFrame, title: str, order: tuple[str, ...] = ()) -> Figure:
     """The virtual cohort under each controller (`cohort_controllers`): one panel per metric with its
-    own colour scale, rows = variants, columns = controllers, the value written in each cell (– where
-    there is none). Drawn for scenario `steady`, or the first scenario the table has."""
+    own colour scale, rows = variants, columns = controllers (in `order`, the caller's list of them;
+    others after it, sorted), the value written in each cell (– where there is none). Drawn for
+    scenario `steady`, or the first scenario the table has."""
     import numpy as np
 
     scenarios = sorted(set(controllers["scenario"])) if not controllers.empty else []
     scenario = "steady" if "steady" in scenarios else (scenarios[0] if scenarios else None)
     t = controllers[controllers["scenario"] == scenario] if scenario else controllers
-    variants, conds = ordered(t["variant"], VARIANT_ORDER), ordered(t["condition"], ROBOT_CONDITIONS)
+    variants, conds = ordered(t["variant"], VARIANT_ORDER), ordered(t["condition"], order)
     size = (max(1.2 * len(conds) + 1.6, 3.0) * len(COHORT_PANELS), 0.45 * max(len(variants), 1) + 2.0)
     fig, axes = plt.subplots(1, len(COHORT_PANELS), figsize=size, squeeze=False)
     for ax, (col, (name, cmap)) in zip(axes[0], COHORT_PANELS.items(), strict=True):
@@ -318,15 +318,17 @@ FALL_MARKERS = {"detection_rate": ("caught_rate_falling", "o", "caught, of event
 EVENT_ORDER = ("trip", "slip", "collapse", "push")
 
 
-def fall_intervention_figure(fall: pd.DataFrame, title: str, caught_drop_m: float) -> Figure:
+def fall_intervention_figure(fall: pd.DataFrame, title: str, caught_drop_m: float,
+                             order: tuple[str, ...] = ()) -> Figure:
     """How each controller met the scripted balance losses (`fall_intervention`): one row of panels
     per variant, event types on x, one bar per controller: the share of events detected (marker: the
     share caught of those that fell walking free), the latency from onset to the lock, the pelvis drop
     at the lock (marker: the worst; dashed: the caught threshold `caught_drop_m`) and the peak harness
-    force (marker: the mean of the rollouts' peaks). Conditions without a robot (`free`) are left out."""
+    force (marker: the mean of the rollouts' peaks). Conditions without a robot (`free`) are left out;
+    the controllers in `order` (the caller's list of them), others after it, sorted."""
     robot = fall[fall["condition"] != "free"] if not fall.empty else fall
     variants = ordered(robot["variant"], VARIANT_ORDER) or [""]
-    events, conds = ordered(robot["event"], EVENT_ORDER), ordered(robot["condition"], ROBOT_CONDITIONS)
+    events, conds = ordered(robot["event"], EVENT_ORDER), ordered(robot["condition"], order)
     size = (3.9 * len(FALL_PANELS), 2.9 * len(variants) + 0.6)
     fig, axes = plt.subplots(len(variants), len(FALL_PANELS), figsize=size, squeeze=False)
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
@@ -412,27 +414,36 @@ SENSITIVITY_COLUMNS = ("pid_gain_scale", "drive_tau_s", "latency_s")  # factor o
 SENSITIVITY_AXES = {"pid_gain_scale": ("PID gains (x twin's)", 1.0, "log"),
                     "drive_tau_s": ("base drive time constant (ms)", 1000.0, "log"),
                     "latency_s": ("command latency (ms)", 1000.0, "linear")}
-SENSITIVITY_COLORS = {"pid": "tab:orange", "adaptive": "tab:blue"}
+CONDITION_COLORS = ("tab:orange", "tab:blue", "tab:green", "tab:purple", "tab:brown")  # by place in `order`
 
 
-def sensitivity_figure(sens: pd.DataFrame, paper_sim: dict[str, tuple[float, float]], title: str) -> Figure:
+def condition_colors(names, order: tuple[str, ...] = ()) -> dict[str, str]:
+    """condition -> colour: by its place in `ordered(names, order)`, so a controller keeps its colour
+    across the figures that are given the same `order`."""
+    return {c: CONDITION_COLORS[i % len(CONDITION_COLORS)] for i, c in enumerate(ordered(names, order))}
+
+
+def sensitivity_figure(sens: pd.DataFrame, paper_sim: dict[str, tuple[float, float]], title: str,
+                       order: tuple[str, ...] = ()) -> Figure:
     """Mean |e_x| (top) and |e_y| (bottom) against each responsiveness factor (columns), one line per
-    controller with its 95 % CI across walks (`sensitivity` view of one subject); the walks that fell
-    (human fall or arm lock) written over each point as falls/walks; the twin's level of each factor a
-    dotted vertical line; `paper_sim`: condition -> the paper's simulated (|e_x|, |e_y|) in cm, dashed
-    horizontal lines (their robot and participant, for orientation)."""
+    controller (in `order`, the caller's list of them; others after it, sorted) with its 95 % CI across
+    walks (`sensitivity` view of one subject); the walks that fell (human fall or arm lock) written over
+    each point as falls/walks; the twin's level of each factor a dotted vertical line (a level where
+    every controller runs the twin's robot); `paper_sim`: condition -> the paper's simulated (|e_x|,
+    |e_y|) in cm, dashed horizontal lines (their robot and participant, for orientation)."""
     factors = [f for f in SENSITIVITY_COLUMNS if f in set(sens["factor"])] or list(SENSITIVITY_COLUMNS)
     fig, axes = plt.subplots(2, len(factors), figsize=(4.0 * len(factors), 6.4), squeeze=False, sharey="row")
     rows = (("mean_abs_ex_cm", "mean |e_x| (cm)"), ("mean_abs_ey_cm", "mean |e_y| (cm)"))
+    colors = condition_colors({*sens["condition"], *paper_sim}, order)
     for j, factor in enumerate(factors):
         label, scale, xscale = SENSITIVITY_AXES.get(factor, (factor, 1.0, "linear"))
         sel = sens[sens["factor"] == factor]
         for i, (col, ylabel) in enumerate(rows):
             ax = axes[i][j]
-            for cond in ordered(set(sel["condition"]), ROBOT_CONDITIONS):
+            for cond in ordered(set(sel["condition"]), order):
                 g = sel[sel["condition"] == cond].sort_values("level")
                 x = g["level"].astype(float) * scale
-                colour = SENSITIVITY_COLORS.get(cond, "0.3")
+                colour = colors.get(cond, "0.3")
                 ax.errorbar(x, g[col].astype(float), yerr=g[f"{col}_ci95"].astype(float).fillna(0.0),
                             color=colour, marker="o", ms=4, capsize=3, label=f"{cond} (this twin)")
                 for xi, y, falls, n in zip(x, g[col], g["falls"], g["n"], strict=True):
@@ -440,9 +451,12 @@ def sensitivity_figure(sens: pd.DataFrame, paper_sim: dict[str, tuple[float, flo
                         ax.annotate(f"{int(falls)}/{int(n)}", (xi, y), xytext=(3, 3),
                                     textcoords="offset points", fontsize=6, color=colour)
             for cond, (ex, ey) in paper_sim.items():
-                ax.axhline((ex, ey)[i], color=SENSITIVITY_COLORS.get(cond, "0.3"), linestyle="--",
+                ax.axhline((ex, ey)[i], color=colors.get(cond, "0.3"), linestyle="--",
                            linewidth=0.9, label=f"{cond}, paper sim (e_x {ex:.2f}, e_y {ey:.2f} cm)")
-            twin = sel.loc[sel["twin"].astype(bool) & (sel["condition"] == "pid"), "level"]
+            # a controller that does not read a factor runs the twin at every level: the twin's level
+            # is the one where every controller does
+            at_twin = sel[sel["twin"].astype(bool)].groupby("level")["condition"].nunique()
+            twin = at_twin.index[at_twin == sel["condition"].nunique()]
             for level in twin:
                 ax.axvline(float(level) * scale, color="0.5", linestyle=":", linewidth=0.9)
             ax.set_xscale(xscale)

@@ -24,6 +24,7 @@ from pipeline.paths import (
     PROCESSED_ROOT,
     REPORTS_ROOT,
     SWEEPS_ROOT,
+    TUNED_GAINS,
     TUNING_REPORT,
 )
 from pipeline.stages.outputs import json_text, write_json
@@ -120,12 +121,13 @@ def cmd_reference(args: argparse.Namespace) -> int:
 def cmd_tune_controllers(args: argparse.Namespace) -> int:
     from pipeline.commands.tune_controllers import run_tuning, write_gains
 
-    doc = run_tuning(check_params(args.params), args.out)
+    params = check_params(args.params)
+    doc = run_tuning(params, args.out)
     for name, res in doc["controllers"].items():
         print(f"{name}: J {res['initial_objective']:.4f} -> {res['objective']:.4f} in {res['n_evaluations']} "
               f"rollouts ({res['wall_s']:.0f} s): {res['gains']}", file=sys.stderr)
-    if args.write_params:
-        write_gains(args.params, doc)
+    write_gains(args.gains, doc, params)
+    print(f"wrote {args.out} and {args.gains}", file=sys.stderr)
     return 0
 
 
@@ -232,7 +234,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
 
 def cmd_tune(args: argparse.Namespace) -> int:
-    from pipeline.commands.tune import run_tune
+    from pipeline.runs.tune import run_tune
 
     path = run_tune(args.subject, args.controller, check_params(args.params), variant=args.variant,
                     n_trials=args.n_trials)
@@ -435,8 +437,9 @@ def build_parser() -> argparse.ArgumentParser:
     tune_c = commands.add_parser("tune-controllers", help="tune every follow-me controller the same way "
                                  "on a synthetic walk (robot.tuning)")
     tune_c.add_argument("--out", type=Path, default=TUNING_REPORT)
-    tune_c.add_argument("--write-params", action="store_true",
-                        help="store the tuned gains in the params file")
+    tune_c.add_argument("--gains", type=Path, default=TUNED_GAINS,
+                        help="tuned-gains file to write the searched gains to, read on top of params.yaml "
+                             "robot.controllers (default: data/tuning/controllers.yaml)")
     tune_c.set_defaults(func=cmd_tune_controllers)
 
     simulate = commands.add_parser("simulate", help="replay-human rollouts (free, pid, adaptive) of a "

@@ -7,8 +7,8 @@ runs the checks that span sections (a condition names a controller of `robot.con
 stage then validates only the sections it reads, passing their class: `params.section("metrics",
 MetricsParams)`. So a stage imports only the code it uses (dvc.yaml's deps follow its imports) and an
 unknown key or a wrong type still fails when the section is loaded. `check_params` validates the whole
-file against every class of `SECTIONS` (`python -m pipeline check-params`, `make run`, the tests); it
-imports the classes by name, at run time, and is meant for commands outside dvc.yaml.
+file against every class of `SECTIONS`, then runs `CHECKS` (`python -m pipeline check-params`, `make run`,
+the tests); it imports them by name, at run time, and is meant for commands outside dvc.yaml.
 
 Problems raise `ParamsError` naming the file and the key path, e.g.
 `params.yaml: robot.base.mass_kg: Input should be a valid number`.
@@ -26,7 +26,7 @@ import yaml
 from pydantic import TypeAdapter, ValidationError
 
 from ingest.errors import GaitloopError
-from pipeline.paths import PARAMS_FILE
+from pipeline.paths import PARAMS_FILE, TUNED_GAINS
 
 __all__ = ["PARAMS_FILE", "SECTIONS", "CheckedParams", "Params", "ParamsError", "check_params", "checked",
            "load_params", "parse_params"]
@@ -60,6 +60,7 @@ SECTIONS = {
     "universal": "sim.learn.pool:UniversalParams",
     "transfer": "sim.learn.transfer:TransferSection",
 }
+CHECKS = ("pipeline.runs.setup:check_controllers",)  # "module:function"s `checked` runs on valid sections
 Subjects = tuple[str, ...]
 # values other sections set (pipeline/runs/setup.py, pipeline.runs.studies.report_params), never the file
 DERIVED = {
@@ -84,10 +85,10 @@ class ParamsError(GaitloopError):
 
 
 class Params:
-    """params.yaml as read: its document, and each section validated on first use by its class."""
+    """params.yaml as read (and `tuned_file`, its controllers' tuned gains), each section validated on use."""
 
-    def __init__(self, doc: dict[str, Any], path: str | Path = PARAMS_FILE) -> None:
-        self._doc, self._path, self._sections = doc, Path(path), {}
+    def __init__(self, doc: dict[str, Any], path: str | Path = PARAMS_FILE, tuned: str | Path = TUNED_GAINS):
+        self._doc, self._path, self.tuned_file, self._sections = doc, Path(path), Path(tuned), {}
 
     @property
     def path(self) -> Path:
@@ -128,7 +129,8 @@ class Params:
         return copy.deepcopy(self._doc)
 
     def __eq__(self, other: object) -> bool:
-        return isinstance(other, Params) and (self._doc, self._path) == (other._doc, other._path)
+        return isinstance(other, Params) and (self._doc, self._path, self.tuned_file) == (
+            other._doc, other._path, other.tuned_file)
 
     def __hash__(self) -> int:
         return hash(self._path)
@@ -156,17 +158,17 @@ def _adapter(cls: Any) -> TypeAdapter:
     return TypeAdapter(cls)
 
 
-def section_class(name: str) -> Any:
-    """The class of section `name` from `SECTIONS`, imported."""
-    module, _, attr = SECTIONS[name].partition(":")
+def section_class(name: str, spec: str = "") -> Any:
+    """The class of section `name` from `SECTIONS` (or what `spec`, "module:name", names), imported."""
+    module, _, attr = (spec or SECTIONS[name]).partition(":")
     return getattr(importlib.import_module(module), attr)
 
 
 # -- loading --------------------------------------------------------------------------------------
 
-def load_params(path: str | Path = PARAMS_FILE) -> Params:
+def load_params(path: str | Path = PARAMS_FILE, tuned: str | Path = TUNED_GAINS) -> Params:
     """Read the params file and check its sections' names and cross-references; raises `ParamsError`
-    naming the file (and the key path)."""
+    naming the file (and the key path). `tuned`: the tuned-gains file, read where the gains are."""
     path = Path(path)
     try:
         doc = yaml.safe_load(path.read_text())
@@ -174,10 +176,10 @@ def load_params(path: str | Path = PARAMS_FILE) -> Params:
         raise ParamsError(path, f"cannot read params file ({exc.strerror})") from None
     except yaml.YAMLError as exc:
         raise ParamsError(path, f"not valid YAML ({exc})") from None
-    return parse_params(doc, path)
+    return parse_params(doc, path, tuned)
 
 
-def parse_params(doc: Any, path: str | Path = PARAMS_FILE) -> Params:
+def parse_params(doc: Any, path: str | Path = PARAMS_FILE, tuned: str | Path = TUNED_GAINS) -> Params:
     """`Params` from a parsed params document (`path` names it in errors)."""
     if not isinstance(doc, dict):
         raise ParamsError(path, "expected a mapping of sections (subjects, ingest, ...)")
@@ -186,18 +188,18 @@ def parse_params(doc: Any, path: str | Path = PARAMS_FILE) -> Params:
     problems += cross_section_problems(doc)
     if problems:
         raise ParamsError(path, _joined(problems))
-    return Params(doc, path)
+    return Params(doc, path, tuned)
 
 
-def check_params(path: str | Path = PARAMS_FILE) -> CheckedParams:
-    """Load the params file and validate every section against its class (`SECTIONS`); all the
-    problems in one `ParamsError`."""
-    return checked(load_params(path))
+def check_params(path: str | Path = PARAMS_FILE, tuned: str | Path = TUNED_GAINS) -> CheckedParams:
+    """Load the params file and validate every section against its class (`SECTIONS`), then `CHECKS`;
+    all the problems of the sections in one `ParamsError`."""
+    return checked(load_params(path, tuned))
 
 
 def checked(params: Params) -> CheckedParams:
-    """`params` with every section validated against its class (`SECTIONS`)."""
-    out = CheckedParams(params.document(), params.path)
+    """`params` with every section validated against its class (`SECTIONS`), then `CHECKS` run."""
+    out = CheckedParams(params.document(), params.path, params.tuned_file)
     out._sections = dict(params._sections)
     problems = []
     for name in SECTIONS:
@@ -207,6 +209,8 @@ def checked(params: Params) -> CheckedParams:
             problems.append(exc.problem)
     if problems:
         raise ParamsError(out.path, _joined(problems))
+    for check in CHECKS:
+        section_class("", check)(out)
     return out
 
 
@@ -220,19 +224,15 @@ def _names(doc: dict, *keys: str) -> list:
 def cross_section_problems(doc: dict) -> list[str]:
     """What one section says of another that is not there (a scenario, controller, variant or
     event named but not declared), and the studies that must differ."""
-    out: list[str] = []
-    for key, source in DERIVED.items():
-        parent, _, last = key.rpartition(".")
-        if last in _names(doc, *parent.split(".")):
-            out.append(f"{key}: set from {source}, not in the file")
+    out = [f"{key}: set from {source}, not in the file" for key, source in DERIVED.items()
+            if key.rpartition(".")[2] in _names(doc, *key.rpartition(".")[0].split("."))]
     controllers, scenarios = _names(doc, "robot", "controllers"), _names(doc, "scenarios", "commands")
     events = _names(doc, "fall_intervention", "balance_loss")
     for where in (("robot", "tuning", "initial"), ("tune", "search")):
         out += [f"{'.'.join(where)}.{name}: no controller {name!r} in robot.controllers"
                 for name in _names(doc, *where) if name not in controllers]
-    for cond in _names(doc, "rollout", "conditions"):
-        if cond != "free" and cond not in controllers:
-            out.append(f"rollout.conditions: {cond!r} is neither free nor a controller in robot.controllers")
+    out += [f"rollout.conditions: {cond!r} is neither free nor a controller in robot.controllers"
+            for cond in _names(doc, "rollout", "conditions") if cond != "free" and cond not in controllers]
     studies = {key: doc.get(key) if isinstance(doc.get(key), dict) else {}
                for key in ("sweep", "fall_intervention", "sensitivity")}
     for key, study in studies.items():
@@ -255,9 +255,8 @@ def cross_section_problems(doc: dict) -> list[str]:
         out.append("sensitivity.study must differ from sweep.study and fall_intervention.study")
     if "free" in _names(studies["sensitivity"], "conditions"):
         out.append("sensitivity.conditions: 'free' has no robot to make responsive")
-    for name in _names(doc, "transfer", "subjects"):
-        if name in _names(doc, "train", "subjects"):
-            out.append(f"transfer.subjects: {name!r} has a committed policy (train.subjects)")
+    out += [f"transfer.subjects: {name!r} has a committed policy (train.subjects)"
+            for name in _names(doc, "transfer", "subjects") if name in _names(doc, "train", "subjects")]
     out += [f"tune.scenarios: no scenario {name!r} in scenarios.commands"
             for name in _names(doc, "tune", "scenarios") if name not in scenarios]
     return out

@@ -45,6 +45,7 @@ BENCH_REPORT = REPORTS_ROOT / "bench.json"
 TUNING_REPORT = REPORTS_ROOT / "controller_tuning.json"
 SWEEPS_ROOT = DATA_ROOT / "sweeps"    # `sweep`: <study>/jobs/<job key>.parquet, results.parquet (DVC stage)
 TUNING_ROOT = DATA_ROOT / "tuning"    # `tune`: <subject>/<variant>/<controller>.json (committed)
+TUNED_GAINS = TUNING_ROOT / "controllers.yaml"  # `tune-controllers`: gains on top of params.yaml (committed)
 
 HUMAN_XML = "human.xml"          # in model_dir: the scaled human (scale stage)
 REFERENCE_NPZ = "reference.npz"  # in model_dir: the retargeted motion and cycle (reference stage)

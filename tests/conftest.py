@@ -22,6 +22,16 @@ def params():
 
 
 @pytest.fixture(scope="session")
+def controller_specs(params):
+    """`pipeline.runs.setup.controller_specs` of params.yaml: name -> {class, gains}, params
+    `robot.controllers` with the tuned-gains file (data/tuning/controllers.yaml) on top, what a run's
+    controllers get."""
+    from pipeline.runs.setup import controller_specs as merged
+
+    return merged(params)
+
+
+@pytest.fixture(scope="session")
 def train_params(params):
     """`pipeline.runs.setup.train_params` of params.yaml: the training recipe with the scenarios'
     timing and a cohort variant's body (`train_params("weak")`)."""

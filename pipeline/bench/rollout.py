@@ -30,7 +30,7 @@ import numpy as np
 
 from pipeline.params import Params
 from pipeline.paths import PROCESSED_ROOT, human_xml
-from pipeline.runs.setup import batch_setup
+from pipeline.runs.setup import batch_setup, controller_specs
 from sim.motion.replay import Motion, ReplayHuman
 from sim.motion.synthetic import capsule_world, synthetic_walk
 from sim.robot.controllers import make_controller
@@ -59,7 +59,7 @@ def _setup(params: Params, rate_hz: float):
     else:
         spec, motion = capsule_world(walk.mass_kg, walk.pelvis_height_m), synthetic_walk(walk)
         world = "capsule"
-    ctrl = make_controller(section.controller_specs()["adaptive"], robot_info(robot))
+    ctrl = make_controller(controller_specs(params)["adaptive"], robot_info(robot))
     return spec, ReplayHuman(motion, replay), ctrl, RolloutParams(robot=robot, sample_rate_hz=rate_hz), world
 
 

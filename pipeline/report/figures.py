@@ -20,7 +20,7 @@ from metrics.plots import (
     tuning_figure,
 )
 from pipeline.paths import PAPER_FILE
-from pipeline.report.published import load_paper, paper_compliance
+from pipeline.report.published import CONTROLLER_ORDER, load_paper, paper_compliance
 from pipeline.report.queries import of
 from pipeline.runs.report_params import ReportParams
 
@@ -91,12 +91,14 @@ def subject_figures(subject: str, data: dict[str, pd.DataFrame], p: ReportParams
         "spm": lambda: spm_figure(tests, curves, f"{subject}: SPM{{{statistic}}} (alpha 0.05)"),
         "tuning": lambda: tuning_figure(tuning, f"{subject}: controller tuning, held-back objective "
                                                 "(mean, 95 % CI)"),
-        "cohort": lambda: cohort_heatmap(cohort, f"{subject}: virtual cohort with each controller"),
+        "cohort": lambda: cohort_heatmap(cohort, f"{subject}: virtual cohort with each controller",
+                                         CONTROLLER_ORDER),
         "fall_intervention": lambda: fall_intervention_figure(
-            fall, f"{subject}: scripted balance losses per controller", p.caught_drop_m),
+            fall, f"{subject}: scripted balance losses per controller", p.caught_drop_m, CONTROLLER_ORDER),
         "sensitivity": lambda: sensitivity_figure(
             sens, paper_compliance(load_paper(PAPER_FILE)),
-            f"{subject}: follow-me responsiveness, {p.paper_scenario} (mean, 95 % CI across walks)"),
+            f"{subject}: follow-me responsiveness, {p.paper_scenario} (mean, 95 % CI across walks)",
+            CONTROLLER_ORDER),
     }
     present = {"events": not events.empty, "kinematics_policy": not policy.empty,
                "tracking": not tracking.empty, "harness": not harness.empty, "tuning": not tuning.empty,

@@ -12,6 +12,7 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field, RootModel, ValidationError, model_validator
 
 from ingest.errors import GaitloopError
+from metrics.findings import Pair
 from pipeline.paths import PAPER_FILE
 
 # -- the reference paper's published values (data/paper/wang2025.yaml) --------------------------------
@@ -20,6 +21,11 @@ from pipeline.paths import PAPER_FILE
 # the tables: condition -> `real` (their recorded trials) or `sim` (their simulation) -> values.
 
 Source = Literal["real", "sim"]
+
+# The paper's two controllers: its finding is its speed-adaptive controller below its PID baseline. The
+# reports name them here, once; metrics/ takes them as data (`metrics.findings.Pair`, the plots' `order`).
+PAPER_PAIR = Pair("adaptive", "pid")
+CONTROLLER_ORDER = (PAPER_PAIR.b, PAPER_PAIR.a)  # tables and figures: the baseline first; others after
 
 
 class PaperError(GaitloopError):

@@ -19,7 +19,14 @@ from metrics.findings import (
 from metrics.plots import VARIANT_ORDER, group_label
 from metrics.quality import worst
 from pipeline.report.cells import count, falls_of, mean_sd, num, versus, walks
-from pipeline.report.published import CLINICAL_MEASURES, ClinicalRange, PaperValues, paper_compliance
+from pipeline.report.published import (
+    CLINICAL_MEASURES,
+    CONTROLLER_ORDER,
+    PAPER_PAIR,
+    ClinicalRange,
+    PaperValues,
+    paper_compliance,
+)
 from pipeline.report.tables import Table, in_order, quality_table, worst_check_text
 
 FINDING_PHASES = ("start", "steady", "stop")  # the walk_10m phases the compliance findings are read in
@@ -97,11 +104,13 @@ def findings(phases: pd.DataFrame, table2: pd.DataFrame, table3: pd.DataFrame, p
     paper_sd = {c: v["sim"] for c, v in paper.table3.items() if "sim" in v}
     sens = pd.DataFrame() if sens is None else sens
     axes = (("e_x", "mean_abs_ex_cm"), ("e_y", "mean_abs_ey_cm"))
-    regions = {axis: region_text(responsiveness_comparisons(sens, col)) for axis, col in axes if len(sens)}
+    regions = {axis: region_text(responsiveness_comparisons(sens, col, PAPER_PAIR), PAPER_PAIR)
+               for axis, col in axes if len(sens)}
     found = [*compliance_findings(phases[phases["human_mode"] == mode], scenario, FINDING_PHASES, paper_ex,
-                                  regions),
-             *speed_findings(table2[table2["sim_human_mode"] == mode], paper_speed),
-             *variability_findings(table3[table3["sim_human_mode"] == mode], paper_sd)]
+                                  regions, pair=PAPER_PAIR),
+             *speed_findings(table2[table2["sim_human_mode"] == mode], paper_speed,
+                             controllers=CONTROLLER_ORDER),
+             *variability_findings(table3[table3["sim_human_mode"] == mode], paper_sd, pair=PAPER_PAIR)]
     header = ["Finding (paper)", "Paper sim", "This simulation (a vs b)", "Verdict", "Responsiveness region"]
     table = Table(header, [[f.claim, f.paper, f.measured, f.verdict, f.region] for f in found])
     return {"mode": mode, "scenario": scenario, "table": table}
@@ -113,7 +122,7 @@ def sensitivity(sens: pd.DataFrame, paper: PaperValues, scenario: str, figure: b
     out = {"empty": sens.empty, "scenario": scenario, "figure": figure}
     if sens.empty:
         return out
-    ex, ey = (responsiveness_comparisons(sens, c) for c in ("mean_abs_ex_cm", "mean_abs_ey_cm"))
+    ex, ey = (responsiveness_comparisons(sens, c, PAPER_PAIR) for c in ("mean_abs_ex_cm", "mean_abs_ey_cm"))
     rows = [[f"{a.factor}{' (twin)' if a.twin else ''}", level_text(a.factor, a.level), versus(a), a.result,
              versus(b), b.result, f"{a.falls_pid}/{a.n} vs {a.falls_adaptive}/{a.n}"]
             for a, b in zip(ex.itertuples(index=False), ey.itertuples(index=False), strict=True)]
@@ -121,7 +130,7 @@ def sensitivity(sens: pd.DataFrame, paper: PaperValues, scenario: str, figure: b
     return {**out, "paper": cited,
             "table": Table(["Factor", "Level", "e_x pid vs adaptive (cm)", "adaptive vs pid",
                             "e_y pid vs adaptive (cm)", "adaptive vs pid", "Falls pid vs adaptive"], rows),
-            "region_ex": region_text(ex), "region_ey": region_text(ey)}
+            "region_ex": region_text(ex, PAPER_PAIR), "region_ey": region_text(ey, PAPER_PAIR)}
 
 
 def _gains(doc) -> str:

@@ -11,11 +11,11 @@ from typing import NamedTuple
 
 import pandas as pd
 
-from metrics.plots import EVENT_ORDER, ROBOT_CONDITIONS, VARIANT_ORDER, ordered
+from metrics.plots import EVENT_ORDER, VARIANT_ORDER, ordered
 from metrics.quality import NOT_COMPUTED, worst, worst_check
 from metrics.tables import by_name
 from pipeline.report.cells import falls, following, mean_sd, mode, num
-from pipeline.report.published import PaperValues
+from pipeline.report.published import CONTROLLER_ORDER, PaperValues
 from pipeline.report.queries import of
 
 
@@ -144,7 +144,7 @@ def worst_check_text(q: pd.DataFrame) -> str:
     return f"{row['stage']}/{row['check']}: {row.get('cause') or row['note'] or ''}".rstrip(": ")
 
 
-ORDERS = {"variant": VARIANT_ORDER, "event": EVENT_ORDER, "condition": ROBOT_CONDITIONS}
+ORDERS = {"variant": VARIANT_ORDER, "event": EVENT_ORDER, "condition": CONTROLLER_ORDER}
 
 
 def in_order(df: pd.DataFrame, *columns: str) -> pd.DataFrame:

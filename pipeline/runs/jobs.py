@@ -8,6 +8,7 @@ build their rollouts here.
 
 from __future__ import annotations
 
+import hashlib
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -35,6 +36,12 @@ def require_inputs(*files: Path, what: str) -> None:
     for f in files:
         if not f.exists():
             raise SimulationError(f, f"missing input of {what} (run the stage that makes it)")
+
+
+def policy_digest(folder: Path) -> str:
+    """sha256 (16 hex) of the policy file in `folder`: which policy a result (a sweep job, a tuning)
+    came from."""
+    return hashlib.sha256((folder / "policy.zip").read_bytes()).hexdigest()[:16]
 
 
 def replay_setup(subject: str, params: Params, root: Path = paths.PROCESSED_ROOT) -> BatchSetup:

@@ -1,16 +1,21 @@
 """Library settings that combine several params sections: a training recipe with the scenarios'
 transition timing, the harness's yaw spring and a cohort variant's body (`train_params`), a cohort
-variant (`variant`, `fine_tune_steps`) and the rollout batch runner's world (`batch_setup`)."""
+variant (`variant`, `fine_tune_steps`), the controllers with their tuned gains (`controller_specs`:
+params `robot.controllers` with the tuned-gains file on top) and the rollout batch runner's world
+(`batch_setup`)."""
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ingest.process import IngestParams
-from pipeline.params import Params
+from pipeline.params import Params, ParamsError
+from pipeline.runs.tuned_gains import read_tuned
 from sim.body.variant import HEALTHY, CohortSection, Variant
+from sim.robot.controllers.specs import TUNED
 from sim.robot.harness import HarnessParams
 from sim.robot.section import RobotSection
 from sim.rollout.batch import BatchSetup, DriverSource
@@ -19,6 +24,8 @@ from sim.rollout.section import RolloutSection
 
 if TYPE_CHECKING:
     from sim.learn.train import TrainParams
+
+SearchBoxes = dict[str, dict[str, tuple[float, float]]]  # params `tune.search`: controller -> gain -> box
 
 
 def variant(params: Params, name: str) -> Variant:
@@ -56,6 +63,28 @@ def batch_setup(params: Params, subject: str, markerset: dict[str, str], human_x
     """What the rollout batch runner needs for `subject`'s world: robot, controllers, the rollout's
     physics step and start offset, and the ingest params that process its trials."""
     r, robot = params.section("rollout", RolloutSection), params.section("robot", RobotSection)
-    return BatchSetup(str(human_xml), subject, dict(markerset), robot.build(), robot.controller_specs(),
+    return BatchSetup(str(human_xml), subject, dict(markerset), robot.build(), controller_specs(params),
                       params.section("ingest", IngestParams), r.max_physics_dt_s, r.start_offset_m, drivers,
                       process, r.stop_after_fall_s)
+
+
+def controller_specs(params: Params, search: Mapping[str, Mapping[str, object]] | None = None
+                     ) -> dict[str, dict]:
+    """name -> {class, gains}: params `robot.controllers` with the tuned-gains file (`params.tuned_file`,
+    data/tuning/controllers.yaml) on top, every controller's gains, `robot.tuning.initial` and `search`
+    (params `tune.search`) checked against its class's declared gains (`RobotSection.merged_specs`). A
+    problem raises `ParamsError` naming its file and key path, e.g. `params.yaml:
+    robot.controllers.pid.gains.kp_xx: unknown gain of PID ...` (those of the first file with one)."""
+    robot = params.section("robot", RobotSection)
+    specs, problems = robot.merged_specs(read_tuned(params.tuned_file), search)
+    if problems:
+        source = problems[0][0]
+        raise ParamsError(params.tuned_file if source == TUNED else params.path,
+                          "; ".join(p for s, p in problems if s == source))
+    return specs
+
+
+def check_controllers(params: Params) -> None:
+    """`controller_specs` with params `tune.search` checked too: run by `pipeline.params.checked`
+    (`check-params`, `make run`), so a bad gain in either file fails before any stage runs."""
+    controller_specs(params, params.section("tune.search", SearchBoxes))

@@ -52,6 +52,7 @@ from pipeline.paths import (
     sim_policy_dir,
     subject_dir,
 )
+from pipeline.runs.tuned_gains import tuned_document
 from pipeline.stages.ingest import read_ingested
 from pipeline.stages.outputs import read_json, write_outputs
 
@@ -64,8 +65,9 @@ NON_RESULT_SECTIONS = ("subjects", "quality", "store", "report", "ray", "sweep",
 
 def params_hash(params: Params) -> str:
     """sha256 (16 hex) of the result-shaping params sections, in a canonical JSON form (that of the
-    params.yaml document: the same file gives the same hash)."""
-    document = params.document()
+    params.yaml document, its controllers' gains with the tuned-gains file's on top: the same files
+    give the same hash, and other tuned gains another)."""
+    document = tuned_document(params)
     doc = {k: document[k] for k in sorted(document) if k not in NON_RESULT_SECTIONS}
     return hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()[:16]
 

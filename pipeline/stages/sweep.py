@@ -7,9 +7,10 @@ Each job is one policy-human rollout, a pure function of (subject, variant and i
 condition and its gains, scenario, event and its definition, seed, params hash); its key is the hash
 of exactly those, so a job that ran (or was retried after its worker died) gives the same row, a
 rerun with nothing changed runs nothing, and a retrained policy reruns its jobs. Jobs run as Ray
-tasks (`sim.rollout.cluster`: local, or the cluster of `RAY_ADDRESS`) on the batch runner's
-worker (`sim.rollout.batch.Worker`); a task is retried `ray.max_retries` times, whether its worker
-died or it raised, and a job that still fails is reported with its error while the rest completes.
+tasks (`sim.rollout.batch.dispatch`, the one Ray dispatch; `sim.rollout.cluster`: local, or the cluster
+of `RAY_ADDRESS`) on the batch runner's worker (`sim.rollout.batch.Worker`); a task is retried
+`ray.max_retries` times, whether its worker died or it raised, and a job that still fails is reported
+with its error while the rest completes.
 
 Outputs in `<root>/<study>/` (root: data/sweeps): `jobs/<key>.parquet` (one row per finished job,
 written as results come back: an interrupted study resumes where it stopped), `results.parquet`
@@ -40,7 +41,8 @@ from metrics.gait_symmetry import symmetry_row
 from metrics.outcomes import run_row
 from pipeline import paths
 from pipeline.params import Params
-from pipeline.runs.jobs import policy_setup
+from pipeline.runs.jobs import policy_digest, policy_setup
+from pipeline.runs.setup import controller_specs
 from pipeline.runs.studies import (
     NO_EVENT,
     FallInterventionSection,
@@ -55,8 +57,8 @@ from sim.errors import SimulationError
 from sim.learn.policy_human import PolicyWalk
 from sim.robot.responsiveness import Responsiveness, for_controller, twin_responsiveness, with_responsiveness
 from sim.robot.section import RobotSection
-from sim.rollout.batch import BatchSetup, RolloutJob, Worker
-from sim.rollout.cluster import cached_worker, completed, connect
+from sim.rollout.batch import RolloutJob, Worker, dispatch
+from sim.rollout.cluster import connect
 
 ROLLOUT_SECTIONS = ("ingest", "metrics", "robot", "rollout", "human", "train", "evaluate_policy", "scenarios",
                     "cohort")
@@ -113,11 +115,6 @@ def rollout_params_hash(params: Params) -> str:
     return hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
 
-def policy_digest(folder: Path) -> str:
-    """sha256 (16 hex) of the policy file in `folder`: which policy a result came from."""
-    return hashlib.sha256((folder / "policy.zip").read_bytes()).hexdigest()[:16]
-
-
 def study_params(params: Params, study: str | None = None) -> SweepSection:
     """The study named `study`: params `sweep` (default), `fall_intervention` or `sensitivity`."""
     sweep, fall = params.section("sweep", SweepSection), params.section("fall_intervention",
@@ -155,7 +152,7 @@ def sweep_jobs(params: Params, policy_root: Path = paths.POLICIES_ROOT,
     """The study's jobs (default params `sweep`), grouped by subject; and notes on what was left out
     (a subject without a trained policy, a variant without its fine-tuned policy)."""
     sw = sw or params.section("sweep", SweepSection)
-    controllers = params.section("robot", RobotSection).controller_specs()
+    controllers = controller_specs(params)
     if isinstance(sw, SensitivitySection):
         jobs, _, notes = sensitivity_jobs(params, policy_root, sw)
         return jobs, notes
@@ -183,8 +180,7 @@ def sensitivity_jobs(params: Params, policy_root: Path = paths.POLICIES_ROOT,
     (factor, level) cell it belongs to; `twin`: the job's robot is the twin's.
     """
     sw = sw or params.section("sensitivity", SensitivitySection)
-    section = params.section("robot", RobotSection)
-    robot, controllers = section.build(), section.controller_specs()
+    robot, controllers = params.section("robot", RobotSection).build(), controller_specs(params)
     twin = twin_responsiveness(robot)
     digest = rollout_params_hash(params)
     cells: list[tuple[str, float, Responsiveness]] = []
@@ -267,12 +263,6 @@ def error_text(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {message[:300]}"
 
 
-@ray.remote(num_cpus=1)
-def _run_remote(setup: BatchSetup, job: SweepJob, exclude_locked: bool,
-                fall_rule: FallRuleParams | None = None) -> dict:
-    return job_row(cached_worker(setup, Worker), job, exclude_locked, fall_rule)
-
-
 def run_sweep(params: Params, root: Path = paths.SWEEPS_ROOT, policy_root: Path = paths.POLICIES_ROOT,
               progress: bool = True, on_result: Callable[[SweepJob], None] | None = None,
               study: str | None = None) -> dict:
@@ -296,13 +286,11 @@ def run_sweep(params: Params, root: Path = paths.SWEEPS_ROOT, policy_root: Path 
     if todo:
         connect(ray_params.num_cpus)
         bodies = dict.fromkeys((j.subject, j.variant) for j in todo)
-        setups = {(s, v): ray.put(policy_setup(s, params, policy_root=policy_root, variant=v))
-                  for s, v in bodies}
-        task = _run_remote.options(max_retries=ray_params.max_retries, retry_exceptions=True)
-        refs = {task.remote(setups[j.subject, j.variant], j, exclude, fall_rule): j
-                for j in todo}
-        for ref in completed(list(refs), f"sweep {sw.study}", progress):
-            job = refs[ref]
+        setups = {(s, v): policy_setup(s, params, policy_root=policy_root, variant=v) for s, v in bodies}
+        tasks = [(setups[j.subject, j.variant], j, (exclude, fall_rule)) for j in todo]
+        for i, ref in dispatch(tasks, job_row, ray_params.max_retries, retry_exceptions=True,
+                               desc=f"sweep {sw.study}", progress=progress):
+            job = todo[i]
             try:
                 write_outputs(job_dir, {job.key: pd.DataFrame([ray.get(ref)])}, {})
             except Exception as exc:  # retried already: report it, finish the rest

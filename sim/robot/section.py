@@ -1,14 +1,17 @@
 """The `robot` section of params.yaml: the MRBA (`sim.robot.mrba.RobotParams`, its parts' defaults
-and units there), the controllers with their gains (`robot.controllers`: name -> {class, gains}) and the
-synthetic-walk gain tuning (`robot.tuning`)."""
+and units there), the controllers with their design-constant gains (`robot.controllers`: name -> {class,
+gains}; the searched gains are in the tuned-gains file, merged on top and checked against each class's
+declared gains by `RobotSection.merged_specs`) and the synthetic-walk gain tuning (`robot.tuning`)."""
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Annotated
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field
 
 from sim.motion.synthetic import WalkParams
+from sim.robot.controllers.specs import controller_specs
 from sim.robot.harness import HarnessParams
 from sim.robot.mrba import ArmParams, BaseParams, FallParams, RobotParams, SensorParams
 from sim.rollout.tuning import TuningParams
@@ -36,27 +39,15 @@ class TuningSchema(Schema):
 
 
 class ControllerSchema(Schema):
+    """A `robot.controllers` entry: its class and the gains params.yaml sets (the design constants; the
+    searched gains are in the tuned-gains file), checked against the class's declared gains with the
+    tuned gains on top by `RobotSection.merged_specs`."""
+
     class_: str = Field(alias="class")  # registry name or package.module:Class
     gains: dict[str, float]
 
-    @model_validator(mode="after")
-    def _gains_fit_the_class(self) -> ControllerSchema:
-        """The gains its class needs and reads (`Controller.gain_problems`); a class that does not
-        resolve here (registered later) is left to `make_controller`."""
-        from sim.errors import SimulationError
-        from sim.robot.controllers import resolve
-
-        try:
-            cls = resolve(self.class_)
-        except SimulationError:
-            return self
-        problem = cls.gain_problems(self.gains)
-        if problem:
-            raise ValueError(f"gains: {problem}")
-        return self
-
     def spec(self) -> dict:
-        """The {class, gains} dict `sim.robot.controllers.make_controller` takes."""
+        """The {class, gains} entry as params.yaml has it (`merged_specs`: with the tuned gains)."""
         return {"class": self.class_, "gains": dict(self.gains)}
 
 
@@ -75,6 +66,14 @@ class RobotSection(Schema):
     def build(self) -> RobotParams:
         return RobotParams(self.base, self.arm, self.harness, self.fall, self.sensors)
 
-    def controller_specs(self) -> dict[str, dict]:
-        """`robot.controllers`: name -> {class, gains}."""
-        return {name: c.spec() for name, c in self.controllers.items()}
+    def merged_specs(self, tuned: Mapping[str, Mapping[str, float]],
+                     search: Mapping[str, Mapping[str, object]] | None = None
+                     ) -> tuple[dict[str, dict], list[tuple[str, str]]]:
+        """name -> {class, gains}: `controllers` with `tuned` (the tuned-gains file's gains: controller
+        -> {gain: value}) on top; and the problems of checking every controller's gains, the tuning's
+        start values (`tuning.initial`) and `search` (params `tune.search`: controller -> gain -> box)
+        against its class's declared gains, each (source: `PARAMS` or `TUNED`, ``key.path: problem``),
+        the key path from params.yaml's root (``robot.controllers.pid.gains.kp_x``) or the tuned
+        file's (``pid.kp_x``): `sim.robot.controllers.specs.controller_specs`."""
+        entries = {name: c.spec() for name, c in self.controllers.items()}
+        return controller_specs(entries, tuned, self.tuning.initial, search or {})

@@ -6,7 +6,8 @@ subject's world once (`Worker`): the MuJoCo spec, the human model for virtual ma
 driver source (`DriverSource.open`: the replay reference or the trained policy). Per job it builds
 the driver and the controller, runs `sim.rollout.loop.rollout`, and turns the human's motion into a
 canonical sim `Trial` through the virtual markers, processed by `ingest.process.process_trial`
-exactly like a real trial. Parallel jobs run as Ray tasks (`BatchRunner`, `sim.rollout.cluster`).
+exactly like a real trial. Parallel jobs run as Ray tasks through `dispatch`, the one Ray dispatch of
+the project (`BatchRunner` here, the sweep, the per-subject tuning; `sim.rollout.cluster`).
 Simulate (replay human), policy rollouts, render, sweeps and the rollout bench all run here, so
 every rollout of the project is set up one way.
 """
@@ -14,7 +15,7 @@ every rollout of the project is set up one way.
 from __future__ import annotations
 
 import copy
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
@@ -216,16 +217,48 @@ def reference_cycles(model: mujoco.MjModel, reference: Reference, subject: str, 
 
 
 @ray.remote(num_cpus=1)
-def run_job(setup: BatchSetup, job: RolloutJob) -> RolloutOutcome:
-    """One job in a Ray worker, on the worker's cached open world of `setup`."""
-    return cached_worker(setup, Worker).run(job)
+def _call(setup: BatchSetup, fn: Callable[..., Any], job: Any, args: tuple) -> Any:
+    """`fn(worker, job, *args)` in a Ray worker, on the worker's cached open world of `setup`."""
+    return fn(cached_worker(setup, Worker), job, *args)
+
+
+def dispatch(tasks: Iterable[tuple[Any, Any, tuple]], fn: Callable[..., Any], max_retries: int = 1,
+             retry_exceptions: bool = False, desc: str = "rollouts", progress: bool = False
+             ) -> Iterator[tuple[int, ray.ObjectRef]]:
+    """The one Ray dispatch of the project's rollouts: ``fn(worker, job, *args)`` for each task
+    ``(setup, job, args)`` as a Ray task on that worker process's open world of `setup`
+    (`cached_worker`; each distinct setup object is put in Ray's object store once, an `ObjectRef`
+    is taken as is). Yields (index of the task, its result's reference) as each task finishes, with a
+    progress bar: `ray.get` of the reference returns the result or raises the task's error. A task
+    whose worker died is retried `max_retries` times; with `retry_exceptions` so is one that raised.
+    Connect first (`sim.rollout.cluster.connect`). `fn` must be importable (a module-level function)."""
+    refs_of: dict[int, tuple[Any, Any]] = {}
+    task = _call.options(max_retries=int(max_retries), retry_exceptions=bool(retry_exceptions))
+    refs = []
+    for setup, job, args in tasks:
+        if not isinstance(setup, ray.ObjectRef):
+            if id(setup) not in refs_of:
+                refs_of[id(setup)] = (setup, ray.put(setup))  # the setup kept: its id stays its own
+            setup = refs_of[id(setup)][1]
+        refs.append(task.remote(setup, fn, job, tuple(args)))
+    index = {ref: i for i, ref in enumerate(refs)}
+    for ref in completed(refs, desc, progress):
+        yield index[ref], ref
+
+
+def dispatch_all(tasks: Iterable[tuple[Any, Any, tuple]], fn: Callable[..., Any], max_retries: int = 1,
+                 retry_exceptions: bool = False, desc: str = "rollouts", progress: bool = False) -> list:
+    """`dispatch`'s results in task order (the first failed task's error raises)."""
+    refs = [ref for _, ref in sorted(dispatch(tasks, fn, max_retries, retry_exceptions, desc, progress),
+                                     key=lambda pair: pair[0])]
+    return ray.get(refs)
 
 
 class BatchRunner:
     """Runs jobs of one `BatchSetup`: in this process with `workers <= 1`, else as Ray tasks on
-    `workers` CPUs of a local Ray instance (or the cluster of `RAY_ADDRESS`; `sim.rollout.cluster`).
-    A task whose worker died is retried `max_retries` times (a job is a pure function of its
-    inputs); an exception a job raises is not retried and propagates."""
+    `workers` CPUs of a local Ray instance (or the cluster of `RAY_ADDRESS`; `sim.rollout.cluster`),
+    through `dispatch`. A task whose worker died is retried `max_retries` times (a job is a pure
+    function of its inputs); an exception a job raises is not retried and propagates."""
 
     def __init__(self, setup: BatchSetup, workers: int = 1, max_retries: int = 1) -> None:
         self.setup, self.workers, self.max_retries = setup, max(1, int(workers)), int(max_retries)
@@ -249,11 +282,8 @@ class BatchRunner:
         jobs = list(jobs)
         if self._setup_ref is None:
             return [self._local.run(job) for job in tqdm(jobs, desc=desc, disable=not progress)]
-        task = run_job.options(max_retries=self.max_retries)
-        refs = [task.remote(self._setup_ref, job) for job in jobs]
-        for _ in completed(refs, desc, progress):
-            pass
-        return ray.get(refs)
+        return dispatch_all([(self._setup_ref, job, ()) for job in jobs], Worker.run, self.max_retries,
+                            desc=desc, progress=progress)
 
 
 def run_batch(setup: BatchSetup, jobs: Iterable[RolloutJob], workers: int = 1, desc: str = "rollouts",
@@ -277,4 +307,4 @@ def batch_tables(outcomes: Iterable[RolloutOutcome]) -> dict[str, pd.DataFrame]:
 
 
 __all__ = ["BatchRunner", "BatchSetup", "DriverSource", "HumanRun", "RolloutJob", "RolloutOutcome", "Worker",
-           "batch_tables", "process_motion", "reference_cycles", "run_batch"]
+           "batch_tables", "dispatch", "dispatch_all", "process_motion", "reference_cycles", "run_batch"]

@@ -1,9 +1,11 @@
 """Fair controller tuning: one procedure, one budget, one synthetic walk for every controller.
 
-Each controller's free gains are searched by `scipy.optimize.minimize` (Nelder-Mead by default) with
-the same number of rollouts, the same initial-simplex size (half a decade per gain, in log10 space,
-so gains stay positive), the same seed and the same robot (command limits, latency, acceleration
-limits are the robot's, identical for all). The walks are `sim.motion.synthetic` (start from rest, then a
+Each controller's searched gains (those its class declares with a `search` scale,
+`sim.robot.controllers.gains`) are searched by `scipy.optimize.minimize` (Nelder-Mead by default) with
+the same number of rollouts, the same initial-simplex size (half a decade per gain, in log10 space:
+a `log` gain is searched as its log10, so it stays positive, a `linear` one is a log10 already), the
+same seed and the same robot (command limits, latency, acceleration limits are the robot's, identical
+for all). The walks are `sim.motion.synthetic` (start from rest, then a
 constant pace with intra-stride oscillation): a normal pace (1.2 m/s, +-0.05 m/s surge at step
 frequency, +-0.03 m/s at stride frequency) and a fast one (1.6 m/s, +-0.15 and +-0.06 m/s), so that
 gains which only work for one gentle, perfectly symmetric gait are not chosen (a first version tuned
@@ -33,15 +35,11 @@ import scipy  # scipy.optimize loads on first use
 
 from sim.motion.replay import ReplayHuman, ReplayParams
 from sim.motion.synthetic import WalkParams, capsule_world, synthetic_walk
-from sim.robot.controllers import make_controller
-from sim.robot.controllers.adaptive import GAINS as ADAPTIVE_GAINS
-from sim.robot.controllers.pid import GAINS as PID_GAINS
+from sim.robot.controllers import make_controller, resolve
+from sim.robot.controllers.gains import searched
 from sim.robot.mrba import BaseParams, RobotParams
 from sim.rollout.loop import RolloutParams, RolloutResult, rollout
 from sim.rollout.world import build_world, robot_info
-
-# Gains searched per controller class, and whether they are stored as log10 already.
-SEARCHED = {"pid": (PID_GAINS, False), "adaptive": (ADAPTIVE_GAINS, True)}
 
 
 @dataclass(frozen=True)
@@ -109,14 +107,19 @@ def score(result: RolloutResult, force_weight_m_per_n: float, base: BaseParams |
     return float(j), m
 
 
-def _to_x(gains: dict, names: tuple[str, ...], is_log: bool) -> np.ndarray:
-    v = np.array([float(gains[n]) for n in names])
-    return v if is_log else np.log10(v)
+def _to_x(gains: dict, scales: dict[str, str]) -> np.ndarray:
+    """The search coordinates of `gains`: log10 of a gain searched on a log scale, the value itself
+    of one searched linearly (a log10 already), per the controller's declaration."""
+    x = np.array([float(gains[n]) for n in scales])
+    log = np.array([s != "linear" for s in scales.values()], dtype=bool)
+    x[log] = np.log10(x[log])
+    return x
 
 
-def _to_gains(x: np.ndarray, base: dict, names: tuple[str, ...], is_log: bool) -> dict:
+def _to_gains(x: np.ndarray, base: dict, scales: dict[str, str]) -> dict:
     out = dict(base)
-    out.update({n: float(v if is_log else 10.0**v) for n, v in zip(names, x, strict=True)})
+    out.update({n: float(v if s == "linear" else 10.0**v)
+                for (n, s), v in zip(scales.items(), x, strict=True)})
     return out
 
 
@@ -138,7 +141,7 @@ def evaluate(spec: dict, robot: RobotParams, replay: ReplayParams, p: TuningPara
 
 def tune(name: str, spec: dict, robot: RobotParams, replay: ReplayParams, p: TuningParams) -> TuningResult:
     """Search the gains of controller `name` (class in `spec`) from `spec['gains']` within the budget."""
-    names, is_log = SEARCHED[spec["class"]]
+    scales = {n: g.search for n, g in searched(resolve(spec["class"])).items()}  # the declared search
     rp = RolloutParams(robot=robot, sample_rate_hz=p.sample_rate_hz)
     cases = []
     for walk in p.walks:
@@ -149,7 +152,7 @@ def tune(name: str, spec: dict, robot: RobotParams, replay: ReplayParams, p: Tun
     base = dict(spec.get("gains", {}))
 
     def cost(x: np.ndarray) -> float:
-        gains = _to_gains(x, base, names, is_log)
+        gains = _to_gains(x, base, scales)
         js = []
         for world, human, model in cases:
             ctrl = make_controller({"class": spec["class"], "gains": gains}, info)
@@ -157,7 +160,7 @@ def tune(name: str, spec: dict, robot: RobotParams, replay: ReplayParams, p: Tun
             js.append(score(result, p.force_weight_m_per_n, robot.base, p.limit_weight_m)[0])
         return float(np.mean(js))
 
-    x0 = _to_x(base, names, is_log)
+    x0 = _to_x(base, scales)
     start = time.perf_counter()
     j0 = cost(x0)
     simplex = np.vstack([x0, x0 + 0.5 * np.eye(len(x0))])
@@ -165,7 +168,7 @@ def tune(name: str, spec: dict, robot: RobotParams, replay: ReplayParams, p: Tun
     if p.method == "Nelder-Mead":
         options["initial_simplex"] = simplex
     res = scipy.optimize.minimize(cost, x0, method=p.method, options=options)
-    gains = _to_gains(res.x, base, names, is_log)
+    gains = _to_gains(res.x, base, scales)
     j, metrics = evaluate({"class": spec["class"], "gains": gains}, robot, replay, p)
     return TuningResult(name=name, gains=gains, objective=j, initial_objective=j0,
                         n_evaluations=int(res.nfev) + 1, wall_s=time.perf_counter() - start, metrics=metrics)

@@ -56,6 +56,6 @@ def test_a_finding_without_an_interval_is_not_judged(one_stride):
         g = gait_table(left.assign(condition=condition)).iloc[0]
         rows.append({"condition": condition, "sim_gait_speed_mps_mean": g["gait_speed_mps_mean"],
                      "sim_gait_speed_mps_sd": g["gait_speed_mps_sd"], "sim_n_strides": g["n_strides"]})
-    findings = speed_findings(pd.DataFrame(rows), {})
+    findings = speed_findings(pd.DataFrame(rows), {}, controllers=("pid", "adaptive"))
     assert all(f.result == NO_INTERVAL and f.verdict.startswith("n/a") for f in findings)
     assert compare(1.0, np.nan, 2.0, 0.1) == NO_INTERVAL and compare(1.0, 0.0, 2.0, 0.0) == "lower"

@@ -13,6 +13,9 @@ from ingest.process import IngestParams, process_subject
 from ingest.subject import load_subject
 from metrics.section import MetricsParams
 from pipeline.params import PARAMS_FILE, load_params, parse_params
+from pipeline.paths import TUNED_GAINS
+from pipeline.runs.setup import controller_specs
+from pipeline.runs.tuned_gains import read_tuned, write_tuned
 from pipeline.stages.metrics import NON_RESULT_SECTIONS, compute, headline, params_hash
 
 
@@ -50,11 +53,15 @@ def test_real_subjects_metrics(real_tables):
     }
 
 
-def test_params_hash_ignores_only_non_result_sections():
+def test_params_hash_ignores_only_non_result_sections(tmp_path):
     params = load_params()
     base = params_hash(params)
-    # the hash of the params.yaml document as written: stored versions keep matching the same file
+    # the hash of the params.yaml document as written, its controllers' gains with the tuned-gains file's
+    # on top: stored versions keep matching the same files
     raw = yaml.safe_load(PARAMS_FILE.read_text())
+    tuned = read_tuned(TUNED_GAINS)
+    for name, entry in raw["robot"]["controllers"].items():
+        entry["gains"] = {**entry["gains"], **tuned.get(name, {})}
     raw = {k: raw[k] for k in sorted(raw) if k not in NON_RESULT_SECTIONS}
     assert base == hashlib.sha256(json.dumps(raw, sort_keys=True, default=str).encode()).hexdigest()[:16]
     doc = params.document()
@@ -63,5 +70,9 @@ def test_params_hash_ignores_only_non_result_sections():
     changed = {**doc, "metrics": {**doc["metrics"], "pool_sides": not doc["metrics"]["pool_sides"]}}
     assert params_hash(parse_params(changed)) != base
     # a new controller counts without editing NON_RESULT_SECTIONS
-    doc["robot"]["controllers"]["pid2"] = doc["robot"]["controllers"]["pid"]
+    doc["robot"]["controllers"]["pid2"] = controller_specs(params)["pid"]
     assert params_hash(parse_params(doc)) != base
+    # so do other tuned gains (they live in the tuned-gains file, not in params.yaml)
+    tuned["pid"] = {**tuned["pid"], "kp_x": 2 * tuned["pid"]["kp_x"]}
+    write_tuned(tmp_path / "controllers.yaml", tuned)
+    assert params_hash(parse_params(params.document(), tuned=tmp_path / "controllers.yaml")) != base

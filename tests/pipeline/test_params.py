@@ -4,6 +4,7 @@ name the file and the key path, the CLI turns them into one line; the paths of p
 from __future__ import annotations
 
 import pickle
+import re
 from pathlib import Path
 
 import pytest
@@ -30,6 +31,7 @@ from pipeline.paths import (
     REPO_ROOT,
     REPORTS_ROOT,
     STORE_FILE,
+    TUNED_GAINS,
     human_xml,
     model_dir,
     real_dir,
@@ -40,7 +42,8 @@ from pipeline.paths import (
     sim_dir,
     sim_policy_dir,
 )
-from pipeline.runs.setup import fine_tune_steps, train_params, variant
+from pipeline.runs.setup import controller_specs, fine_tune_steps, train_params, variant
+from pipeline.runs.tuned_gains import read_tuned, write_tuned
 from sim.body.variant import HEALTHY, CohortSection
 from sim.motion.reference import ReferenceParams
 from sim.rollout.scenarios import ScenariosSection
@@ -102,11 +105,19 @@ def test_every_key_of_params_yaml_is_read_and_kept(params):
     # issue 34 case 14: these passed the check and failed seconds later as raw tracebacks (KeyError: 'kp_x')
     (lambda d: d["ingest"]["filter"].update(cutoff_hz=-6.0),
      r"params\.yaml: ingest\.filter\.cutoff_hz: Input should be greater than 0 \(got -6\.0\)$"),
-    (lambda d: (gains := d["robot"]["controllers"]["pid"]["gains"]).update(kp_xx=gains.pop("kp_x")),
-     r"params\.yaml: robot\.controllers\.pid: gains: missing gain\(s\) 'kp_x'; unknown gain\(s\) 'kp_xx' "
-     r"\(PID takes kp_x, ki_x, kd_x, kp_y, ki_y, kd_y; optional i_max\)$"),
-    (lambda d: d["robot"]["controllers"]["adaptive"]["gains"].pop("log_r_y"),
-     r"params\.yaml: robot\.controllers\.adaptive: gains: missing gain\(s\) 'log_r_y' \(Adaptive takes "),
+    (lambda d: d["robot"]["controllers"]["pid"]["gains"].update(kp_xx=1.0),
+     r"params\.yaml: robot\.controllers\.pid\.gains\.kp_xx: unknown gain of PID \(it takes kp_x, ki_x, kd_x, "
+     r"kp_y, ki_y, kd_y, i_max\)$"),
+    (lambda d: d["robot"]["controllers"]["pid"]["gains"].update(i_max=-0.1),
+     r"params\.yaml: robot\.controllers\.pid\.gains\.i_max: -0\.1 outside \[0, inf\] \(integrator clamp "),
+    (lambda d: d["robot"]["controllers"]["adaptive"]["gains"].update(comb_compensaton=1.0),
+     r"params\.yaml: robot\.controllers\.adaptive\.gains\.comb_compensaton: unknown gain of Adaptive "),
+    (lambda d: d["robot"]["tuning"]["initial"]["pid"].update(i_max=0.1),
+     r"params\.yaml: robot\.tuning\.initial\.pid\.i_max: not a searched gain of PID \(searched: kp_x, "),
+    (lambda d: d["tune"]["search"]["adaptive"].update(log_q_e=[0.0, 1.0]),
+     r"params\.yaml: tune\.search\.adaptive\.log_q_e: not a searched gain of Adaptive "),
+    (lambda d: d["tune"]["search"]["pid"].update(kp_x=[-1.0, 20.0]),
+     r"params\.yaml: tune\.search\.pid\.kp_x: \[-1\.0, 20\.0\] outside the declared bounds \[0, inf\]$"),
     # these passed the check before: a count of seeds below 1, a physics step of 0, a negative offset
     (lambda d: d["rollout"].update(n_seeds=-3),
      r"params\.yaml: rollout\.n_seeds: Input should be greater than or equal to 1 \(got -3\)$"),
@@ -191,15 +202,61 @@ def test_cli_bad_params_is_one_line_error(tmp_path, capsys):
     assert main(["check-params"]) == 0
 
 
-def test_tuned_gains_written_to_the_file_load_back(tmp_path, params):
-    path = tmp_path / "params.yaml"
-    path.write_text(PARAMS_FILE.read_text())  # the real text: comments and layout as write_gains meets them
-    gains = {"kp_x": 1.5, "ki_x": 2.0, "kd_x": 0.25, "kp_y": 3.0, "ki_y": 0.5, "kd_y": 0.75, "i_max": 0.1}
-    write_gains(path, {"controllers": {"pid": {"gains": gains}}})
-    tuned = check_params(path)
-    assert tuned.robot.controllers["pid"].gains == gains
-    assert tuned.robot.controllers["adaptive"] == params.robot.controllers["adaptive"]
-    assert tuned.robot.controller_specs()["pid"] == {"class": "pid", "gains": gains}
+def test_tuned_gains_file_is_read_on_top_of_params(tmp_path, params):
+    tuned = tmp_path / "controllers.yaml"
+    gains = {"kp_x": 1.5, "ki_x": 2.0, "kd_x": 0.25, "kp_y": 3.0, "ki_y": 0.5, "kd_y": 0.75}
+    write_tuned(tuned, {"pid": gains, "adaptive": read_tuned(TUNED_GAINS)["adaptive"]}, "a test's")
+    assert read_tuned(tuned)["pid"] == gains
+    loaded = load_params(PARAMS_FILE, tuned)
+    assert loaded.tuned_file == tuned and params.tuned_file == TUNED_GAINS
+    assert controller_specs(loaded)["pid"] == {"class": "pid", "gains": {**gains, "i_max": 0.1}}
+    assert controller_specs(loaded)["adaptive"] == controller_specs(params)["adaptive"]
+    assert loaded.document() == params.document()  # params.yaml's own text is untouched by tuning
+    assert check_params(PARAMS_FILE, tuned).tuned_file == tuned
+    # a gain is set in one place: in params.yaml too it would be silently overridden, so it is an error
+    document = doc()
+    document["robot"]["controllers"]["pid"]["gains"]["kp_x"] = 99.0
+    with pytest.raises(ParamsError, match=r"robot\.controllers\.pid\.gains\.kp_x: also set in the "
+                                          r"tuned-gains file \(1\.5 there, 99\.0 here\)"):
+        controller_specs(parse_params(document, PARAMS_FILE, tuned))
+
+
+def test_tune_controllers_writes_results_not_params(tmp_path, params):
+    """`tune-controllers` writes the searched gains to the tuned-gains file; params.yaml is not edited."""
+    path = tmp_path / "controllers.yaml"
+    path.write_text(TUNED_GAINS.read_text())
+    before = PARAMS_FILE.read_text()
+    gains = {"kp_x": 1.5, "ki_x": 2.0, "kd_x": 0.25, "kp_y": 3.0, "ki_y": 0.5, "kd_y": 0.75}
+    write_gains(path, {"controllers": {"pid": {"class": "pid", "gains": {**gains, "i_max": 0.1}}}}, params)
+    assert read_tuned(path) == {**read_tuned(TUNED_GAINS), "pid": gains}  # searched gains only, adaptive kept
+    assert path.read_text().startswith("# The follow-me controllers' tuned gains")
+    assert controller_specs(load_params(PARAMS_FILE, path))["pid"]["gains"] == {**gains, "i_max": 0.1}
+    assert PARAMS_FILE.read_text() == before
+
+
+@pytest.mark.parametrize(("tuned", "path", "message"), [
+    ({"pid": {"kp_x": 1.0}}, "params",
+     r"robot\.controllers\.pid\.gains\.ki_x: missing: required gain of PID \(forward speed per integrated "
+     r"forward deflection, 1/s\^2\), given neither"),
+    ({"lqr": {"k": 1.0}}, "tuned", r"lqr: no controller 'lqr' in robot\.controllers"),
+    ({"pid": {"kp_x": "fast"}}, "tuned", r"pid\.kp_x: expected a number \(got 'fast'\)"),
+])
+def test_tuned_gains_file_errors_name_the_file_and_key(tmp_path, tuned, path, message):
+    """A stage reading the controllers (`controller_specs`) and `check-params` report them alike."""
+    file = tmp_path / "controllers.yaml"
+    file.write_text(yaml.safe_dump({**read_tuned(TUNED_GAINS), **tuned}))
+    where = {"params": PARAMS_FILE, "tuned": file}[path]
+    with pytest.raises(ParamsError, match=rf"^{re.escape(str(where))}: {message}"):
+        controller_specs(load_params(PARAMS_FILE, file))
+    with pytest.raises(ParamsError, match=rf"^{re.escape(str(where))}: {message}"):
+        check_params(PARAMS_FILE, file)
+
+
+def test_a_bad_tuned_gains_file_names_itself(tmp_path):
+    file = tmp_path / "controllers.yaml"
+    file.write_text("- pid\n")
+    with pytest.raises(ParamsError, match=rf"^{re.escape(str(file))}: expected controller name -> "):
+        check_params(PARAMS_FILE, file)
 
 
 def test_paths_build_the_documented_layout(params):

@@ -108,7 +108,7 @@ def texts(ax) -> list[str]:
 
 
 def test_cohort_heatmap_has_one_panel_and_colour_scale_per_metric():
-    fig = cohort_heatmap(controllers_frame(), "s1: cohort")
+    fig = cohort_heatmap(controllers_frame(), "s1: cohort", ("pid", "adaptive"))  # the caller's order
     panels = panel_axes(fig)
     assert [ax.get_title() for ax in panels] == [title for title, _ in COHORT_PANELS.values()]
     assert len(fig.axes) == 2 * len(COHORT_PANELS)  # a colour bar beside every panel
@@ -132,7 +132,7 @@ def test_cohort_heatmap_takes_the_scenario_there_is_and_survives_no_rows():
 
 
 def test_fall_figure_has_a_row_of_panels_per_variant():
-    fig = fall_intervention_figure(fall_frame(), "s1: falls", 0.22)
+    fig = fall_intervention_figure(fall_frame(), "s1: falls", 0.22, ("pid", "adaptive"))
     axes = fig.axes
     assert len(axes) == 2 * len(FALL_PANELS)  # healthy, weak
     labels = list(FALL_PANELS.values())

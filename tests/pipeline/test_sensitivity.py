@@ -12,7 +12,7 @@ from metrics.plots import sensitivity_figure
 from pipeline.params import ParamsError, check_params, load_params, parse_params
 from pipeline.paths import POLICIES_ROOT
 from pipeline.report import sections
-from pipeline.report.published import load_paper, paper_compliance
+from pipeline.report.published import PAPER_PAIR, load_paper, paper_compliance
 from pipeline.report.render import section_markdown
 from pipeline.stages.sweep import run_sweep, sensitivity_jobs, sweep_jobs
 from pipeline.store.read import query
@@ -114,7 +114,7 @@ def test_figure_and_report_region(stored, tmp_path):
     fig.savefig(path)
     assert path.stat().st_size > 10_000
     assert len(fig.axes) == 6
-    text = region_text(responsiveness_comparisons(v, "mean_abs_ex_cm"))
+    text = region_text(responsiveness_comparisons(v, "mean_abs_ex_cm", PAPER_PAIR), PAPER_PAIR)
     assert text.startswith("twin (drive tau 25 ms, latency 30 ms, PID gains 1x): ")
     empty = pd.DataFrame(columns=["subject", "human_mode", "condition", "scenario", "phase"])
     t2 = pd.DataFrame(columns=["sim_human_mode", "condition", "sim_gait_speed_mps_mean",

@@ -20,8 +20,9 @@ import yaml
 
 from pipeline.cli import EXIT_ERROR
 from pipeline.params import load_params, parse_params
-from pipeline.paths import POLICIES_ROOT
+from pipeline.paths import POLICIES_ROOT, TUNED_GAINS
 from pipeline.runs.studies import RaySection
+from pipeline.runs.tuned_gains import read_tuned, write_tuned
 from pipeline.stages.sweep import rollout_params_hash, run_sweep, sweep_jobs
 from pipeline.store.connection import StoreParams
 from pipeline.store.read import query
@@ -156,15 +157,16 @@ def test_a_job_that_raises_is_retried_once_then_reported_while_the_rest_complete
     assert sorted(p.stem for p in (sweeps / "failed_job" / "jobs").glob("*.parquet")) == ok
 
 
-def test_job_keys_name_what_shapes_a_rollout():
+def test_job_keys_name_what_shapes_a_rollout(tmp_path):
     params = small_study(seeds=2)
     keys = {j.key for j in sweep_jobs(params)[0]}
     assert len(keys) == 4
     more_seeds = {j.key for j in sweep_jobs(small_study(seeds=3))[0]}
     assert keys < more_seeds  # adding seeds adds jobs and keeps the finished ones
-    doc = params.document()
-    doc["robot"]["controllers"]["pid"]["gains"]["kp_x"] *= 2
-    changed = parse_params(doc)
+    tuned = read_tuned(TUNED_GAINS)
+    tuned["pid"]["kp_x"] *= 2
+    write_tuned(tmp_path / "controllers.yaml", tuned)
+    changed = parse_params(params.document(), tuned=tmp_path / "controllers.yaml")
     pid_keys = {j.key for j in sweep_jobs(changed)[0] if j.condition == "pid"}
     assert not pid_keys & keys  # other gains: other jobs
     assert rollout_params_hash(changed) == rollout_params_hash(params)  # gains are in the key itself

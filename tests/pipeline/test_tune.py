@@ -11,8 +11,8 @@ import pytest
 
 from ingest.errors import GaitloopError
 from pipeline import paths
-from pipeline.commands.tune import run_tune
 from pipeline.params import Params, checked, load_params, parse_params
+from pipeline.runs.tune import run_tune
 from pipeline.store.records import TUNING_COLUMNS
 
 N_TRIALS = 3

@@ -20,6 +20,7 @@ from sim.robot.controllers import (
     resolve,
 )
 from sim.robot.controllers.adaptive import SPEED_GRID_MPS, forward_gain, lateral_gain, scheduled_gains
+from sim.robot.controllers.gains import searched
 from sim.rollout.loop import RolloutParams, rollout
 from sim.rollout.tuning import score
 from sim.rollout.world import robot_info
@@ -48,8 +49,8 @@ class RecordingAdaptive(Adaptive):
 
 
 @pytest.fixture(scope="module")
-def setup(params):
-    return params.robot.build(), params.rollout.replay.build(), params.robot.controller_specs()
+def setup(params, controller_specs):
+    return params.robot.build(), params.rollout.replay.build(), controller_specs
 
 
 TEST_WALK = WalkParams(duration_s=8.0)
@@ -77,6 +78,27 @@ def test_registry_errors_name_the_controller(params):
         resolve("numpy:ndarray")
     with pytest.raises(SimulationError, match="lacks 'class'"):
         make_controller({"gains": {}}, robot_info(params.robot.build(), 100.0))
+
+
+def test_gains_are_declared_checked_and_defaulted(setup):
+    robot, _, specs = setup
+    info = robot_info(robot)
+    for cls in (PID, Adaptive):  # every declared gain: a meaning, a unit, bounds around its default
+        for name, g in cls.declared_gains.items():
+            assert g.meaning and g.unit, name
+            assert g.default is None or g.bounds[0] <= g.default <= g.bounds[1], name
+    assert list(searched(PID)) == ["kp_x", "ki_x", "kd_x", "kp_y", "ki_y", "kd_y"]
+    assert {g.search for g in searched(Adaptive).values()} == {"linear"}  # LQR weights: log10 already
+    ctrl = Adaptive(specs["adaptive"]["gains"], info)
+    assert ctrl.gains["stride_min_s"] == 0.6 and ctrl.gains["i_max"] == 0.1  # declared default, params value
+    with pytest.raises(SimulationError, match=r"controller Adaptive: gain comb_compensaton: unknown gain"):
+        Adaptive({**specs["adaptive"]["gains"], "comb_compensaton": 0.5}, info)  # misspelt: no silent default
+    with pytest.raises(SimulationError, match=r"gain kd_y: missing: required gain of PID"):
+        make_controller({"class": "pid", "gains": {k: 1.0 for k in ("kp_x", "ki_x", "kd_x", "kp_y", "ki_y")}},
+                        info)
+    with pytest.raises(SimulationError, match=r"gain i_max: -1\.0 outside \[0, inf\]"):
+        PID({**specs["pid"]["gains"], "i_max": -1.0}, info)
+    assert FeedForwardP({"anything": 1.0}, info).gains == {"anything": 1.0}  # declares none: takes any
 
 
 def test_pid_signs(params):

@@ -18,8 +18,8 @@ from sim.robot.responsiveness import (
 
 
 @pytest.fixture(scope="module")
-def twin(params):
-    return params.robot.build(), params.robot.controller_specs()
+def twin(params, controller_specs):
+    return params.robot.build(), controller_specs
 
 
 def test_twin_point_is_the_params_robot(twin):

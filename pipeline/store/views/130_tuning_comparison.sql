@@ -1,6 +1,6 @@
 -- the latest tuned gains per subject, variant and controller, beside the generic ones
 -- search_status: 'no signal' when every search rollout fell (each trial scored the fall penalty,
--- so the tuned gains are the first trial's, the generic ones; pipeline.commands.tune.search_falls)
+-- so the tuned gains are the first trial's, the generic ones; pipeline.runs.tune.search_falls)
 CREATE OR REPLACE VIEW tuning_comparison AS
 SELECT t.* EXCLUDE (content_hash, run_id), CASE
     WHEN t.search_rollouts > 0 AND t.search_falls = t.search_rollouts THEN 'no signal'

@@ -21,12 +21,13 @@ and LQR state feedback on the arm deflection (after Wang et al., IFAC 2023), fro
   (base = first-order lag of `drive_tau_s`) and ``[int e_y, e_y, psi_rel, w_base]``, the lateral
   gains scheduled on the estimated speed (Riccati solutions on a speed grid, once per reset).
 
-Numbers: the LQR weights (params `robot.controllers.adaptive`) are tuned by `sim.rollout.tuning` on
-synthetic walks, never the evaluation data; `comb_compensation`, `lag_compensation` and the observer
-constants (`OBSERVER_DEFAULTS`) are design constants, not searched. Stride bounds follow Winter
-(2009, adult strides 0.9-1.3 s); the periodic prediction follows adaptive-oscillator gait prediction
-(Ronsse et al. 2011) and repetitive control. Per-tick arithmetic is on Python floats (see
-sim/rollout/loop.py).
+Numbers: every gain is declared in `Adaptive.declared_gains`. The LQR weights (the tuned-gains file,
+data/tuning/controllers.yaml) are tuned by `sim.rollout.tuning` on synthetic walks, never the
+evaluation data; `comb_compensation`, `lag_compensation` and the observer constants (their declared
+defaults, or params `robot.controllers.adaptive.gains`) are design constants, not searched. Stride
+bounds follow Winter (2009, adult strides 0.9-1.3 s); the periodic prediction follows
+adaptive-oscillator gait prediction (Ronsse et al. 2011) and repetitive control. Per-tick arithmetic
+is on Python floats (see sim/rollout/loop.py).
 """
 
 from __future__ import annotations
@@ -39,8 +40,8 @@ from scipy.linalg import solve_continuous_are
 
 from sim.angles import wrap_angle
 from sim.robot.controllers.base import BaseCommand, Controller, RobotSensors
+from sim.robot.controllers.gains import POSITIVE, Gain
 
-GAINS = ("log_q_int_x", "log_q_e_x", "log_r_x", "log_q_int_y", "log_q_e_y", "log_r_y")
 SPEED_GRID_MPS = np.linspace(0.3, 2.0, 18)  # non-holonomic: heading and offset decouple only when moving
 
 
@@ -75,29 +76,52 @@ def scheduled_gains(tau_s: float, reach_m: float, q_int_x: float, q_e_x: float, 
     return tuple(k_fwd.tolist()), tuple(tuple(k.tolist()) for k in k_lat)
 
 
-# walking_min_speed_mps: below it the user is taken as standing (the lowest speed of the gain schedule)
-OBSERVER_DEFAULTS = {"stride_init_s": 1.1, "stride_min_s": 0.6, "stride_max_s": 1.6, "stride_buffer_s": 4.0,
-                     "stride_update_s": 1.0, "lag_compensation": 0.0, "heading_lag_compensation": 0.0,
-                     "oscillation_ff_lateral": 1.0, "comb_compensation": 1.0,
-                     "oscillation_ff_forward": 0.0,
-                     "osc_half_window_s": 0.15, "startup_window_s": 0.5,
-                     "walking_min_speed_mps": float(SPEED_GRID_MPS[0])}
+def _log10_weight(what: str) -> Gain:
+    return Gain(f"log10 of the LQR weight on {what} (the speed-error weight is 1)", "log10", search="linear")
+
+
+def _constant(meaning: str, unit: str, default: float, bounds: tuple[float, float] = POSITIVE) -> Gain:
+    return Gain(meaning, unit, default=default, bounds=bounds)
 
 
 class Adaptive(Controller):
-    required_gains = GAINS
-    optional_gains = ("i_max", *OBSERVER_DEFAULTS)
+    """LQR weights (searched by the tuners) and the observer's design constants (module docstring)."""
+
+    declared_gains = {
+        "log_q_int_x": _log10_weight("int e_x"),
+        "log_q_e_x": _log10_weight("e_x"),
+        "log_r_x": _log10_weight("the forward command (R)"),
+        "log_q_int_y": _log10_weight("int e_y"),
+        "log_q_e_y": _log10_weight("e_y"),
+        "log_r_y": _log10_weight("the yaw-rate command (R)"),
+        "i_max": _constant("integrator clamp (anti-windup), each axis", "m s", 1.0),
+        "stride_init_s": _constant("stride period assumed until one is found", "s", 1.1),
+        "stride_min_s": _constant("shortest stride period searched (Winter 2009)", "s", 0.6),
+        "stride_max_s": _constant("longest stride period searched (Winter 2009)", "s", 1.6),
+        "stride_buffer_s": _constant("user-position history kept for the stride search", "s", 4.0),
+        "stride_update_s": _constant("period of the stride search", "s", 1.0),
+        "lag_compensation": _constant("share of the stride average's speed lag added back", "1", 0.0),
+        "heading_lag_compensation": _constant("share of the stride average's heading lag added back", "1",
+                                              0.0),
+        "oscillation_ff_lateral": _constant("gait-periodic feed-forward of the sway, as yaw rate", "1", 1.0),
+        "oscillation_ff_forward": _constant("gait-periodic feed-forward of the surge, as speed", "1", 0.0),
+        "comb_compensation": _constant("comb filter's share in the heading (0: off)", "1", 1.0),
+        "osc_half_window_s": _constant("half window of the gait-periodic velocity", "s", 0.15),
+        "startup_window_s": _constant("speed window until a stride is found", "s", 0.5),
+        # below it the user is taken as standing (the lowest speed of the gain schedule)
+        "walking_min_speed_mps": _constant("user speed below which the heading is held", "m/s",
+                                           float(SPEED_GRID_MPS[0])),
+    }
 
     def reset(self) -> None:
         g, rb = self.gains, self.robot
-        q = {k: 10.0 ** g[k] for k in GAINS}
-        self.k_fwd, self.k_lat = scheduled_gains(float(rb.drive_tau_s), float(rb.reach_m),
-                                                 *(float(q[k]) for k in GAINS))
-        self.obs = {k: float(g.get(k, v)) for k, v in OBSERVER_DEFAULTS.items()}
+        q = [10.0 ** g[k] for k in LQR_WEIGHTS]
+        self.k_fwd, self.k_lat = scheduled_gains(float(rb.drive_tau_s), float(rb.reach_m), *map(float, q))
+        self.obs = {k: float(g[k]) for k in OBSERVER}
         grid = SPEED_GRID_MPS
         self.grid = (float(grid[0]), float(grid[1] - grid[0]), len(grid))  # Python floats: fast per tick
         self.k_osc = (self.obs["oscillation_ff_forward"], self.obs["oscillation_ff_lateral"] / rb.reach_m)
-        self.i_max = float(g.get("i_max", 1.0))
+        self.i_max = float(g["i_max"])
         self.integral = [0.0, 0.0]
         self.t_prev: float | None = None
         self.speed_mps = 0.0
@@ -269,3 +293,7 @@ class Adaptive(Controller):
         w = w_ff - ((a0 + f * (b0 - a0)) * iy + (a1 + f * (b1 - a1)) * ey + (a2 + f * (b2 - a2)) * psi_rel
                     + (a3 + f * (b3 - a3)) * (s.base_yaw_rate_rps - w_ff))
         return BaseCommand(float(v), float(w))
+
+
+LQR_WEIGHTS = tuple(k for k, g in Adaptive.declared_gains.items() if g.search)  # in scheduled_gains' order
+OBSERVER = tuple(k for k in Adaptive.declared_gains if k not in (*LQR_WEIGHTS, "i_max"))  # design constants

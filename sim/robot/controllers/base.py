@@ -13,9 +13,12 @@ tick: a controller that keeps sensor values beyond its `step` call must copy the
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import ClassVar, NamedTuple
+
+from sim.errors import SimulationError
+from sim.robot.controllers.gains import Gain, gain_problems, with_defaults
 
 
 @dataclass(slots=True)
@@ -56,31 +59,21 @@ class RobotInfo:
 class Controller(ABC):
     """A follow-me controller. Construct with (gains dict, RobotInfo); `reset` before each rollout.
 
-    `required_gains` are the gains it cannot run without, `optional_gains` those it reads when given;
-    `gain_problems` checks a gains dict against them (params load calls it, so a misspelt or missing
-    gain fails there). `optional_gains` None (a plug-in that does not say) accepts any other gain."""
+    `declared_gains` names every gain it reads (`sim.robot.controllers.gains.Gain`: meaning, unit,
+    default, bounds, search scale). Construction checks the given gains against it (an unknown,
+    out-of-bounds or missing required gain raises `SimulationError`) and sets `self.gains` to them over
+    the declared defaults, so the controller reads ``self.gains[k]``. `declared_gains` None (a plug-in
+    that does not say) takes any gains as given."""
 
-    required_gains: tuple[str, ...] = ()
-    optional_gains: tuple[str, ...] | None = None
+    declared_gains: ClassVar[Mapping[str, Gain] | None] = None
 
-    def __init__(self, gains: dict, robot: RobotInfo) -> None:
-        self.gains = dict(gains)
+    def __init__(self, gains: Mapping[str, float], robot: RobotInfo) -> None:
+        problems = gain_problems(type(self), gains)
+        if problems:
+            raise SimulationError(f"controller {type(self).__name__}",
+                                  "; ".join(f"gain {k}: {p}" for k, p in problems.items()))
+        self.gains = with_defaults(type(self), gains)
         self.robot = robot
-
-    @classmethod
-    def gain_problems(cls, gains: dict) -> str | None:
-        """What is wrong with `gains` for this controller (missing and unknown gains), or None."""
-        missing = [g for g in cls.required_gains if g not in gains]
-        allowed = None if cls.optional_gains is None else {*cls.required_gains, *cls.optional_gains}
-        unknown = [] if allowed is None else sorted(g for g in gains if g not in allowed)
-        if not missing and not unknown:
-            return None
-        said = [f"missing gain(s) {', '.join(map(repr, missing))}" if missing else "",
-                f"unknown gain(s) {', '.join(map(repr, unknown))}" if unknown else ""]
-        takes = f"{cls.__name__} takes {', '.join(cls.required_gains)}"
-        if cls.optional_gains:
-            takes += f"; optional {', '.join(cls.optional_gains)}"
-        return f"{'; '.join(p for p in said if p)} ({takes})"
 
     @abstractmethod
     def reset(self) -> None: ...

@@ -7,18 +7,28 @@ use the arm's measured joint velocities. The integrators are clamped at `i_max` 
 from __future__ import annotations
 
 from sim.robot.controllers.base import BaseCommand, Controller, RobotSensors
-
-GAINS = ("kp_x", "ki_x", "kd_x", "kp_y", "ki_y", "kd_y")
+from sim.robot.controllers.gains import POSITIVE, Gain
 
 
 class PID(Controller):
-    required_gains = GAINS
-    optional_gains = ("i_max",)
+    """v = kp_x e_x + ki_x int e_x + kd_x de_x/dt, w = the same in y (e: arm deflection, m)."""
+
+    declared_gains = {
+        "kp_x": Gain("forward speed per forward deflection", "1/s", bounds=POSITIVE, search="log"),
+        "ki_x": Gain("forward speed per integrated forward deflection", "1/s^2", bounds=POSITIVE,
+                     search="log"),
+        "kd_x": Gain("forward speed per forward deflection rate", "1", bounds=POSITIVE, search="log"),
+        "kp_y": Gain("yaw rate per lateral deflection", "rad/(s m)", bounds=POSITIVE, search="log"),
+        "ki_y": Gain("yaw rate per integrated lateral deflection", "rad/(s^2 m)", bounds=POSITIVE,
+                     search="log"),
+        "kd_y": Gain("yaw rate per lateral deflection rate", "rad/m", bounds=POSITIVE, search="log"),
+        "i_max": Gain("integrator clamp (anti-windup), each axis", "m s", default=1.0, bounds=POSITIVE),
+    }
 
     def reset(self) -> None:
         self.integral = (0.0, 0.0)
         self.t_prev: float | None = None
-        self.i_max = float(self.gains.get("i_max", 1.0))
+        self.i_max = float(self.gains["i_max"])
 
     def step(self, s: RobotSensors) -> BaseCommand:
         g = self.gains
@@ -32,3 +42,6 @@ class PID(Controller):
         v = g["kp_x"] * ex + g["ki_x"] * ix + g["kd_x"] * float(s.arm_qd[0])
         w = g["kp_y"] * ey + g["ki_y"] * iy + g["kd_y"] * float(s.arm_qd[1])
         return BaseCommand(v, w)
+
+
+GAINS = tuple(k for k, g in PID.declared_gains.items() if g.search)  # the feedback gains (kp .. kd_y)

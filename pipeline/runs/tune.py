@@ -1,12 +1,16 @@
-"""Command `tune`: one subject's controller gains, searched on its policy human, then compared with the
-generic gains on walks the search never saw.
+"""Per-subject tuning (command `tune`, pipeline/cli.py): one subject's controller gains, searched on its
+policy human, then compared with the generic gains on walks the search never saw.
 
-The search is Optuna (TPE or CMA-ES, params `tune.method`) through Ray Tune: every trial runs the
+The search is Optuna (TPE or CMA-ES, params `tune.method`) through Ray Tune over params
+`tune.search.<controller>` (gain -> box; each gain one the class declares as searched, each box within
+its declared bounds, checked by `check-params`; each gain on the scale its class declares: `log` ->
+log-uniform, `linear` -> uniform, `sim.robot.controllers.gains`): every trial runs the
 controller with the trial's gains on `tune.scenarios` x `tune.seeds` and scores the rollouts with
 `metrics.outcomes.objective` (tracking |e_x| + |e_y|, harness force, gait speed versus the same
 person walking free, falls). The budget (`tune.n_trials`) and procedure are the same for every
-controller: the first trial is the controller's generic gains (params `robot.controllers`, clipped
-to the search box), the rest come from the sampler seeded with `tune.seed`. The best trial's gains
+controller: the first trial is the controller's generic gains (`pipeline.runs.setup.controller_specs`:
+the tuned-gains file on top of params `robot.controllers`, clipped to the search box), the rest come
+from the sampler seeded with `tune.seed`. The best trial's gains
 and the generic ones then run on `tune.heldout_seeds` x `tune.scenarios`; each rollout's cost is
 the objective of that one rollout, reported as mean and Student-t 95 % CI half-width across
 rollouts, with the falls, and the tuned minus generic cost of each held-back walk (paired: the same
@@ -15,7 +19,8 @@ scenario and seed) as mean and 95 % CI half-width. The result goes to
 `tuning_comparison` view read it).
 
 Each Ray process opens the subject's world once (`sim.rollout.cluster.cached_worker`, keyed by the
-setup with its generic gains) and swaps in each trial's gains (`trial_worker`).
+setup with its generic gains) and swaps in each trial's gains (`trial_worker`); the held-back and
+free-walking rollouts go through the batch runner's `sim.rollout.batch.dispatch`.
 """
 
 from __future__ import annotations
@@ -31,20 +36,20 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-import ray
 from tqdm import tqdm
 
 from metrics.outcomes import ObjectiveWeights, costs, objective, run_row, walk_window
 from metrics.phases import mean_ci95
 from pipeline import paths
 from pipeline.params import Params, ParamsError
-from pipeline.runs.jobs import policy_setup, scenario_jobs
+from pipeline.runs.jobs import policy_digest, policy_setup, scenario_jobs
 from pipeline.stages.outputs import write_json
-from pipeline.stages.sweep import policy_digest
 from sim.body.variant import HEALTHY
 from sim.errors import SimulationError
-from sim.rollout.batch import BatchSetup, RolloutJob, Worker
-from sim.rollout.cluster import cached_worker, completed, connect
+from sim.robot.controllers import resolve
+from sim.robot.controllers.gains import searched
+from sim.rollout.batch import BatchSetup, RolloutJob, Worker, dispatch_all
+from sim.rollout.cluster import cached_worker, connect
 
 METRIC = "objective"
 STUDY = "tune"
@@ -71,11 +76,14 @@ def search_space(params: Params, controller: str) -> dict[str, tuple[float, floa
     return dict(space)
 
 
-def optuna_space(space: dict[str, tuple[float, float]]) -> dict:
-    """Optuna distributions of `space`: log-uniform when low > 0, else uniform."""
+def optuna_space(space: dict[str, tuple[float, float]], controller_class: str) -> dict:
+    """Optuna distributions of `space`: log-uniform for a gain its class declares on a `log` scale,
+    uniform for a `linear` one (a plug-in that declares no gains: log-uniform when low > 0)."""
     from optuna.distributions import FloatDistribution
 
-    return {g: FloatDistribution(lo, hi, log=lo > 0) for g, (lo, hi) in space.items()}
+    scale = {g: d.search for g, d in searched(resolve(controller_class)).items()}
+    return {g: FloatDistribution(lo, hi, log=scale[g] == "log" and lo > 0 if g in scale else lo > 0)
+            for g, (lo, hi) in space.items()}
 
 
 def sampler(params: Params):
@@ -115,13 +123,13 @@ def trial_worker(base: BatchSetup, setup: BatchSetup) -> Worker:
     return worker
 
 
-def rollout_row(base: BatchSetup, setup: BatchSetup, job: RolloutJob, exclude_locked: bool) -> dict:
-    """`metrics.outcomes.run_row` of one job over the walk itself (`walk_window` of its scenario's
-    commands), with the job's trial id and seed. A fall, or the arm's lock on one, counts when it
-    happens before the walk's final quiet standing; one after it (`late_fall`) is counted apart and
-    not scored: there the policy human topples whatever the controller (docs/robot.md, "Per-subject
+def rollout_row(worker: Worker, job: RolloutJob, exclude_locked: bool) -> dict:
+    """`metrics.outcomes.run_row` of one job on `worker` over the walk itself (`walk_window` of its
+    scenario's commands), with the job's trial id and seed. A fall, or the arm's lock on one, counts
+    when it happens before the walk's final quiet standing; one after it (`late_fall`) is counted apart
+    and not scored: there the policy human topples whatever the controller (docs/robot.md, "Per-subject
     controller tuning"), so scoring it would score the human, not the gains."""
-    o = trial_worker(base, setup).run(job, keep_result=True)
+    o = worker.run(job, keep_result=True)
     commands = getattr(o.human.driver, "commands", None)
     window = walk_window(commands.spans()) if commands is not None else (-np.inf, np.inf)
     late = o.stable and o.first_fall_s is not None and o.first_fall_s > window[1]
@@ -130,19 +138,17 @@ def rollout_row(base: BatchSetup, setup: BatchSetup, job: RolloutJob, exclude_lo
     return {"trial": job.trial, "scenario": job.human.scenario, "seed": job.seed, **row, "late_fall": late}
 
 
-@ray.remote(num_cpus=1)
-def _rollout_row_task(base: BatchSetup, setup: BatchSetup, job: RolloutJob, exclude_locked: bool) -> dict:
-    return rollout_row(base, setup, job, exclude_locked)
+def _row_with(worker: Worker, job: RolloutJob, setup: BatchSetup, exclude_locked: bool) -> dict:
+    """`rollout_row` on a dispatched worker (the open world of the base setup) under `setup`'s gains."""
+    worker.setup = setup
+    return rollout_row(worker, job, exclude_locked)
 
 
 def parallel_rows(base: BatchSetup, runs: list[tuple[BatchSetup, RolloutJob]], exclude_locked: bool,
-                  desc: str, progress: bool) -> pd.DataFrame:
-    """`rollout_row` of each (setup, job) as Ray tasks, rows in the order given."""
-    base_ref = ray.put(base)
-    refs = [_rollout_row_task.remote(base_ref, setup, job, exclude_locked) for setup, job in runs]
-    for _ in completed(refs, desc, progress):
-        pass
-    return pd.DataFrame(ray.get(refs))
+                  desc: str, progress: bool, max_retries: int = 1) -> pd.DataFrame:
+    """`rollout_row` of each (setup, job) as Ray tasks on open worlds of `base`, rows in the order given."""
+    return pd.DataFrame(dispatch_all([(base, job, (setup, exclude_locked)) for setup, job in runs], _row_with,
+                                     max_retries, desc=desc, progress=progress))
 
 
 def free_speed(rows: pd.DataFrame, subject: str) -> float:
@@ -171,7 +177,8 @@ def trial_objective(config: dict, ctx: SearchContext) -> None:
     from ray import tune
 
     setup = with_gains(ctx.base, ctx.controller, config)
-    rows = pd.DataFrame([rollout_row(ctx.base, setup, job, ctx.exclude_locked) for job in ctx.jobs])
+    rows = pd.DataFrame([rollout_row(trial_worker(ctx.base, setup), job, ctx.exclude_locked)
+                         for job in ctx.jobs])
     tune.report({METRIC: objective(rows, ctx.free_speed_mps, ctx.weights),
                  "falls": int(rows["fell"].astype(bool).sum())})
 
@@ -203,7 +210,8 @@ def search(ctx: SearchContext, params: Params, n_trials: int, generic: dict[str,
     space = search_space(params, ctx.controller)
     start = {g: float(min(max(generic[g], lo), hi)) for g, (lo, hi) in space.items()}
     storage = optuna.storages.InMemoryStorage()  # the study's own record: trials numbered as suggested
-    alg = OptunaSearch(optuna_space(space), metric=METRIC, mode="min", points_to_evaluate=[start],
+    cls = ctx.base.controllers[ctx.controller]["class"]
+    alg = OptunaSearch(optuna_space(space, cls), metric=METRIC, mode="min", points_to_evaluate=[start],
                        sampler=sampler(params), study_name=STUDY, storage=storage)
     bar = tqdm(total=n_trials, desc=f"tune {ctx.base.subject} {ctx.controller}", disable=not progress)
 
@@ -258,8 +266,9 @@ def run_tune(subject: str, controller: str, params: Params, variant: str = HEALT
     t, exclude, w = params.tune, params.metrics.exclude_locked, params.tune.weights()
     connect(params.ray.num_cpus)
 
+    retries = params.ray.max_retries
     free_rows = parallel_rows(base, [(base, j) for j in seeded_jobs(params, "free", t.seeds)], exclude,
-                              f"free walking {subject}", progress)
+                              f"free walking {subject}", progress, retries)
     speed = free_speed(free_rows, subject)
     ctx = SearchContext(base, controller, tuple(seeded_jobs(params, controller, t.seeds)), speed, exclude, w)
     generic = dict(base.controllers[controller]["gains"])
@@ -270,7 +279,7 @@ def run_tune(subject: str, controller: str, params: Params, variant: str = HEALT
     heldout = seeded_jobs(params, controller, t.heldout_seeds)
     tuned_setup = with_gains(base, controller, tuned)
     rows = parallel_rows(base, [(base, j) for j in heldout] + [(tuned_setup, j) for j in heldout], exclude,
-                         f"held-back {subject} {controller}", progress)
+                         f"held-back {subject} {controller}", progress, retries)
     gen, tun = (heldout_summary(rows.iloc[k * len(heldout):(k + 1) * len(heldout)], speed, w) for k in (0, 1))
     diff_mean, diff_half = mean_ci95(np.subtract(tun["costs"], gen["costs"]))  # the same walks, paired
     doc = {"subject": subject, "variant": variant, "controller": controller, "method": t.method,
@@ -292,6 +301,5 @@ def run_tune(subject: str, controller: str, params: Params, variant: str = HEALT
     return path
 
 
-__all__ = ["SearchContext", "heldout_summary", "optuna_space", "run_tune", "search", "search_falls",
-           "search_space",
-           "seeded_jobs", "trial_worker", "with_gains"]
+__all__ = ["SearchContext", "heldout_summary", "optuna_space", "parallel_rows", "rollout_row", "run_tune",
+           "search", "search_falls", "search_space", "seeded_jobs", "trial_worker", "with_gains"]
