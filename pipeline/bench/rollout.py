@@ -46,8 +46,8 @@ HUMAN_XML = human_xml(PROCESSED_ROOT, "camargo")
 
 def _setup(params: Params, rate_hz: float):
     section = params.section("robot", RobotSection)
-    robot, replay = section.build(), params.section("rollout", RolloutSection).replay.build()
-    walk = section.tuning.build().walk
+    robot, replay = section.build(), params.section("rollout", RolloutSection).replay
+    walk = section.tuning.walk
     if HUMAN_XML.exists():
         spec = mujoco.MjSpec.from_file(str(HUMAN_XML))
         m0 = spec.copy().compile()

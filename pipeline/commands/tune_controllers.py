@@ -29,7 +29,7 @@ robot.controllers.<name>.gains and checked against each class's declared gains
 def run_tuning(params: CheckedParams, out: Path) -> dict:
     """Tune every controller named in `robot.tuning.initial` (each one of `robot.controllers`, checked
     when the params were loaded) from its gains there; the document is written to `out`."""
-    robot, replay, p = params.robot.build(), params.rollout.replay.build(), params.robot.tuning.build()
+    robot, replay, p = params.robot.build(), params.rollout.replay, params.robot.tuning
     specs = controller_specs(params)
     initial = params.robot.tuning.initial
     doc = {"procedure": f"scipy.optimize.minimize {p.method}, {p.max_evaluations} rollouts each, "

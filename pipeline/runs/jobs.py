@@ -49,7 +49,7 @@ def replay_setup(subject: str, params: Params, root: Path = paths.PROCESSED_ROOT
     xml, npz = paths.human_xml(root, subject), paths.reference_npz(root, subject)
     require_inputs(xml, npz, what=f"`simulate {subject}`")
     r = params.section("rollout", RolloutSection)
-    source = ReplaySource(str(npz), r.replay.build(), r.lead_in_s, r.lead_in_ramp_s)
+    source = ReplaySource(str(npz), r.replay, r.lead_in_s, r.lead_in_ramp_s)
     return batch_setup(params, subject, load_subject(subject).markerset, xml, source)
 
 

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import mujoco
 import numpy as np
+from pydantic import with_config
 from scipy.spatial.transform import Rotation
 
 from sim.errors import SimulationError
@@ -39,9 +40,11 @@ class Motion:
     qpos: np.ndarray
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class ReplayParams:
-    """Servo of the replayed pelvis (params `rollout.replay`)."""
+    """Servo of the replayed pelvis (params `rollout.replay`): spring (N/m, N m/rad), damper (N s/m,
+    N m s/rad) and limits of the force and torque that pull it along the recorded path."""
 
     kp_n_per_m: float = 60000.0
     kd_ns_per_m: float = 3000.0
@@ -49,7 +52,7 @@ class ReplayParams:
     kd_nms_per_rad: float = 150.0
     max_force_n: float = 5000.0
     max_torque_nm: float = 500.0
-    max_vertical_bodyweights: float = 3.0
+    max_vertical_bodyweights: float = 3.0  # the vertical force at most, in body weights
 
 
 def interpolate_qpos(motion: Motion, times_s: np.ndarray, root_adr: int) -> np.ndarray:

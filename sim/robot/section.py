@@ -6,11 +6,9 @@ declared gains by `RobotSection.merged_specs`) and the synthetic-walk gain tunin
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Annotated
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from sim.motion.synthetic import WalkParams
 from sim.robot.controllers.specs import controller_specs
 from sim.robot.harness import HarnessParams
 from sim.robot.mrba import ArmParams, BaseParams, FallParams, RobotParams, SensorParams
@@ -21,21 +19,6 @@ class Schema(BaseModel):
     """A block of params.yaml: no unknown key, values type-checked."""
 
     model_config = ConfigDict(extra="forbid", frozen=True, coerce_numbers_to_str=True)
-
-
-class TuningSchema(Schema):
-    method: str
-    max_evaluations: int
-    seed: int
-    force_weight_m_per_n: float
-    limit_weight_m: float
-    sample_rate_hz: float
-    walks: Annotated[tuple[WalkParams, ...], Field(min_length=1)]
-    initial: dict[str, dict[str, float]]  # controller name -> starting gains of the search
-
-    def build(self) -> TuningParams:
-        return TuningParams(self.method, self.max_evaluations, self.seed, self.force_weight_m_per_n,
-                            self.limit_weight_m, self.sample_rate_hz, self.walks)
 
 
 class ControllerSchema(Schema):
@@ -60,7 +43,7 @@ class RobotSection(Schema):
     harness: HarnessParams = HarnessParams()
     fall: FallParams = FallParams()
     sensors: SensorParams = SensorParams()
-    tuning: TuningSchema
+    tuning: TuningParams
     controllers: dict[str, ControllerSchema]
 
     def build(self) -> RobotParams:

@@ -16,19 +16,6 @@ class Schema(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True, coerce_numbers_to_str=True)
 
 
-class ReplaySchema(Schema):
-    kp_n_per_m: float
-    kd_ns_per_m: float
-    kp_nm_per_rad: float
-    kd_nms_per_rad: float
-    max_force_n: float
-    max_torque_nm: float
-    max_vertical_bodyweights: float
-
-    def build(self) -> ReplayParams:
-        return ReplayParams(**self.model_dump())
-
-
 class FallTestSchema(Schema):
     drop_m: float
     duration_s: float
@@ -50,5 +37,5 @@ class RolloutSection(Schema):
     policy_sample_rate_hz: Annotated[float, Field(gt=0.0)]
     policy_motor_noise: Annotated[float, Field(ge=0.0)] = 0.0
     stop_after_fall_s: Annotated[float, Field(ge=0.0)] | None
-    replay: ReplaySchema
+    replay: ReplayParams
     fall_test: FallTestSchema

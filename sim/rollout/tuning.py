@@ -27,11 +27,13 @@ A rollout that raises a fall, goes unstable or leaves NaN costs ``10 + J``.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Annotated
 
 import numpy as np
 import pandas as pd
 import scipy  # scipy.optimize loads on first use
+from pydantic import Field, with_config
 
 from sim.motion.replay import ReplayHuman, ReplayParams
 from sim.motion.synthetic import WalkParams, capsule_world, synthetic_walk
@@ -42,9 +44,12 @@ from sim.rollout.loop import RolloutParams, RolloutResult, rollout
 from sim.rollout.world import build_world, robot_info
 
 
+@with_config(extra="forbid")
 @dataclass(frozen=True)
 class TuningParams:
-    """params `robot.tuning`."""
+    """params `robot.tuning`: the synthetic-walk search of the controllers' gains (scipy method,
+    objective evaluations at most, seed, the objective's weights in m/N and m, the walks' sample rate
+    in Hz, the walks) and each controller's starting gains (`initial`: controller -> gain -> value)."""
 
     method: str = "Nelder-Mead"
     max_evaluations: int = 80
@@ -52,19 +57,12 @@ class TuningParams:
     force_weight_m_per_n: float = 0.001
     limit_weight_m: float = 0.2
     sample_rate_hz: float = 100.0
-    walks: tuple[WalkParams, ...] = (WalkParams(),)
+    walks: Annotated[tuple[WalkParams, ...], Field(min_length=1)] = (WalkParams(),)
+    initial: dict[str, dict[str, float]] = field(default_factory=dict)
 
     @property
     def walk(self) -> WalkParams:
         return self.walks[0]
-
-    @classmethod
-    def from_dict(cls, d: dict) -> TuningParams:
-        return cls(method=str(d["method"]), max_evaluations=int(d["max_evaluations"]), seed=int(d["seed"]),
-                   force_weight_m_per_n=float(d["force_weight_m_per_n"]),
-                   limit_weight_m=float(d["limit_weight_m"]),
-                   sample_rate_hz=float(d["sample_rate_hz"]),
-                   walks=tuple(WalkParams(**{k: float(v) for k, v in w.items()}) for w in d["walks"]))
 
 
 @dataclass(frozen=True)

@@ -50,7 +50,7 @@ class RecordingAdaptive(Adaptive):
 
 @pytest.fixture(scope="module")
 def setup(params, controller_specs):
-    return params.robot.build(), params.rollout.replay.build(), controller_specs
+    return params.robot.build(), params.rollout.replay, controller_specs
 
 
 TEST_WALK = WalkParams(duration_s=8.0)

@@ -27,7 +27,7 @@ WALK = WalkParams(duration_s=6.0)
 @pytest.fixture(scope="module")
 def setup(params, controller_specs):
     fall = params.rollout.fall_test
-    return params.robot.build(), params.rollout.replay.build(), controller_specs, fall
+    return params.robot.build(), params.rollout.replay, controller_specs, fall
 
 
 def run(setup, condition: str, seed: int = 0, motion: Motion | None = None, rate_hz: float = 100.0):
