@@ -296,8 +296,10 @@ def cmd_add_subject(args: argparse.Namespace) -> int:
     trials = [NewTrial.parse(t) for t in args.trial]
     path = add_subject(args.id, args.height_m, args.mass_kg, args.static, trials, markerset=args.markerset,
                        up_axis=args.up_axis, knee_flexion_sign=args.knee_flexion_sign, dataset=args.dataset,
-                       round_trip_of=args.round_trip_of, origin=args.origin, registry=registry)
-    print(f"wrote {path} and added {args.id!r} to {args.params}; run `dvc repro`", file=sys.stderr)
+                       round_trip_of=args.round_trip_of, origin=args.origin, policy=not args.no_policy,
+                       registry=registry)
+    lists = "subjects" if args.no_policy or args.round_trip_of else "subjects and transfer.subjects"
+    print(f"wrote {path} and added {args.id!r} to {lists} in {args.params}; run `dvc repro`", file=sys.stderr)
     return 0
 
 
@@ -373,6 +375,8 @@ def add_results_commands(commands: argparse._SubParsersAction) -> None:
                      help="the files' up axis (default: auto, detected from pelvis and foot markers)")
     add.add_argument("--knee-flexion-sign", type=int, choices=(1, -1), default=1)
     add.add_argument("--dataset", help="dataset label (default: added:<id>)")
+    add.add_argument("--no-policy", action="store_true", help="replay rows only: do not add the subject to "
+                     "transfer.subjects (default: `dvc repro` transfers the universal walking policy to it)")
     add.set_defaults(func=cmd_add_subject)
 
 

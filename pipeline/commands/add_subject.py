@@ -1,7 +1,10 @@
 """Command `add-subject`: register a new subject from its raw files.
 
 Writes `data/subjects/<id>.yaml` and appends `<id>` to `subjects` in params.yaml, so the next
-`dvc repro` runs that subject's foreach stages (plus store and report) and nothing else.
+`dvc repro` runs that subject's foreach stages (plus store and report) and nothing else. It also
+appends `<id>` to `transfer.subjects` (unless `policy=False` or it is a round trip), so that
+`dvc repro` gives the new person a walking policy from the universal one (`transfer@<id>`: gated,
+fine-tuned within `transfer`'s budget while the gate fails) without a hand edit.
 
 Files are referenced through the data manifest (`data/sources.yaml`) like every other raw file:
 a file whose sha256 is already listed reuses that entry (e.g. a file from the shared mirror).
@@ -70,6 +73,7 @@ from pipeline.commands.quicklook import fitting_markerset
 from pipeline.params import load_params, parse_params
 from pipeline.paths import PARAMS_FILE
 from pipeline.stages.outputs import replacing
+from sim.learn.transfer import TransferSection
 from sim.motion.reference import ReferenceParams
 
 ID_PATTERN = re.compile(r"^[a-z0-9][a-z0-9_-]{0,63}$")
@@ -243,6 +247,24 @@ def _append_subject_to_params(text: str, subject_id: str, path: Path) -> str:
     return "".join(lines)
 
 
+def _append_transfer_subject(text: str, subject_id: str, path: Path) -> str:
+    """`text` with `subject_id` added to the flow list `subjects: [...]` of the top-level
+    `transfer:` block, comments kept."""
+    lines = text.splitlines(keepends=True)
+    start = next((i for i, line in enumerate(lines) if re.match(r"^transfer:\s*(#.*)?$", line)), None)
+    for line_no in range(start + 1 if start is not None else len(lines), len(lines)):
+        line = lines[line_no]
+        if line.strip() and not line[0].isspace():
+            break
+        m = re.match(r"^(\s+subjects:\s*)\[([^\]]*)\](.*)$", line, re.S)
+        if m:
+            items = [x.strip() for x in m.group(2).split(",") if x.strip()]
+            lines[line_no] = f"{m.group(1)}[{', '.join([*items, subject_id])}]{m.group(3)}"
+            return "".join(lines)
+    raise SubjectError(path, "no flow list 'subjects: [...]' in the top-level 'transfer:' block to add the "
+                       "subject to (or register it with --no-policy)")
+
+
 def _markerset_ref(markerset: str, registry: Registry) -> str:
     """How the subject file names the marker set: a shipped set by name, a YAML file by its path
     relative to the repository root, so it reads the same from any working directory and clone.
@@ -264,11 +286,11 @@ def _markerset_ref(markerset: str, registry: Registry) -> str:
 def add_subject(subject_id: str, height_m: float, mass_kg: float, static: Path | str,
                 trials: list[NewTrial], *, markerset: str | None = None, up_axis: str = "auto",
                 knee_flexion_sign: int = 1, dataset: str | None = None, round_trip_of: str | None = None,
-                origin: str | None = None, registry: Registry = Registry()) -> Path:
+                origin: str | None = None, policy: bool = True, registry: Registry = Registry()) -> Path:
     """Check and register a subject; returns the new subject file. `static` is a marker file or
-    "auto", `up_axis` x, y, z or "auto", `origin` an http(s) URL the new files are published under
-    (module docstring). Raises `SubjectError` or `IngestError` naming the id or file at fault, having
-    written nothing."""
+    "auto", `up_axis` x, y, z or "auto", `origin` an http(s) URL the new files are published under,
+    `policy` whether `dvc repro` transfers a walking policy to it (module docstring). Raises
+    `SubjectError` or `IngestError` naming the id or file at fault, having written nothing."""
     subj_file = registry.subjects_dir / f"{subject_id}.yaml"
     if not ID_PATTERN.match(subject_id):
         raise SubjectError(subject_id, "subject id must be lower case letters, digits, '_' or '-'")
@@ -366,8 +388,14 @@ def add_subject(subject_id: str, height_m: float, mass_kg: float, static: Path |
     }
     params_text = _append_subject_to_params(registry.params_path.read_text(), subject_id,
                                             registry.params_path)
-    if subject_id not in parse_params(yaml.safe_load(params_text), registry.params_path).subjects:
+    transfer = policy and round_trip_of is None
+    if transfer:
+        params_text = _append_transfer_subject(params_text, subject_id, registry.params_path)
+    parsed = parse_params(yaml.safe_load(params_text), registry.params_path)
+    if subject_id not in parsed.subjects:
         raise SubjectError(registry.params_path, "could not add the subject to the 'subjects' list")
+    if transfer and subject_id not in parsed.section("transfer", TransferSection).subjects:
+        raise SubjectError(registry.params_path, "could not add the subject to 'transfer.subjects'")
     manifest_text = _manifest_with(registry.manifest_path, new, files) if new else None
     folder = dvc = None
     if new and tracked:  # last checks before writing: the DVC repository and a fresh raw folder

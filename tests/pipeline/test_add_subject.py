@@ -81,9 +81,12 @@ def test_registers_mirror_files_through_their_manifest_entries(registry):
     assert subject.static.markers == "opencap_labval_subject4/MarkerData/static1.trc"
     assert subject.markerset == load_subject("opencap4").markerset  # found by fitting the file
     params = yaml.safe_load(registry.params_path.read_text())
-    assert params["subjects"] == [*yaml.safe_load(params_before)["subjects"], "oc4toein"]
+    before = yaml.safe_load(params_before)
+    assert params["subjects"] == [*before["subjects"], "oc4toein"]
+    assert params["transfer"]["subjects"] == [*before["transfer"]["subjects"], "oc4toein"]  # gets a policy
     new_params = registry.params_path.read_text()
-    assert new_params.replace("  - oc4toein\n", "") == params_before  # comments and order kept
+    assert new_params.replace("  - oc4toein\n", "").replace(", oc4toein]", "]").replace("[oc4toein]", "[]") \
+        == params_before  # comments and order kept
     assert registry.manifest_path.read_text() == manifest_before  # nothing new to list
     trial = load_trial(subject, subject.trials[0], Manifest.load(registry.manifest_path, mirror=DATA))
     assert trial.plates is not None and trial.angles
@@ -104,8 +107,10 @@ def test_files_outside_the_manifest_get_file_origins_in_a_scratch_registry(regis
         markerset="opencap_labval",
         up_axis="y",
         dataset="lab",
+        policy=False,
         registry=registry,
     )
+    assert "newlab" not in yaml.safe_load(registry.params_path.read_text())["transfer"]["subjects"]  # replay
     subject = load_subject("newlab", registry.subjects_dir)
     key = subject.trials[0].markers
     assert key == "local/newlab/walking2.trc"
@@ -145,6 +150,13 @@ def test_refusals_leave_the_registry_unchanged(registry, tmp_path):
         add_subject("x1", 1.68, 62.6, static, toe_in_trials(), up_axis="y", registry=registry)
     with pytest.raises(SubjectError, match="subject id must be"):
         add_subject("Bad Id", 1.68, 62.6, static, free_and_toe_in_trials(), registry=registry)
+    assert snapshot(registry) == before
+    text = registry.params_path.read_text()  # a block-style transfer.subjects: said, nothing written
+    registry.params_path.write_text(text.replace("\n  subjects: []", "\n  subjects:\n    - lenhart2015", 1))
+    before = snapshot(registry)
+    with pytest.raises(SubjectError, match=r"params\.yaml.*no flow list 'subjects: \[\.\.\.\]' in the "
+                       "top-level 'transfer:' block"):
+        add_subject("x1", 1.68, 62.6, static, free_and_toe_in_trials(), up_axis="y", registry=registry)
     assert snapshot(registry) == before
 
 
