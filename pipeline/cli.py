@@ -185,6 +185,24 @@ def cmd_transfer(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_adopt_universal(args: argparse.Namespace) -> int:
+    from pipeline.commands.adoption import append_record, evaluate_checkpoint
+    from pipeline.paths import UNIVERSAL_DIR
+    from sim.learn.pool import UniversalParams
+
+    params = load_params(args.params)
+    subjects = args.subjects or list(params.section("universal", UniversalParams).subjects)
+    universal = args.universal or UNIVERSAL_DIR
+    doc = evaluate_checkpoint(params, universal, subjects, root=args.root or PROCESSED_ROOT,
+                              progress=not args.json)
+    if not args.no_record:
+        how = (f"python -m pipeline adopt-universal {' '.join(args.subjects)}".rstrip()
+               + f" (the checkpoint in {universal})")
+        append_record(universal, doc, how)
+    print(json_text(doc), end="")
+    return 0
+
+
 def cmd_evaluate_policy(args: argparse.Namespace) -> int:
     from pipeline.runs.evaluate_policy import evaluate_policy
 
@@ -483,6 +501,15 @@ def build_parser() -> argparse.ArgumentParser:
     transfer.add_argument("--root", type=Path, help="<root>/<subject>/{model,real} in "
                           "(default: data/processed)")
     transfer.set_defaults(func=cmd_transfer)
+
+    adopt = commands.add_parser("adopt-universal", help="the adoption rule on the universal run's "
+                                "checkpoint on every bundled body (docs/policies.md)")
+    adopt.add_argument("subjects", nargs="*", help="bodies to judge (default: params universal.subjects)")
+    adopt.add_argument("--universal", type=Path, help="the checkpoint's folder (default: data/universal)")
+    adopt.add_argument("--root", type=Path, help="<root>/<subject>/{model,real} in (default: data/processed)")
+    adopt.add_argument("--no-record", action="store_true", help="do not append to <folder>/adoption.json")
+    adopt.add_argument("--json", action="store_true", help="JSON only on stdout (no progress bar)")
+    adopt.set_defaults(func=cmd_adopt_universal)
 
     evaluate = commands.add_parser("evaluate-policy", help="issue-6 checks of the trained walking policy")
     evaluate.add_argument("subject")

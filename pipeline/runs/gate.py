@@ -48,6 +48,15 @@ def required_checks(params: Params, source_evaluation: dict | None) -> set[str] 
     return {k for k, ok in checks.items() if k.startswith(SCENARIO_PREFIX) and ok}
 
 
+def universal_required(params: Params, policy_root: Path = paths.POLICIES_ROOT) -> set[str] | None:
+    """The scenario checks a universal export must pass: those its run's source policy
+    (`universal.init_from`) passes in its `evaluation.json` (`transfer.gate: source`), else every one."""
+    from sim.learn.pool import UniversalParams
+
+    source = params.section("universal", UniversalParams).init_from
+    return required_checks(params, source_evaluation(paths.policy_dir(policy_root, source)))
+
+
 def judge(checks: dict[str, bool | None], required: set[str] | None) -> dict:
     """The gate over evaluate-policy's `checks`: each scenario check with its result and whether it
     is required; `failed` the required ones that did not pass; `pass` when at least one check is
@@ -72,4 +81,5 @@ def run_gate(subject: str, params: Params, policy_root: Path, required: set[str]
 
 
 __all__ = ["EVALUATION_FILE", "GATE_FILE", "SCENARIO_PREFIX", "gate_failed", "gate_params", "gate_summary",
-           "judge", "read_gate", "required_checks", "run_gate", "source_evaluation", "usable_policy"]
+           "judge", "read_gate", "required_checks", "run_gate", "source_evaluation", "universal_required",
+           "usable_policy"]

@@ -1,0 +1,78 @@
+"""The universal policy's adoption rule (pipeline/commands/adoption.py): `decide` on hand-made gate
+results, and `adopt-universal` on the committed checkpoint and one real body (MuJoCo rollouts)."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+from pipeline.cli import main
+from pipeline.commands.adoption import ADOPTION_FILE, decide
+from pipeline.runs.gate import SCENARIO_PREFIX, universal_required
+from sim.learn.train import NORM_FILE, POLICY_FILE, PROGRESS_FILE
+
+REPO = Path(__file__).resolve().parents[2]
+SUBJECT = "moissenet_np1023"   # no committed policy: adopts on its gate alone
+
+
+def verdict(passed: bool, failed: list[str] | None = None) -> dict:
+    return {"pass": passed, "failed": failed or []}
+
+
+def evaluation(n_passed: int, n_checks: int = 29) -> dict:
+    return {"checks": {f"check_{i}": i < n_passed for i in range(n_checks)}}
+
+
+def test_a_subject_without_a_committed_policy_adopts_on_its_gate():
+    assert decide(verdict(True), evaluation(5), None)["adopt"] is True  # few checks, but the gate passed
+    rec = decide(verdict(False, ["scenario_turn_90_free_no_fall"]), evaluation(28), None)
+    assert rec["adopt"] is False and rec["failed_required"] == ["scenario_turn_90_free_no_fall"]
+    assert rec["checks_passed"] == 28 and rec["checks"] == 29
+
+
+def test_a_committed_policy_is_replaced_only_by_as_many_checks():
+    assert decide(verdict(True), evaluation(21), evaluation(22))["adopt"] is False  # gate passed, 1 fewer
+    rec = decide(verdict(False), evaluation(22), evaluation(22))
+    assert rec["adopt"] is True and rec["committed_checks_passed"] == 22
+
+
+def test_the_gate_requires_what_the_runs_source_passes(params, policies_root):
+    required = universal_required(params, policies_root)
+    source = json.loads((policies_root / "camargo" / "evaluation.json").read_text())["checks"]
+    assert required == {k for k, ok in source.items() if k.startswith(SCENARIO_PREFIX) and ok}
+    assert required and not any(k.startswith("scenario_turnaround") for k in required)  # camargo fails those
+
+
+@pytest.fixture(scope="module")
+def processed(tmp_path_factory, params) -> Path:
+    """ingest, scale and reference of SUBJECT, as `dvc repro` makes them, in a temporary root."""
+    from pipeline.stages.ingest import run_ingest
+    from pipeline.stages.reference import run_reference
+    from pipeline.stages.scale import run_scale
+
+    root, reports = tmp_path_factory.mktemp("processed"), tmp_path_factory.mktemp("reports")
+    run_ingest(SUBJECT, params, root, progress=False)
+    run_scale(SUBJECT, params, root, reports)
+    run_reference(SUBJECT, params, root, reports, progress=False)
+    return root
+
+
+def test_adopt_universal_judges_the_checkpoint_and_records_it(processed, tmp_path, capsys):
+    universal = tmp_path / "universal"
+    universal.mkdir()
+    for f in (POLICY_FILE, NORM_FILE, PROGRESS_FILE):
+        shutil.copy(REPO / "data" / "universal" / f, universal / f)
+    assert main(["adopt-universal", SUBJECT, "--universal", str(universal), "--root", str(processed),
+                 "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    rec = doc["subjects"][SUBJECT]
+    assert doc["universal_steps"] == json.loads((universal / PROGRESS_FILE).read_text())["steps"]
+    assert rec["checks"] >= 20 and rec["checks_passed"] == len(rec["passed"])
+    assert rec["adopt"] == rec["gate_pass"] and (SUBJECT in doc["adopted"]) == rec["adopt"]
+    assert rec["gate_pass"] == (not rec["failed_required"])
+    assert set(rec["failed_required"]) <= set(doc["required"])
+    record = json.loads((universal / ADOPTION_FILE).read_text())
+    assert record["evaluations"][-1]["subjects"] == doc["subjects"] and record["adopted"] == doc["adopted"]
