@@ -1,8 +1,9 @@
 """Bench section `train`: how fast the universal walking policy trains here, against its physics
 (`sim.learn.throughput.measure`): raw `mj_step` of camargo's human, env steps of the pool of
-bodies alone and training steps (PPO + AMP updates), on one env and on one env per core, with the
-machine's core count. Target (issue 33): training at least 0.7 x the env-only rate at the same env
-count, i.e. not update-bound."""
+bodies alone and training steps (PPO + AMP updates), on one env, on one env per core, and on
+`train.n_envs` envs in the training process with the updates on every core (how a 2-core machine
+trains), with the machine's core count. Target (issue 33): training at least 0.7 x the env-only rate
+at the same env count, i.e. not update-bound."""
 
 from __future__ import annotations
 
@@ -16,7 +17,7 @@ from sim.learn.throughput import measure
 from sim.learn.universal import sources_of
 from sim.rollout.scenarios import ScenariosSection
 
-TRAIN_TARGETS = {"train_to_env_all": 0.7}
+TRAIN_TARGETS = {"train_to_env_all": 0.7, "train_to_env_in_process": 0.7}
 
 
 def time_training(params: Params, root: Path = PROCESSED_ROOT, policy_root: Path = POLICIES_ROOT) -> dict:

@@ -3,8 +3,10 @@
 Three rates, each measured here in one run: raw `mj_step` of a subject's human (one process, and
 one process per core side by side), env steps of the pool of bodies alone (random actions, no
 learning: one env, and `n_envs` in one process each), and training (PPO + AMP updates included, the
-same envs). Training is update-bound when its rate is well below the env-only one at the same env
-count; the ratio is what `python -m pipeline bench` holds to its target.
+same envs). A third configuration is the one a few-core machine trains with: `in_process_envs` envs
+stepped in the training process itself, the updates on every core (`UpdateThreads`). Training is
+update-bound when its rate is well below the env-only one at the same env count; the ratio is what
+`python -m pipeline bench` holds to its target.
 """
 
 from __future__ import annotations
@@ -49,11 +51,11 @@ def raw_step_rate(xml: str, processes: int, seconds: float = 2.0) -> float:
 
 
 def env_step_rate(sources: tuple[Source, ...], up: UniversalParams, p: TrainParams, n_envs: int,
-                  steps: int, workers: int | None = None) -> float:
+                  steps: int, workers: int | None = None, in_process: bool = False) -> float:
     """Env steps per second of `n_envs` pools of bodies (in `workers` processes, default one per
-    env, when more than one), random actions, resets included."""
+    env, when more than one and not `in_process`), random actions, resets included."""
     fns = [partial(make_pool_env, sources, up, p.env, 100 + i) for i in range(n_envs)]
-    venv = GroupedSubprocVecEnv(fns, workers or n_envs) if n_envs > 1 else DummyVecEnv(fns)
+    venv = GroupedSubprocVecEnv(fns, workers or n_envs) if n_envs > 1 and not in_process else DummyVecEnv(fns)
     rng = np.random.default_rng(0)
     venv.reset()
     venv.step(rng.uniform(-1, 1, (n_envs, 21)).astype(np.float32))
@@ -71,21 +73,25 @@ Scenarios = dict[str, list[Segment]]
 
 def train_step_rate(sources: tuple[Source, ...], up: UniversalParams, p: TrainParams, scenarios: Scenarios,
                     n_envs: int, steps: int, device: str, init_from: str | None,
-                    workers: int | None = None) -> float:
-    """Training env steps per second (PPO + AMP updates) with `n_envs` envs (in `workers`
-    processes, default one per env, when more than one), from `init_from` as the run does, no gate."""
+                    workers: int | None = None, in_process: bool = False, threads: int = 1) -> float:
+    """Training env steps per second (PPO + AMP updates on `threads` torch threads) with `n_envs`
+    envs (in `workers` processes, default one per env, when more than one and not `in_process`),
+    from `init_from` as the run does, no gate."""
     with tempfile.TemporaryDirectory() as tmp:
         rec = train_universal(sources, replace(p, checkpoint_steps=10 ** 12), up, tmp, scenarios,
-                              init_from=init_from, total_steps=steps, n_envs=n_envs, subprocess=n_envs > 1,
-                              device=device, gate=False, workers=workers)
+                              init_from=init_from, total_steps=steps, n_envs=n_envs,
+                              subprocess=n_envs > 1 and not in_process, device=device, gate=False,
+                              workers=workers, threads=threads)
     return float(rec["runs"][-1]["steps_per_s"])
 
 
 def measure(sources: tuple[Source, ...], up: UniversalParams, p: TrainParams, scenarios: Scenarios, *,
             n_envs: int | None = None, device: str = "auto", init_from: str | None = None,
-            env_steps: int = 4000, train_steps: int = 8192, envs_per_worker: int = 1) -> dict:
-    """The three rates on 1 env and on `n_envs` (default: every core) worker processes of
-    `envs_per_worker` envs each (module docstring)."""
+            env_steps: int = 4000, train_steps: int = 8192, envs_per_worker: int = 1,
+            in_process_envs: int | None = None) -> dict:
+    """The three rates on 1 env, on `n_envs` (default: every core) worker processes of
+    `envs_per_worker` envs each, and on `in_process_envs` (default `p.n_envs`) envs in the training
+    process with the updates on every core (module docstring)."""
     cores = os.cpu_count() or 1
     n = n_envs or cores
     up = replace(up, refresh_probability=0.0)
@@ -99,6 +105,15 @@ def measure(sources: tuple[Source, ...], up: UniversalParams, p: TrainParams, sc
                             device, init_from, k), 1)
         ratio = out[f"train_steps_per_s_{label}"] / out[f"env_steps_per_s_{label}"]
         out[f"train_to_env_{label}"] = round(ratio, 3)
+    m = in_process_envs or p.n_envs
+    out["in_process_envs"], out["update_threads"] = m, cores
+    out["env_steps_per_s_in_process"] = round(
+        env_step_rate(sources, up, p, m, env_steps * m, in_process=True), 1)
+    out["train_steps_per_s_in_process"] = round(train_step_rate(
+        sources, up, p, scenarios, m, max(train_steps * m, p.n_steps * m * 2), device, init_from,
+        in_process=True, threads=cores), 1)
+    out["train_to_env_in_process"] = round(out["train_steps_per_s_in_process"]
+                                           / out["env_steps_per_s_in_process"], 3)
     out["env_scaling"] = round(out["env_steps_per_s_all"] / out["env_steps_per_s_one"], 2)
     return out
 

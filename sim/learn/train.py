@@ -127,6 +127,25 @@ class _Curriculum(BaseCallback):
         return True
 
 
+class UpdateThreads(BaseCallback):
+    """Torch threads: one while a rollout is collected (a forward pass over a few observations per
+    env step, where more threads only add overhead), `threads` for the AMP and PPO updates after it
+    (the cores the envs leave idle then). Goes first in the callback list, before `AMPCallback`."""
+
+    def __init__(self, threads: int) -> None:
+        super().__init__()
+        self.threads = threads
+
+    def _on_rollout_start(self) -> None:
+        torch.set_num_threads(1)
+
+    def _on_step(self) -> bool:
+        return True
+
+    def _on_rollout_end(self) -> None:
+        torch.set_num_threads(self.threads)
+
+
 class Budget(BaseCallback):
     """Progress bar, periodic checkpoints and a wall-time limit."""
 
@@ -281,7 +300,7 @@ def train(model_path: str | Path, cycle: ReferenceCycle, p: TrainParams, out_dir
         (out / PROGRESS_FILE).write_text(json.dumps(rec, indent=2) + "\n")
         return rec
 
-    callbacks = [AMPCallback(amp, p.env.w_style, 6, log),
+    callbacks = [UpdateThreads(threads or p.threads), AMPCallback(amp, p.env.w_style, 6, log),
                  Budget(total, p.checkpoint_steps, save, max_wall_s, progress)]
     if curriculum_steps > 0:
         callbacks.append(_Curriculum(curriculum_steps))
@@ -417,6 +436,6 @@ def load_policy(out_dir: str | Path) -> tuple[PPO, VecNormalize | None]:
 
 
 __all__ = ["AMP_FILE", "BODY_FILE", "CYCLE_FILE", "NORM_FILE", "POLICY_FILE", "PROGRESS_FILE",
-           "STEERING_FILE", "Budget", "MetricsLog", "TrainParams", "load_body", "load_norm", "load_policy",
-           "make_vec_env", "new_ppo", "policy_env", "save_body", "save_steering", "train", "variant_cycle",
-           "widen_policy"]
+           "STEERING_FILE", "Budget", "MetricsLog", "TrainParams", "UpdateThreads", "load_body", "load_norm",
+           "load_policy", "make_vec_env", "new_ppo", "policy_env", "save_body", "save_steering", "train",
+           "variant_cycle", "widen_policy"]

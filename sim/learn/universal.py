@@ -50,6 +50,7 @@ from sim.learn.train import (
     Budget,
     MetricsLog,
     TrainParams,
+    UpdateThreads,
     load_norm,
     new_ppo,
     ppo_settings,
@@ -278,7 +279,7 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
             print(f"{rec['steps']} steps, {wall:.0f} s: gate {g['passed']}/{g['checks']}", flush=True)
         return rec
 
-    callbacks = [AMPCallback(amp, p.env.w_style, 6, log),
+    callbacks = [UpdateThreads(threads), AMPCallback(amp, p.env.w_style, 6, log),
                  Budget(total, p.checkpoint_steps, save, max_wall_s, False)]
     if not prior and init_from is not None and up.critic_warmup_steps > 0:
         callbacks.append(CriticWarmup(up.critic_warmup_steps))

@@ -168,12 +168,15 @@ def test_throughput_is_measured_against_the_physics(universal, camargo):
 
     p, up, scenarios = universal
     doc = measure((camargo[0],), up, replace(p, n_steps=64, batch_size=128), scenarios, n_envs=2,
-                  device="cpu", init_from="data/policies/camargo", env_steps=100, train_steps=128)
+                  device="cpu", init_from="data/policies/camargo", env_steps=100, train_steps=128,
+                  in_process_envs=3)
     assert doc["cpu_count"] >= 1 and doc["workers"] == 2
-    for label in ("one", "all"):
+    assert doc["in_process_envs"] == 3 and doc["update_threads"] == doc["cpu_count"]
+    for label in ("one", "all", "in_process"):
         # an env step is 15 physics steps (30 ms policy, 2 ms physics) plus the env's own work; the two
         # rates are measured one after the other, so a busy machine's noise gets a factor of 2
-        assert 0 < doc[f"env_steps_per_s_{label}"] < doc[f"mj_step_per_s_{label}"] / 5
+        physics = doc[f"mj_step_per_s_{'one' if label == 'in_process' else label}"]  # in_process: one process
+        assert 0 < doc[f"env_steps_per_s_{label}"] < physics / 5
         assert 0 < doc[f"train_steps_per_s_{label}"]
         assert doc[f"train_to_env_{label}"] == pytest.approx(
             doc[f"train_steps_per_s_{label}"] / doc[f"env_steps_per_s_{label}"], abs=1e-3)
