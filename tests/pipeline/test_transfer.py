@@ -172,6 +172,35 @@ def test_gate_requires_what_the_source_passes(params):
     assert not judge({"scenario_steady_free_no_fall": False}, set())["pass"]  # nothing required: no pass
 
 
+@pytest.mark.parametrize(("gate_first", "verdicts", "budget_s", "totals", "rounds"), [
+    (False, [False, False, True], 60.0, [100, 200, 300], 3),        # a pass ends it
+    (True, [False, False, True], 60.0, [100, 200], 3),              # zero-shot gate first
+    (False, [False] * 9, 60.0, [100, 200, 250], 3),                 # transfer.steps end it
+    (True, [False] * 9, 0.0, [], 1),                                # the budget ends it
+])
+def test_one_loop_chunks_and_gates_until_pass_steps_or_wall(monkeypatch, params, gate_first, verdicts,
+                                                             budget_s, totals, rounds):
+    """`tune_until_gate`, both routes' loop, with a stand-in chunk and gate: what it asks each chunk
+    for and when it stops."""
+    from pipeline.stages import transfer as stage
+
+    gates = iter(verdicts)
+    monkeypatch.setattr(stage, "run_gate", lambda *a, **k: ({"gate": "doc"}, {"pass": next(gates)}))
+    asked: list[tuple[int, float]] = []
+
+    def chunk(total_steps: int, wall_s: float) -> int:
+        asked.append((total_steps, wall_s))
+        return total_steps
+
+    t = params.transfer.model_copy(update={"steps": 250 if not any(verdicts) else 1000, "chunk_steps": 100})
+    p = params.replaced("transfer", TransferSection, t)
+    tuned = stage.tune_until_gate("s", p, Path("work"), None, chunk, gate_first=gate_first,
+                                  max_wall_s=budget_s)
+    assert [a for a, _ in asked] == totals and all(0 < w <= max(budget_s, 1.0) for _, w in asked)
+    assert (tuned.rounds, tuned.steps) == (rounds, totals[-1] if totals else 0)
+    assert tuned.evaluation == {"gate": "doc"} and tuned.verdict["pass"] == any(verdicts[:rounds])
+
+
 def test_transfer_stage_writes_the_policy_and_the_gate_record(processed, policies, tmp_path, params):
     subject = "lenhart2015"
     free_only = params.rollout.model_copy(update={"conditions": ("free",)})
