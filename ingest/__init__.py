@@ -5,6 +5,7 @@ from ingest.errors import GaitloopError, IngestError, ManifestError, SubjectErro
 from ingest.manifest import Manifest
 from ingest.opensim_export import export_trial
 from ingest.process import IngestParams, ProcessedTrial, SubjectTables, process_subject, process_trial
+from ingest.similarity import scaled_static, scaled_subject, scaled_tables
 from ingest.static import StaticTrial, read_static_trial
 from ingest.subject import Subject, load_subject
 from ingest.trial import Trial
@@ -29,5 +30,8 @@ __all__ = [
     "process_trial",
     "read_static_trial",
     "read_trials",
+    "scaled_static",
+    "scaled_subject",
+    "scaled_tables",
     "write_trials",
 ]

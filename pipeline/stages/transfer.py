@@ -7,7 +7,8 @@ universal policy is missing): the committed policy (`train.subjects`) whose body
 nearest the subject's (`sim.learn.transfer`: height, mass, leg length, preferred speed; weighted RMS
 of log ratios), fine-tuned on the subject's scaled human and reference cycle (`sim.learn.train.train`
 with `init_from`). Either way the fine-tune runs in chunks of `transfer.chunk_steps`, gated after
-each, until the gate passes or `transfer.steps` / `transfer.max_wall_s` are spent.
+each, until the gate passes or `transfer.steps` / `transfer.max_wall_s` are spent (one loop for both,
+`tune_until_gate`, given the source's chunk of fine-tuning).
 
 The gate is `evaluate-policy` (pipeline/runs/evaluate_policy.py) with `transfer.gate_seeds` walks per
 check, judged on its scenario checks (metrics/scenario_checks.py). `transfer.gate: source` requires
@@ -31,6 +32,7 @@ import os
 import shutil
 import tempfile
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -105,8 +107,9 @@ def fine_tune(subject: str, params: Params, out_dir: Path, *, steps: int, max_wa
 
 @dataclass(frozen=True)
 class Tuned:
-    """What `fine_tune_until_gate` did: env steps in all, chunks (each gated), seconds spent training
-    and gating, the last gate's evaluate-policy result and verdict (`judge`)."""
+    """What a fine-tune-and-gate loop (`tune_until_gate`) did: env steps in all (as its chunks count
+    them), gates run (rounds), seconds spent training and gating, the last gate's evaluate-policy
+    result and verdict (`judge`)."""
 
     steps: int
     rounds: int
@@ -116,68 +119,87 @@ class Tuned:
     verdict: dict
 
 
-def fine_tune_until_gate(subject: str, params: Params, work_root: Path, source_dir: Path,
-                         required: set[str] | None, *, max_wall_s: float, root: Path = paths.PROCESSED_ROOT,
-                         reports: Path = paths.REPORTS_ROOT, progress: bool = True) -> Tuned:
-    """Fine-tune `subject`'s policy in `<work_root>/<subject>` from the one in `source_dir`, in chunks
-    of `transfer.chunk_steps`, gating after each, until the gate passes, `transfer.steps` are done
-    or `max_wall_s` is spent (the chunk running then stops; its gate still runs)."""
+Chunk = Callable[[int, float], int]
+"""One chunk of a fine-tune: `chunk(total_steps, max_wall_s)` fine-tunes on until `total_steps` env
+steps of this fine-tune are done in all or `max_wall_s` seconds are spent, leaves the policy the gate
+walks in `<work_root>/<subject>`, and returns the env steps done in all."""
+
+
+def tune_until_gate(subject: str, params: Params, work_root: Path, required: set[str] | None, chunk: Chunk,
+                    *, gate_first: bool, max_wall_s: float, root: Path = paths.PROCESSED_ROOT,
+                    reports: Path = paths.REPORTS_ROOT, progress: bool = True) -> Tuned:
+    """Fine-tune `subject`'s policy in `<work_root>/<subject>` in chunks of `transfer.chunk_steps`
+    (`chunk`), gating after each (`required` checks: `run_gate`), until the gate passes,
+    `transfer.steps` are done or `max_wall_s` (s) is spent (the chunk running then stops; its gate
+    still runs). `gate_first`: gate the policy already there before the first chunk (zero-shot)."""
     t = params.section("transfer", TransferSection)
     start = time.perf_counter()
     steps, rounds, train_s, gate_s = 0, 0, 0.0, 0.0
     while True:
-        left = max_wall_s - (time.perf_counter() - start)
-        t0 = time.perf_counter()
-        rec = fine_tune(subject, params, paths.policy_dir(work_root, subject),
-                        steps=min(steps + t.chunk_steps, t.steps), max_wall_s=max(left, 1.0),
-                        init_from=source_dir if rounds == 0 else None, root=root, progress=progress)
+        if rounds > 0 or not gate_first:  # zero-shot: the first gate comes before any chunk
+            t0 = time.perf_counter()
+            steps = chunk(min(steps + t.chunk_steps, t.steps), max(max_wall_s - (t0 - start), 1.0))
+            train_s += time.perf_counter() - t0
         t1 = time.perf_counter()
-        steps, rounds, train_s = int(rec["steps"]), rounds + 1, train_s + t1 - t0
         doc, verdict = run_gate(subject, params, work_root, required, root=root, reports=reports,
                                 progress=progress)
-        gate_s += time.perf_counter() - t1
+        gate_s, rounds = gate_s + time.perf_counter() - t1, rounds + 1
         if verdict["pass"] or steps >= t.steps or time.perf_counter() - start >= max_wall_s:
             return Tuned(steps, rounds, round(train_s, 1), round(gate_s, 1), doc, verdict)
+
+
+def fine_tune_until_gate(subject: str, params: Params, work_root: Path, source_dir: Path,
+                         required: set[str] | None, *, max_wall_s: float, root: Path = paths.PROCESSED_ROOT,
+                         reports: Path = paths.REPORTS_ROOT, progress: bool = True) -> Tuned:
+    """`subject`'s policy in `<work_root>/<subject>` fine-tuned from the committed one in
+    `source_dir` (`tune_until_gate`: no zero-shot gate, as the source was trained on another body)."""
+    from sim.learn.train import PROGRESS_FILE
+
+    dest = paths.policy_dir(work_root, subject)
+
+    def chunk(total_steps: int, wall_s: float) -> int:
+        started = (dest / PROGRESS_FILE).is_file()  # a chunk ran: resume it, else start from the source
+        rec = fine_tune(subject, params, dest, steps=total_steps, max_wall_s=wall_s,
+                        init_from=None if started else source_dir, root=root, progress=progress)
+        return int(rec["steps"])
+
+    return tune_until_gate(subject, params, work_root, required, chunk, gate_first=False,
+                           max_wall_s=max_wall_s, root=root, reports=reports, progress=progress)
 
 
 def universal_until_gate(subject: str, params: Params, work_root: Path, universal_dir: Path, *,
                          max_wall_s: float, root: Path = paths.PROCESSED_ROOT,
                          reports: Path = paths.REPORTS_ROOT, progress: bool = True) -> Tuned:
     """`subject`'s policy in `<work_root>/<subject>` from the universal policy in `universal_dir`:
-    gated zero-shot, then fine-tuned on the subject's body in chunks of `transfer.chunk_steps` (in
-    `<work_root>/.fine_tune`), gated after each, until the gate (every scenario check) passes,
-    `transfer.steps` are done or `max_wall_s` is spent."""
+    exported to the subject's body and gated zero-shot, then fine-tuned on that body alone (in
+    `<work_root>/.fine_tune`, exported after each chunk) by `tune_until_gate`; the gate requires every
+    scenario check."""
     from pipeline.stages.train import train_inputs
     from sim.learn.pool import Source, UniversalParams
     from sim.learn.train import PROGRESS_FILE
     from sim.learn.universal import export_subject, fine_tune_body
 
-    t = params.section("transfer", TransferSection)
     xml, npz = train_inputs(subject, root)
     src, p = Source(subject, str(xml), str(npz)), train_params(params)
     up = params.section("universal", UniversalParams)
     dest, tune_dir = paths.policy_dir(work_root, subject), work_root / ".fine_tune"
-    start = time.perf_counter()
-    steps, rounds, train_s, gate_s = 0, 0, 0.0, 0.0
-    record = json.loads((universal_dir / PROGRESS_FILE).read_text())
-    record = {"steps": int(record["steps"]), "initialised_from": "universal",
-              "initial_steps": int(record["steps"]), "fine_tuned_steps": 0}
-    export_subject(universal_dir, src, p.env, dest, label="universal")
-    while True:
+
+    def export(folder: Path, record: dict) -> None:
+        """The policy in `folder` on the subject's body into `dest`, `record` its progress record."""
+        export_subject(folder, src, p.env, dest, label="universal")
         (dest / PROGRESS_FILE).write_text(json.dumps(record, indent=1) + "\n")
-        t1 = time.perf_counter()
-        doc, verdict = run_gate(subject, params, work_root, None, root=root, reports=reports,
-                                progress=progress)
-        gate_s, rounds = gate_s + time.perf_counter() - t1, rounds + 1
-        if verdict["pass"] or steps >= t.steps or time.perf_counter() - start >= max_wall_s:
-            return Tuned(steps, rounds, round(train_s, 1), round(gate_s, 1), doc, verdict)
-        t0 = time.perf_counter()
-        record = fine_tune_body(universal_dir, src, p, up, tune_dir,
-                                steps=min(steps + t.chunk_steps, t.steps),
-                                max_wall_s=max(max_wall_s - (t0 - start), 1.0),
+
+    def chunk(total_steps: int, wall_s: float) -> int:
+        record = fine_tune_body(universal_dir, src, p, up, tune_dir, steps=total_steps, max_wall_s=wall_s,
                                 command=f"python -m pipeline transfer {subject}", progress=progress)
-        steps, train_s = int(record["fine_tuned_steps"]), train_s + time.perf_counter() - t0
-        export_subject(tune_dir, src, p.env, dest, label="universal")
+        export(tune_dir, record)
+        return int(record["fine_tuned_steps"])
+
+    start = int(json.loads((universal_dir / PROGRESS_FILE).read_text())["steps"])
+    export(universal_dir, {"steps": start, "initialised_from": "universal", "initial_steps": start,
+                           "fine_tuned_steps": 0})
+    return tune_until_gate(subject, params, work_root, None, chunk, gate_first=True,
+                           max_wall_s=max_wall_s, root=root, reports=reports, progress=progress)
 
 
 def universal_source(params: Params, universal_dir: Path | None) -> Path | None:
@@ -235,5 +257,5 @@ def run_transfer(subject: str, params: Params, root: Path = paths.PROCESSED_ROOT
     return record
 
 
-__all__ = ["Tuned", "choose_source", "fine_tune", "fine_tune_until_gate", "policy_features", "run_transfer",
-           "subject_features", "universal_source", "universal_until_gate"]
+__all__ = ["Chunk", "Tuned", "choose_source", "fine_tune", "fine_tune_until_gate", "policy_features",
+           "run_transfer", "subject_features", "tune_until_gate", "universal_source", "universal_until_gate"]

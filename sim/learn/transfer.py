@@ -109,11 +109,13 @@ __all__ = ["BodyFeatures", "FeatureWeights", "NearestPolicy", "body_features", "
 
 
 class TransferBench(BaseModel):
-    """`python -m pipeline bench --only transfer`: the stage's procedure on one subject, timed."""
+    """`python -m pipeline bench --only transfer`: the stage's procedure, timed, on a body no policy
+    saw: `subject`'s recordings scaled geometrically by `scale` (pipeline/bench/transfer.py)."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     subject: str
+    scale: Annotated[float, Field(gt=0.0)]  # every length x this, mass x its cube
     max_wall_s: Annotated[float, Field(gt=0.0)]  # the bench run's budget (s)
 
 

@@ -172,6 +172,35 @@ def test_gate_requires_what_the_source_passes(params):
     assert not judge({"scenario_steady_free_no_fall": False}, set())["pass"]  # nothing required: no pass
 
 
+@pytest.mark.parametrize(("gate_first", "verdicts", "budget_s", "totals", "rounds"), [
+    (False, [False, False, True], 60.0, [100, 200, 300], 3),        # a pass ends it
+    (True, [False, False, True], 60.0, [100, 200], 3),              # zero-shot gate first
+    (False, [False] * 9, 60.0, [100, 200, 250], 3),                 # transfer.steps end it
+    (True, [False] * 9, 0.0, [], 1),                                # the budget ends it
+])
+def test_one_loop_chunks_and_gates_until_pass_steps_or_wall(monkeypatch, params, gate_first, verdicts,
+                                                             budget_s, totals, rounds):
+    """`tune_until_gate`, both routes' loop, with a stand-in chunk and gate: what it asks each chunk
+    for and when it stops."""
+    from pipeline.stages import transfer as stage
+
+    gates = iter(verdicts)
+    monkeypatch.setattr(stage, "run_gate", lambda *a, **k: ({"gate": "doc"}, {"pass": next(gates)}))
+    asked: list[tuple[int, float]] = []
+
+    def chunk(total_steps: int, wall_s: float) -> int:
+        asked.append((total_steps, wall_s))
+        return total_steps
+
+    t = params.transfer.model_copy(update={"steps": 250 if not any(verdicts) else 1000, "chunk_steps": 100})
+    p = params.replaced("transfer", TransferSection, t)
+    tuned = stage.tune_until_gate("s", p, Path("work"), None, chunk, gate_first=gate_first,
+                                  max_wall_s=budget_s)
+    assert [a for a, _ in asked] == totals and all(0 < w <= max(budget_s, 1.0) for _, w in asked)
+    assert (tuned.rounds, tuned.steps) == (rounds, totals[-1] if totals else 0)
+    assert tuned.evaluation == {"gate": "doc"} and tuned.verdict["pass"] == any(verdicts[:rounds])
+
+
 def test_transfer_stage_writes_the_policy_and_the_gate_record(processed, policies, tmp_path, params):
     subject = "lenhart2015"
     free_only = params.rollout.model_copy(update={"conditions": ("free",)})
@@ -281,15 +310,47 @@ def test_no_gate_no_policy_rows():
     assert sections.transfer(pd.DataFrame(columns=["stage", "check", "status", "note"])) is None
 
 
-def test_bench_section_reports_steps_wall_time_and_the_gate(processed, policies, params):
+def test_bench_body_is_the_subject_scaled_geometrically(processed, params, tmp_path):
+    """The bench's unseen body, made by the stages' own code from the scaled recordings: standing
+    height, leg length and speed x k, mass x k^3."""
+    from pipeline.bench.transfer import unseen_subject
+    from pipeline.stages.ingest import read_ingested
+
+    b = params.transfer.bench
+    unseen_subject(b.subject, b.scale, params, processed, tmp_path / "processed", tmp_path / "reports")
+    own, scaled = subject_features(b.subject, processed), subject_features(b.subject, tmp_path / "processed")
+    k = b.scale
+    assert scaled.height_m == pytest.approx(k * own.height_m, rel=0.01)
+    assert scaled.mass_kg == pytest.approx(k**3 * own.mass_kg, rel=1e-4)
+    assert scaled.leg_length_m == pytest.approx(k * own.leg_length_m, rel=0.01)
+    assert scaled.speed_mps == pytest.approx(k * own.speed_mps, rel=0.02)
+    real = read_ingested(b.subject, tmp_path / "processed").strides
+    assert real["stride_length_m"].to_numpy() == pytest.approx(
+        k * read_ingested(b.subject, processed).strides["stride_length_m"].to_numpy())
+
+
+@pytest.mark.parametrize("route", ["universal", "nearest"])
+def test_bench_section_reports_steps_wall_time_and_the_gate(processed, policies, params, tmp_path, route):
     from pipeline.bench.transfer import TRANSFER_TARGETS, time_transfer
 
+    universal = REPO / "data" / "universal" if route == "universal" else tmp_path / "no_universal"
     t = params.transfer.model_copy(update={"steps": 2048, "chunk_steps": 2048})
     tiny = params.replaced("transfer", TransferSection, t).replaced(
         "rollout", RolloutSection, params.rollout.model_copy(update={"conditions": ("free",)}))
-    section = time_transfer(tiny, processed, policies, max_wall_s=60.0)
-    assert section["subject"] == params.transfer.bench.subject and section["source"] == "opencap4"
-    assert section["rounds"] == 1 and section["steps"] >= 2048  # transfer.steps ends it
+    section = time_transfer(tiny, processed, policies, universal, max_wall_s=60.0)
+    b = params.transfer.bench
+    assert (section["subject"], section["scale"]) == (b.subject, b.scale)
+    assert section["body"] == f"{b.subject}_x{b.scale:g}" and section["prepare_wall_s"] > 0
+    if route == "universal":
+        start = json.loads((universal / PROGRESS_FILE).read_text())["steps"]
+        assert (section["source"], section["gate"], section["universal_steps"]) == ("universal", "all", start)
+        # zero-shot first: a pass stops there, a failure fine-tunes one chunk and gates again
+        assert (section["rounds"], section["steps"] >= 2048) == ((1, False) if section["gate_passed"]
+                                                                 else (2, True))
+    else:
+        assert section["source"] in {"camargo", "opencap4"} and section["gate"] == params.transfer.gate
+        assert "no universal policy" in section["note"] and section["universal_steps"] is None
+        assert section["rounds"] == 1 and section["steps"] >= 2048  # transfer.steps ends it
     # three times each rounded to 0.1 s: their sum may exceed the total by up to 0.15 s
     assert section["wall_s"] + 0.15 >= section["train_wall_s"] + section["gate_wall_s"] > 0
     assert section["gate_passed"] == (section["failed_checks"] == [])
