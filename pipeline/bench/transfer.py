@@ -10,13 +10,13 @@ does), the reference retargeted by the reference stage, all in a temporary proce
 scaled person keeps the subject's id, by which the gate's rollouts look up its marker set
 (data/subjects); `body` names it.
 
-Then the transfer stage's procedure from the universal policy (`universal_until_gate`: gated zero-shot,
-then fine-tuned on the body in chunks of `transfer.chunk_steps`, each gated on every scenario check
-with `transfer.gate_seeds` walks per check), with the budget `transfer.bench.max_wall_s` instead of the
-stage's (the chunk running when it ends stops there, its gate still runs, so the wall time can exceed
-the budget by one gate). Without a policy in data/universal (or with `transfer.source: nearest`), as
-the stage: from the nearest committed policy (`fine_tune_until_gate`, `transfer.gate`), and `note`
-says so. `wall_s` is the procedure's (what the transfer stage spends); making the body is
+Then the transfer stage's procedure (`pipeline.stages.transfer.tune_from_source`): from the universal
+policy, gated zero-shot, then fine-tuned on the body in chunks of `transfer.chunk_steps`, each gated
+(`transfer.gate_seeds` walks per check, the checks of `pipeline.runs.gate.universal_required`), with
+the budget `transfer.bench.max_wall_s` instead of the stage's (the chunk running when it ends stops
+there, its gate still runs, so the wall time can exceed the budget by one gate). Without a policy in
+data/universal (or with `transfer.source: nearest`), as the stage: from the nearest committed policy,
+and `note` says so. `wall_s` is the procedure's (what the transfer stage spends); making the body is
 `prepare_wall_s`. Measured honestly: `gate_passed` is false when the budget or `transfer.steps` ended
 first. Target (issue 33): a passing gate within 15 minutes on 2 cores; `dvc repro bench` runs the
 short budget of params.yaml, the 15-minute measurement is a run by hand with a params copy. Work goes
@@ -44,19 +44,12 @@ from pipeline.paths import (
     REAL_TRIALS,
     UNIVERSAL_DIR,
     human_xml,
-    policy_dir,
     real_dir,
 )
-from pipeline.runs.gate import required_checks, source_evaluation
 from pipeline.stages.ingest import TABLES, read_ingested, summary
 from pipeline.stages.outputs import write_outputs
 from pipeline.stages.reference import run_reference
-from pipeline.stages.transfer import (
-    choose_source,
-    fine_tune_until_gate,
-    universal_source,
-    universal_until_gate,
-)
+from pipeline.stages.transfer import tune_from_source
 from sim.body.human import build_human
 from sim.body.human_params import HumanParams
 from sim.body.scaling import scale_subject
@@ -103,7 +96,6 @@ def time_transfer(params: Params, root: Path = PROCESSED_ROOT, policy_root: Path
     head = {"subject": b.subject, "scale": b.scale, "body": scaled_id(b.subject, b.scale),
             "universal_steps": universal_steps(universal_dir), "budget_s": budget}
     skipped = {"steps": 0, "wall_s": 0.0, "gate_passed": False}
-    universal = universal_source(params, universal_dir)
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
         body_root, reports = work / "processed", work / "reports"
@@ -114,23 +106,17 @@ def time_transfer(params: Params, root: Path = PROCESSED_ROOT, policy_root: Path
             return {**head, "skipped": str(exc), **skipped}
         prepare_s = time.perf_counter() - start
         start = time.perf_counter()
-        if universal is not None:
-            tuned = universal_until_gate(b.subject, params, work / "policies", universal, max_wall_s=budget,
-                                         root=body_root, reports=reports, progress=False)
-            route = {"source": "universal", "gate": "all"}
-        else:
-            try:
-                choice, _ = choose_source(b.subject, params, body_root, policy_root)
-            except SimulationError as exc:
-                return {**head, "skipped": str(exc), **skipped}
-            source_dir = policy_dir(policy_root, choice.source)
-            tuned = fine_tune_until_gate(b.subject, params, work / "policies", source_dir,
-                                         required_checks(params, source_evaluation(source_dir)),
-                                         max_wall_s=budget, root=body_root, reports=reports, progress=False)
+        try:
+            tuned, route = tune_from_source(b.subject, params, work / "policies", max_wall_s=budget,
+                                            root=body_root, policy_root=policy_root, reports=reports,
+                                            universal_dir=universal_dir, progress=False)
+        except SimulationError as exc:
+            return {**head, "skipped": str(exc), **skipped}
+        if route["source"] != "universal":
             why = ("transfer.source is nearest" if t.source == "nearest"
                    else f"no universal policy in {universal_dir}")
-            route = {"source": choice.source, "distance": round(choice.distance, 4), "gate": t.gate,
-                     "note": f"{why}: from the nearest committed policy"}
+            route = {k: route[k] for k in ("source", "distance", "gate")} | {
+                "note": f"{why}: from the nearest committed policy"}
         wall_s = time.perf_counter() - start
     return {**head, **route, "max_steps": t.steps, "chunk_steps": t.chunk_steps, "gate_seeds": t.gate_seeds,
             "rounds": tuned.rounds, "steps": tuned.steps, "prepare_wall_s": round(prepare_s, 1),

@@ -13,9 +13,9 @@ each, until the gate passes or `transfer.steps` / `transfer.max_wall_s` are spen
 The gate is `evaluate-policy` (pipeline/runs/evaluate_policy.py) with `transfer.gate_seeds` walks per
 check, judged on its scenario checks (metrics/scenario_checks.py). `transfer.gate: source` requires
 every scenario check the source policy passes in its own `evaluation.json` (a transfer must not be
-worse than where it started), `all` every scenario check (also what a universal source requires: it
-has no evaluation of the subject to start from). It passes when at least one check is required and
-all required ones pass.
+worse than where it started; for the universal policy, its run's source, `universal.init_from`:
+`pipeline.runs.gate.universal_required`, the set the adoption rule requires too), `all` every
+scenario check. It passes when at least one check is required and all required ones pass.
 
 Outputs, all-or-nothing (built in a temporary folder beside it, then moved into place):
 `data/policies/<subject>/` as `train` (or `export_subject`) writes it, plus `evaluation.json` (the
@@ -39,7 +39,14 @@ from typing import TYPE_CHECKING
 
 from pipeline import paths
 from pipeline.params import Params
-from pipeline.runs.gate import EVALUATION_FILE, GATE_FILE, required_checks, run_gate, source_evaluation
+from pipeline.runs.gate import (
+    EVALUATION_FILE,
+    GATE_FILE,
+    required_checks,
+    run_gate,
+    source_evaluation,
+    universal_required,
+)
 from pipeline.runs.setup import train_params
 from sim.learn.transfer import TransferSection
 
@@ -167,13 +174,13 @@ def fine_tune_until_gate(subject: str, params: Params, work_root: Path, source_d
                            max_wall_s=max_wall_s, root=root, reports=reports, progress=progress)
 
 
-def universal_until_gate(subject: str, params: Params, work_root: Path, universal_dir: Path, *,
-                         max_wall_s: float, root: Path = paths.PROCESSED_ROOT,
+def universal_until_gate(subject: str, params: Params, work_root: Path, universal_dir: Path,
+                         required: set[str] | None, *, max_wall_s: float, root: Path = paths.PROCESSED_ROOT,
                          reports: Path = paths.REPORTS_ROOT, progress: bool = True) -> Tuned:
     """`subject`'s policy in `<work_root>/<subject>` from the universal policy in `universal_dir`:
     exported to the subject's body and gated zero-shot, then fine-tuned on that body alone (in
-    `<work_root>/.fine_tune`, exported after each chunk) by `tune_until_gate`; the gate requires every
-    scenario check."""
+    `<work_root>/.fine_tune`, exported after each chunk) by `tune_until_gate`; the gate requires the
+    `required` checks (`pipeline.runs.gate.universal_required`)."""
     from pipeline.stages.train import train_inputs
     from sim.learn.pool import Source, UniversalParams
     from sim.learn.train import PROGRESS_FILE
@@ -198,7 +205,7 @@ def universal_until_gate(subject: str, params: Params, work_root: Path, universa
     start = int(json.loads((universal_dir / PROGRESS_FILE).read_text())["steps"])
     export(universal_dir, {"steps": start, "initialised_from": "universal", "initial_steps": start,
                            "fine_tuned_steps": 0})
-    return tune_until_gate(subject, params, work_root, None, chunk, gate_first=True,
+    return tune_until_gate(subject, params, work_root, required, chunk, gate_first=True,
                            max_wall_s=max_wall_s, root=root, reports=reports, progress=progress)
 
 
@@ -209,6 +216,31 @@ def universal_source(params: Params, universal_dir: Path | None) -> Path | None:
     if params.section("transfer", TransferSection).source != "universal" or universal_dir is None:
         return None
     return universal_dir if (universal_dir / POLICY_FILE).is_file() else None
+
+
+def tune_from_source(subject: str, params: Params, work_root: Path, *, max_wall_s: float,
+                     root: Path = paths.PROCESSED_ROOT, policy_root: Path = paths.POLICIES_ROOT,
+                     reports: Path = paths.REPORTS_ROOT, universal_dir: Path | None = paths.UNIVERSAL_DIR,
+                     progress: bool = True) -> tuple[Tuned, dict]:
+    """The stage's procedure into `<work_root>/<subject>` (module docstring): from the universal
+    policy when `universal_source` gives one, else from the nearest committed policy. Returns what
+    the loop did and the route's record (source, gate, and for the nearest its distances)."""
+    t = params.section("transfer", TransferSection)
+    universal = universal_source(params, universal_dir)
+    if universal is not None:
+        required = universal_required(params, policy_root)
+        tuned = universal_until_gate(subject, params, work_root, universal, required, max_wall_s=max_wall_s,
+                                     root=root, reports=reports, progress=progress)
+        return tuned, {"source": "universal", "gate": t.gate}
+    choice, features = choose_source(subject, params, root, policy_root)
+    source_dir = paths.policy_dir(policy_root, choice.source)
+    tuned = fine_tune_until_gate(subject, params, work_root, source_dir,
+                                 required_checks(params, source_evaluation(source_dir)),
+                                 max_wall_s=max_wall_s, root=root, reports=reports, progress=progress)
+    return tuned, {"source": choice.source, "distance": round(choice.distance, 4),
+                   "distances": {k: round(v, 4) for k, v in choice.distances.items()},
+                   "features": {"subject": asdict(features[subject]),
+                                "source": asdict(features[choice.source])}, "gate": t.gate}
 
 
 def run_transfer(subject: str, params: Params, root: Path = paths.PROCESSED_ROOT,
@@ -223,26 +255,13 @@ def run_transfer(subject: str, params: Params, root: Path = paths.PROCESSED_ROOT
         t = params.section("transfer", TransferSection)
         params = params.replaced("transfer", TransferSection, t.model_copy(update={"steps": steps}))
     t = params.section("transfer", TransferSection)
-    budget = max_wall_s or t.max_wall_s
     start = time.perf_counter()
-    universal = universal_source(params, universal_dir)
     dest = paths.policy_dir(policy_root, subject)
     dest.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=dest.parent, prefix=f".{subject}.transfer-") as tmp:
-        if universal is not None:
-            tuned = universal_until_gate(subject, params, Path(tmp), universal, max_wall_s=budget, root=root,
-                                         reports=reports, progress=progress)
-            chosen = {"source": "universal", "gate": "all"}
-        else:
-            choice, features = choose_source(subject, params, root, policy_root)
-            source_dir = paths.policy_dir(policy_root, choice.source)
-            tuned = fine_tune_until_gate(subject, params, Path(tmp), source_dir,
-                                         required_checks(params, source_evaluation(source_dir)),
-                                         max_wall_s=budget, root=root, reports=reports, progress=progress)
-            chosen = {"source": choice.source, "distance": round(choice.distance, 4),
-                      "distances": {k: round(v, 4) for k, v in choice.distances.items()},
-                      "features": {"subject": asdict(features[subject]),
-                                   "source": asdict(features[choice.source])}, "gate": t.gate}
+        tuned, chosen = tune_from_source(subject, params, Path(tmp), max_wall_s=max_wall_s or t.max_wall_s,
+                                         root=root, policy_root=policy_root, reports=reports,
+                                         universal_dir=universal_dir, progress=progress)
         record = {"subject": subject, **chosen, "gate_seeds": t.gate_seeds, "steps": tuned.steps,
                   "rounds": tuned.rounds, "train_wall_s": tuned.train_wall_s,
                   "gate_wall_s": tuned.gate_wall_s,
@@ -258,4 +277,5 @@ def run_transfer(subject: str, params: Params, root: Path = paths.PROCESSED_ROOT
 
 
 __all__ = ["Chunk", "Tuned", "choose_source", "fine_tune", "fine_tune_until_gate", "policy_features",
-           "run_transfer", "subject_features", "tune_until_gate", "universal_source", "universal_until_gate"]
+           "run_transfer", "subject_features", "tune_from_source", "tune_until_gate", "universal_source",
+           "universal_until_gate"]
