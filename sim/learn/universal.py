@@ -150,9 +150,10 @@ def make_pool_env(sources: tuple[Source, ...], up: UniversalParams, p: WalkEnvPa
 def quick_gate(model: PPO, norm: VecNormalize, sources: tuple[Source, ...], up: UniversalParams,
                p: WalkEnvParams, scenarios: dict[str, list[Segment]]) -> dict:
     """Each subject's own body walking `up.gate_scenarios` (deterministic actions, no pushes,
-    `up.gate_seeds` start phases): per subject and scenario, no fall in any walk and standing at
-    the end; walk_10m's steady speed within `gate_speed_tolerance` of the cycle's. Returns
-    {subject: {check: {"pass", "value"}}}, plus `passed` and `checks` counts."""
+    `up.gate_seeds` start phases; a scenario that starts from standing walks the same walk for
+    every seed): per subject and scenario, no fall in any walk (`fell_in`: the scenario phase of
+    each fall) and standing at the end; walk_10m's steady speed within `gate_speed_tolerance` of
+    the cycle's. Returns {subject: {check: {"pass", "value"}}}, plus `passed` and `checks` counts."""
     out: dict = {}
     passed = total = 0
     for src in sources:
@@ -162,7 +163,7 @@ def quick_gate(model: PPO, norm: VecNormalize, sources: tuple[Source, ...], up: 
         env = body.env
         for name in up.gate_scenarios:
             prof = command_profile(name, scenarios[name], cycle.speed_mps, 1.0 / env.dt, p.profile)
-            falls, standing, speeds = 0, 0, []
+            falls, standing, speeds, fell_in = 0, 0, [], []
             for seed in range(up.gate_seeds):
                 obs, _ = env.reset(seed=seed, options={"commands": prof, "pushes": False,
                                                        "phase": seed / max(up.gate_seeds, 1)})
@@ -175,6 +176,7 @@ def quick_gate(model: PPO, norm: VecNormalize, sources: tuple[Source, ...], up: 
                     v.append(math.cos(h) * env.data.qvel[0] + math.sin(h) * env.data.qvel[1])
                     if fell:
                         falls += 1
+                        fell_in.append(str(prof.phase[k]))
                         break
                 else:
                     last = np.abs(v[-int(round(1.0 / env.dt)):])
@@ -182,7 +184,7 @@ def quick_gate(model: PPO, norm: VecNormalize, sources: tuple[Source, ...], up: 
                     if steady.any():
                         at = steady[np.minimum(np.arange(len(v)) + 1, len(steady) - 1)]  # step k: command k+1
                         speeds.append(float(np.mean(np.asarray(v)[at])))
-            rows[f"{name}_no_fall"] = {"pass": falls == 0, "value": falls}
+            rows[f"{name}_no_fall"] = {"pass": falls == 0, "value": falls, "fell_in": fell_in}
             rows[f"{name}_standing_at_end"] = {"pass": standing == up.gate_seeds, "value": standing}
             if name == "walk_10m":
                 err = float(np.mean(speeds)) / cycle.speed_mps - 1.0 if speeds else None

@@ -29,6 +29,7 @@ from sim.learn.train import load_norm, load_policy, new_ppo
 from sim.learn.universal import params_from_yaml, train_universal, widen_for_body
 from sim.learn.walk_env import OBS_SIZE, make_walk_env
 from sim.motion.reference import load_reference
+from sim.rollout.scenarios import PHASES
 
 
 @pytest.fixture(scope="module")
@@ -143,6 +144,9 @@ def test_one_run_resumes_and_records_its_gate(universal, camargo, tmp_path):
     assert rec["steps"] == 256 and rec["obs_size"] == UNIVERSAL_OBS_SIZE
     gate = rec["checkpoints"][-1]
     assert gate["checks"] == 3 and set(gate["gate"]) == {"camargo"}
+    for name, row in gate["gate"]["camargo"].items():  # a fall names where in the scenario it came
+        if name.endswith("_no_fall"):
+            assert len(row["fell_in"]) == row["value"] and set(row["fell_in"]) <= set(PHASES)
     again = train_universal((camargo[0],), p, up, out, scenarios, total_steps=512, n_envs=2, resume=True)
     assert again["steps"] == 512 and [c["steps"] for c in again["checkpoints"]] == [0, 256, 512]
     assert len(again["runs"]) == 2 and json.loads((out / "progress.json").read_text()) == again
