@@ -372,36 +372,43 @@ def fall_intervention_figure(fall: pd.DataFrame, title: str, caught_drop_m: floa
     return fig
 
 
-def training_progress_figure(progress: dict,
-                             title: str = "Universal walking policy: gate against training") -> Figure:
-    """A training run's progress record (`sim.learn.universal`, progress.json): gate checks passed
-    at each checkpoint against env steps, in all (left, of the checks there are) and per subject's
-    own body (right); dotted lines where a run segment began (its machine in the label)."""
-    points = progress.get("checkpoints", [])
-    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(11, 3.6))
-    if not points:
+def training_progress_figure(curves: dict, title: str = "Universal walking policy: checks passed against "
+                             "training") -> Figure:
+    """A training run's progress (`pipeline.report.figures.progress_curves`): the quick gate's checks
+    passed at each checkpoint and their running mean (left), the running mean per subject's own body
+    (middle), evaluate-policy's checks passed over every body at each adoption evaluation (right);
+    dotted lines where a run segment began (its machine in the label, where it changed)."""
+    fig, (ax, ax2, ax3) = plt.subplots(1, 3, figsize=(14, 3.8))
+    if not curves["steps"]:
         ax.text(0.5, 0.5, "no checkpoint yet", ha="center", va="center", transform=ax.transAxes)
         return fig
-    steps = [c["steps"] / 1e6 for c in points]
-    ax.plot(steps, [c["passed"] for c in points], "o-", color="k", ms=3)
-    ax.set_ylim(0, max(c["checks"] for c in points))
-    ax.set_xlabel("env steps (M)")
-    ax.set_ylabel(f"gate checks passed (of {points[-1]['checks']})")
-    subjects = list(points[-1]["gate"])
-    for s in subjects:
-        ax2.plot(steps, [sum(r["pass"] for r in c["gate"].get(s, {}).values()) for c in points], "o-", ms=2,
-                 label=s)
-    ax2.set_xlabel("env steps (M)")
-    ax2.set_ylabel("checks passed, own body")
+    steps, w = curves["steps"], curves["window"]
+    ax.plot(steps, curves["passed"], "o", color="0.6", ms=2, label="each checkpoint")
+    ax.plot(steps, curves["passed_mean"], "-", color="k", label=f"mean of the last {w}")
+    ax.set_ylim(0, curves["checks"])
+    ax.set_ylabel(f"quick gate: checks passed (of {curves['checks']})")
+    ax.legend(fontsize=7, loc="upper right")
+    for s, mean in curves["own_mean"].items():
+        ax2.plot(steps, mean, "-", label=s)
+    ax2.set_ylabel(f"own body, mean of the last {w}")
     ax2.legend(fontsize=7, ncol=2)
-    done = 0
-    for run in progress.get("runs", []):
-        where = f"{run.get('cpu_count', '?')} cores" + (", cuda" if run.get("device") == "cuda" else "")
-        for a in (ax, ax2):
-            a.axvline(done / 1e6, color="0.6", linestyle=":", linewidth=0.8)
-        ax.text(done / 1e6, ax.get_ylim()[1], where, fontsize=6, rotation=90, va="top", ha="right")
-        done += run.get("steps", 0)
-    for a in (ax, ax2):
+    if curves["evaluations"]:
+        x, passed, of = zip(*curves["evaluations"], strict=True)
+        ax3.plot(x, passed, "o-", color="tab:red")
+        ax3.set_ylim(0, max(of))
+        ax3.set_ylabel(f"evaluate-policy: checks passed (of {max(of)})")
+    else:
+        ax3.text(0.5, 0.5, "no adoption evaluation yet", ha="center", va="center", transform=ax3.transAxes)
+    shown = None
+    for start, where in curves["segments"]:
+        for a in (ax, ax2, ax3):
+            a.axvline(start, color="0.6", linestyle=":", linewidth=0.8)
+        if where != shown:
+            ax.text(start, curves["checks"], where, fontsize=6, rotation=90, va="top", ha="right")
+            shown = where
+    for a in (ax, ax2, ax3):
+        a.set_xlabel("env steps (M)")
+        a.set_xlim(0, max(steps) * 1.02)
         a.grid(alpha=0.3)
     fig.suptitle(title)
     fig.tight_layout()

@@ -37,6 +37,7 @@ PROCESSED_ROOT = DATA_ROOT / "processed"
 METRICS_ROOT = DATA_ROOT / "metrics"
 POLICIES_ROOT = DATA_ROOT / "policies"
 UNIVERSAL_DIR = DATA_ROOT / "universal"  # the universal walking policy's one run (sim/learn/universal.py)
+ADOPTION_FILE = "adoption.json"  # in UNIVERSAL_DIR: the adoption rule's evaluations (adopt-universal)
 EXPORTS_ROOT = DATA_ROOT / "exports"      # `export`: simulated trials as OpenSim files (not versioned)
 PAPER_FILE = DATA_ROOT / "paper" / "wang2025.yaml"
 STORE_FILE = DATA_ROOT / "results.duckdb"

@@ -23,11 +23,10 @@ from pathlib import Path
 
 from pipeline import paths
 from pipeline.params import Params
+from pipeline.paths import ADOPTION_FILE
 from pipeline.runs.gate import judge, run_gate, universal_required
 from pipeline.runs.gate_record import source_evaluation
 from pipeline.runs.setup import train_params
-
-ADOPTION_FILE = "adoption.json"   # in the universal run's folder: every evaluation and its decisions
 
 
 def passed_checks(evaluation: dict) -> list[str]:
@@ -98,4 +97,4 @@ def append_record(universal_dir: Path, evaluation: dict, how: str) -> Path:
     return path
 
 
-__all__ = ["ADOPTION_FILE", "append_record", "decide", "evaluate_checkpoint", "passed_checks"]
+__all__ = ["append_record", "decide", "evaluate_checkpoint", "passed_checks"]

@@ -25,6 +25,34 @@ from pipeline.report.queries import of
 from pipeline.runs.report_params import ReportParams
 
 UNIVERSAL_FIGURE = "universal_progress.png"  # in reports/: the universal policy's gate against steps
+PROGRESS_WINDOW = 10  # checkpoints in the quick gate's running mean (each check is one walk: it swings)
+
+
+def progress_curves(progress: dict, adoption: dict | None, window: int = PROGRESS_WINDOW) -> dict:
+    """What the universal run's progress figure draws (`metrics.plots.training_progress_figure`):
+    env steps (M) of each checkpoint, its quick-gate checks passed in all and per subject's own body,
+    their running means over the last `window` checkpoints, the run segments (start step, machine),
+    and evaluate-policy's checks passed over every body at each adoption evaluation (`adoption`,
+    adoption.json: steps, passed, of how many)."""
+    points = progress.get("checkpoints", [])
+    steps = [c["steps"] / 1e6 for c in points]
+    passed = pd.Series([c["passed"] for c in points], dtype=float)
+    subjects = list(points[-1]["gate"]) if points else []
+    own = {s: pd.Series([sum(r["pass"] for r in c["gate"].get(s, {}).values()) for c in points], dtype=float)
+           for s in subjects}
+    segments, done = [], 0
+    for run in progress.get("runs", []):
+        segments.append((done / 1e6, f"{run.get('cpu_count', '?')} cores"
+                         + (", cuda" if run.get("device") == "cuda" else "")))
+        done += run.get("steps", 0)
+    evaluations = [(e["universal_steps"] / 1e6, sum(r["checks_passed"] for r in e["subjects"].values()),
+                    sum(r["checks"] for r in e["subjects"].values()))
+                   for e in (adoption or {}).get("evaluations", []) if "universal_steps" in e]
+    return {"steps": steps, "passed": passed.tolist(), "checks": points[-1]["checks"] if points else 0,
+            "passed_mean": passed.rolling(window, min_periods=1).mean().tolist(),
+            "own_mean": {s: v.rolling(window, min_periods=1).mean().tolist() for s, v in own.items()},
+            "window": window, "segments": segments, "evaluations": evaluations}
+
 # Every figure a report can have, in the order the index shows them, with its caption.
 FIGURES = {
     "events": "Forward and lateral offset e_x, e_y and harness force |f| around the commanded start, turn "

@@ -50,9 +50,10 @@ def subject_page(subject: str, data: dict[str, pd.DataFrame], figures: set[str],
     }
 
 
-def universal_lines(progress: dict) -> list[str]:
-    """The universal walking policy's run in a few lines: steps, wall time, its machines and the
-    last gate, per subject's own body (`sim.learn.universal.quick_gate`)."""
+def universal_lines(progress: dict, adoption: dict | None = None) -> list[str]:
+    """The universal walking policy's run in a few lines: steps, wall time, its machines, the
+    adoption rule's evaluations (`adoption`: checks passed over every body, what was adopted) and
+    the last gate, per subject's own body (`sim.learn.universal.quick_gate`)."""
     points = progress.get("checkpoints", [])
     machines = sorted({f"{r.get('cpu_count', '?')} cores" + (" + GPU" if r.get("device") == "cuda" else "")
                        for r in progress.get("runs", [])})
@@ -60,6 +61,13 @@ def universal_lines(progress: dict) -> list[str]:
     start = progress.get("initialised_from", "scratch")
     lines = [f"One run of {steps_m:.2f} M env steps in {hours:.1f} h of training ({', '.join(machines)}), "
              f"from {start}."]
+    evaluations = [e for e in (adoption or {}).get("evaluations", []) if "universal_steps" in e]
+    if evaluations:
+        each = ", ".join(f"{sum(r['checks_passed'] for r in e['subjects'].values())} of "
+                         f"{sum(r['checks'] for r in e['subjects'].values())} at "
+                         f"{e['universal_steps'] / 1e6:.2f} M" for e in evaluations)
+        lines.append(f"evaluate-policy by the adoption rule, every body: {each} checks passed; adopted: "
+                     f"{', '.join(adoption.get('adopted') or []) or 'none'}.")
     if points:
         last = points[-1]
         best = max(c["passed"] for c in points)
@@ -74,11 +82,11 @@ def universal_lines(progress: dict) -> list[str]:
 
 
 def summary_page(subjects: list[str], data: dict[str, pd.DataFrame], reports: Path, p: ReportParams,
-                 paper: PaperValues, progress: dict | None) -> dict:
+                 paper: PaperValues, progress: dict | None, adoption: dict | None = None) -> dict:
     """Everything summary.md and index.html show across `subjects`: each one's figures (none for a
     subject without stored results) and videos of walk_10m (`make videos`, found in `reports`), the
     subjects' table, `TABLES` with every subject's rows, then the universal walking policy's training
-    progress (`progress`, its progress.json; figure `UNIVERSAL_FIGURE`)."""
+    progress (`progress`, its progress.json, and `adoption`, its adoption.json; figure `UNIVERSAL_FIGURE`)."""
     stored = set(data["summary"]["subject"]) if not data["summary"].empty else set()
     return {
         "subjects": [{"name": s, "stored": s in stored,
@@ -91,5 +99,5 @@ def summary_page(subjects: list[str], data: dict[str, pd.DataFrame], reports: Pa
                     key == PAPER_TABLES[-1]) for key in TABLES],
         "paper_note": paper.note(),
         "universal": None if progress is None else {"figure": UNIVERSAL_FIGURE,
-                                                    "lines": universal_lines(progress)},
+                                                    "lines": universal_lines(progress, adoption)},
     }

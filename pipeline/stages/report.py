@@ -17,8 +17,16 @@ from pathlib import Path
 import pandas as pd
 
 from metrics.plots import training_progress_figure
-from pipeline.paths import PAPER_FILE, POLICIES_ROOT, REPORTS_ROOT, UNIVERSAL_DIR, policy_dir, report_dir
-from pipeline.report.figures import UNIVERSAL_FIGURE, subject_figures
+from pipeline.paths import (
+    ADOPTION_FILE,
+    PAPER_FILE,
+    POLICIES_ROOT,
+    REPORTS_ROOT,
+    UNIVERSAL_DIR,
+    policy_dir,
+    report_dir,
+)
+from pipeline.report.figures import UNIVERSAL_FIGURE, progress_curves, subject_figures
 from pipeline.report.pages import subject_page, summary_page
 from pipeline.report.published import (
     CLINICAL_FILE,
@@ -58,14 +66,16 @@ def subject_report(subject: str, data: dict[str, pd.DataFrame], reports: Path = 
 
 def summary_report(subjects: list[str], data: dict[str, pd.DataFrame], reports: Path = REPORTS_ROOT,
                    p: ReportParams = ReportParams(), paper: PaperValues | None = None,
-                   progress: dict | None = None) -> tuple[Path, Path]:
+                   progress: dict | None = None, adoption: dict | None = None) -> tuple[Path, Path]:
     """Write `reports/summary.md` and `reports/index.html` across subjects (`summary_page`), and the
-    universal walking policy's progress figure from `progress` (its progress.json) when given."""
+    universal walking policy's progress figure from `progress` (its progress.json) and `adoption`
+    (its adoption.json) when given."""
     paper = paper or load_paper(PAPER_FILE)
     reports = Path(reports)
-    page = summary_page(subjects, data, reports, p, paper, progress)
+    page = summary_page(subjects, data, reports, p, paper, progress, adoption)
     if progress is not None:
-        write_figure(training_progress_figure(progress), reports / UNIVERSAL_FIGURE, p.dpi)
+        curves = progress_curves(progress, adoption)
+        write_figure(training_progress_figure(curves), reports / UNIVERSAL_FIGURE, p.dpi)
     md_path, html_path = reports / "summary.md", reports / "index.html"
     with replacing(md_path, html_path) as (tmd, thtml):
         tmd.write_text(summary_markdown(page))
@@ -87,5 +97,6 @@ def run_report(subjects: list[str], all_subjects: list[str], db: Path, reports: 
     written = [subject_report(s, data, reports, p, paper, _evaluation(s), clinical) for s in subjects]
     if summary:
         progress = read_json(UNIVERSAL_DIR / "progress.json")
-        written += list(summary_report(all_subjects, data, reports, p, paper, progress))
+        adoption = read_json(UNIVERSAL_DIR / ADOPTION_FILE)
+        written += list(summary_report(all_subjects, data, reports, p, paper, progress, adoption))
     return written

@@ -10,7 +10,8 @@ from pathlib import Path
 import pytest
 
 from pipeline.cli import main
-from pipeline.commands.adoption import ADOPTION_FILE, decide
+from pipeline.commands.adoption import decide
+from pipeline.paths import ADOPTION_FILE
 from pipeline.runs.gate import SCENARIO_PREFIX, universal_required
 from sim.learn.train import NORM_FILE, POLICY_FILE, PROGRESS_FILE
 

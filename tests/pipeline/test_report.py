@@ -22,7 +22,7 @@ import pandas as pd
 import pytest
 
 from pipeline.params import load_params
-from pipeline.paths import UNIVERSAL_DIR
+from pipeline.paths import ADOPTION_FILE, UNIVERSAL_DIR
 from pipeline.report.queries import load_report_data
 from pipeline.runs.report_params import ReportParams
 from pipeline.stages.ingest import run_ingest
@@ -238,6 +238,11 @@ def test_the_universal_policy_progress_is_plotted(reports):
     md = (reports / "summary.md").read_text()
     assert "![training progress](universal_progress.png)" in md
     assert f"{last['passed']} of {last['checks']} checks" in md
+    adoption = json.loads((UNIVERSAL_DIR / ADOPTION_FILE).read_text())  # checks passed at each evaluation
+    for e in adoption["evaluations"]:
+        passed = sum(r["checks_passed"] for r in e["subjects"].values())
+        assert f"{passed} of {sum(r['checks'] for r in e['subjects'].values())} at " \
+               f"{e['universal_steps'] / 1e6:.2f} M" in md
     for subject, rows in last["gate"].items():
         assert f"- {subject}: {sum(r['pass'] for r in rows.values())} of {len(rows)}" in md
     assert mpimg.imread(reports / "universal_progress.png").shape[1] > 300
@@ -489,3 +494,24 @@ def test_policy_checks_section_names_every_check():
     assert "| scenario_walk_10m_free_no_fall | FAIL |" in text and "| spm_hip_flexion | not judged |" in text
     assert "| walk_10m free | 10 | 3 |" in text
     assert "No `evaluate-policy` result" in section_markdown("policy_checks", None).splitlines()[2]
+
+
+def test_progress_curves_average_the_one_walk_checks_and_count_evaluations():
+    from pipeline.report.figures import progress_curves
+
+    gate = lambda a, b: {"camargo": {"x": {"pass": a}, "y": {"pass": b}}}  # noqa: E731
+    progress = {"checkpoints": [{"steps": 0, "passed": 2, "checks": 2, "gate": gate(True, True)},
+                                {"steps": 10 ** 6, "passed": 0, "checks": 2, "gate": gate(False, False)},
+                                {"steps": 2 * 10 ** 6, "passed": 1, "checks": 2, "gate": gate(True, False)}],
+                "runs": [{"steps": 10 ** 6, "cpu_count": 16, "device": "cuda"},
+                         {"steps": 10 ** 6, "cpu_count": 2}]}
+    adoption = {"evaluations": [{"policy": "a start without steps"},
+                                {"universal_steps": 2 * 10 ** 6,
+                                 "subjects": {"camargo": {"checks_passed": 5, "checks": 29},
+                                              "kgc6": {"checks_passed": 7, "checks": 29}}}]}
+    c = progress_curves(progress, adoption, window=2)
+    assert c["steps"] == [0.0, 1.0, 2.0] and c["passed"] == [2.0, 0.0, 1.0] and c["checks"] == 2
+    assert c["passed_mean"] == [2.0, 1.0, 0.5] and c["own_mean"]["camargo"] == [2.0, 1.0, 0.5]
+    assert c["segments"] == [(0.0, "16 cores, cuda"), (1.0, "2 cores")]
+    assert c["evaluations"] == [(2.0, 12, 58)]
+    assert progress_curves({}, None)["steps"] == []
