@@ -187,7 +187,7 @@ def cmd_transfer(args: argparse.Namespace) -> int:
 
 def cmd_adopt_universal(args: argparse.Namespace) -> int:
     from pipeline.commands.adoption import append_record, evaluate_checkpoint
-    from pipeline.paths import UNIVERSAL_DIR
+    from pipeline.paths import REPO_ROOT, UNIVERSAL_DIR
     from sim.learn.pool import UniversalParams
 
     params = load_params(args.params)
@@ -195,9 +195,11 @@ def cmd_adopt_universal(args: argparse.Namespace) -> int:
     universal = args.universal or UNIVERSAL_DIR
     doc = evaluate_checkpoint(params, universal, subjects, root=args.root or PROCESSED_ROOT,
                               progress=not args.json)
-    if not args.no_record:
+    if not args.no_record:  # no path of this machine in the record
+        folder = universal.resolve()
+        where = folder.relative_to(REPO_ROOT).as_posix() if folder.is_relative_to(REPO_ROOT) else "a copy"
         how = (f"python -m pipeline adopt-universal {' '.join(args.subjects)}".rstrip()
-               + f" (the checkpoint in {universal})")
+               + f" (the checkpoint in {where})")
         append_record(universal, doc, how)
     print(json_text(doc), end="")
     return 0

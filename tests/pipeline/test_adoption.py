@@ -77,3 +77,4 @@ def test_adopt_universal_judges_the_checkpoint_and_records_it(processed, tmp_pat
     assert set(rec["failed_required"]) <= set(doc["required"])
     record = json.loads((universal / ADOPTION_FILE).read_text())
     assert record["evaluations"][-1]["subjects"] == doc["subjects"] and record["adopted"] == doc["adopted"]
+    assert str(tmp_path) not in record["evaluations"][-1]["how"]  # no path of this machine
