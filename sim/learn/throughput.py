@@ -97,23 +97,20 @@ def measure(sources: tuple[Source, ...], up: UniversalParams, p: TrainParams, sc
     up = replace(up, refresh_probability=0.0)
     out: dict = {"cpu_count": cores, "workers": n, "envs_per_worker": envs_per_worker, "device": device,
                  "cuda": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None}
-    for label, k, envs in (("one", 1, 1), ("all", n, n * envs_per_worker)):
-        out[f"mj_step_per_s_{label}"] = round(raw_step_rate(sources[0].xml, k), 1)
-        out[f"env_steps_per_s_{label}"] = round(env_step_rate(sources, up, p, envs, env_steps * envs, k), 1)
-        out[f"train_steps_per_s_{label}"] = round(
-            train_step_rate(sources, up, p, scenarios, envs, max(train_steps * envs, p.n_steps * envs * 2),
-                            device, init_from, k), 1)
-        ratio = out[f"train_steps_per_s_{label}"] / out[f"env_steps_per_s_{label}"]
-        out[f"train_to_env_{label}"] = round(ratio, 3)
     m = in_process_envs or p.n_envs
     out["in_process_envs"], out["update_threads"] = m, cores
-    out["env_steps_per_s_in_process"] = round(
-        env_step_rate(sources, up, p, m, env_steps * m, in_process=True), 1)
-    out["train_steps_per_s_in_process"] = round(train_step_rate(
-        sources, up, p, scenarios, m, max(train_steps * m, p.n_steps * m * 2), device, init_from,
-        in_process=True, threads=cores), 1)
-    out["train_to_env_in_process"] = round(out["train_steps_per_s_in_process"]
-                                           / out["env_steps_per_s_in_process"], 3)
+    # label, processes stepping the envs (None: the training process), envs, torch threads of the update
+    for label, k, envs, threads in (("one", 1, 1, 1), ("all", n, n * envs_per_worker, 1),
+                                    ("in_process", None, m, cores)):
+        if k is not None:  # the physics' own rate over as many processes
+            out[f"mj_step_per_s_{label}"] = round(raw_step_rate(sources[0].xml, k), 1)
+        out[f"env_steps_per_s_{label}"] = round(
+            env_step_rate(sources, up, p, envs, env_steps * envs, k, in_process=k is None), 1)
+        out[f"train_steps_per_s_{label}"] = round(
+            train_step_rate(sources, up, p, scenarios, envs, max(train_steps * envs, p.n_steps * envs * 2),
+                            device, init_from, k, in_process=k is None, threads=threads), 1)
+        ratio = out[f"train_steps_per_s_{label}"] / out[f"env_steps_per_s_{label}"]
+        out[f"train_to_env_{label}"] = round(ratio, 3)
     out["env_scaling"] = round(out["env_steps_per_s_all"] / out["env_steps_per_s_one"], 2)
     return out
 
