@@ -28,6 +28,14 @@ UNIVERSAL_FIGURE = "universal_progress.png"  # in reports/: the universal policy
 PROGRESS_WINDOW = 10  # checkpoints in the quick gate's running mean (each check is one walk: it swings)
 
 
+def evaluation_totals(adoption: dict | None) -> list[tuple[float, int, int]]:
+    """Each adoption evaluation (adoption.json) with a checkpoint: (env steps in M, evaluate-policy's
+    checks passed over every body, of how many)."""
+    return [(e["universal_steps"] / 1e6, sum(r["checks_passed"] for r in e["subjects"].values()),
+             sum(r["checks"] for r in e["subjects"].values()))
+            for e in (adoption or {}).get("evaluations", []) if "universal_steps" in e]
+
+
 def progress_curves(progress: dict, adoption: dict | None, window: int = PROGRESS_WINDOW) -> dict:
     """What the universal run's progress figure draws (`metrics.plots.training_progress_figure`):
     env steps (M) of each checkpoint, its quick-gate checks passed in all and per subject's own body,
@@ -45,13 +53,10 @@ def progress_curves(progress: dict, adoption: dict | None, window: int = PROGRES
         segments.append((done / 1e6, f"{run.get('cpu_count', '?')} cores"
                          + (", cuda" if run.get("device") == "cuda" else "")))
         done += run.get("steps", 0)
-    evaluations = [(e["universal_steps"] / 1e6, sum(r["checks_passed"] for r in e["subjects"].values()),
-                    sum(r["checks"] for r in e["subjects"].values()))
-                   for e in (adoption or {}).get("evaluations", []) if "universal_steps" in e]
     return {"steps": steps, "passed": passed.tolist(), "checks": points[-1]["checks"] if points else 0,
             "passed_mean": passed.rolling(window, min_periods=1).mean().tolist(),
             "own_mean": {s: v.rolling(window, min_periods=1).mean().tolist() for s, v in own.items()},
-            "window": window, "segments": segments, "evaluations": evaluations}
+            "window": window, "segments": segments, "evaluations": evaluation_totals(adoption)}
 
 # Every figure a report can have, in the order the index shows them, with its caption.
 FIGURES = {

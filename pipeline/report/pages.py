@@ -9,7 +9,13 @@ from pathlib import Path
 import pandas as pd
 
 from pipeline.report import sections
-from pipeline.report.figures import FIGURES, UNIVERSAL_FIGURE, figure_names, paper_sensitivity
+from pipeline.report.figures import (
+    FIGURES,
+    UNIVERSAL_FIGURE,
+    evaluation_totals,
+    figure_names,
+    paper_sensitivity,
+)
 from pipeline.report.published import ClinicalRange, PaperValues
 from pipeline.report.queries import of
 from pipeline.report.tables import PAPER_TABLES, TABLES, subjects_table
@@ -61,11 +67,9 @@ def universal_lines(progress: dict, adoption: dict | None = None) -> list[str]:
     start = progress.get("initialised_from", "scratch")
     lines = [f"One run of {steps_m:.2f} M env steps in {hours:.1f} h of training ({', '.join(machines)}), "
              f"from {start}."]
-    evaluations = [e for e in (adoption or {}).get("evaluations", []) if "universal_steps" in e]
+    evaluations = evaluation_totals(adoption)
     if evaluations:
-        each = ", ".join(f"{sum(r['checks_passed'] for r in e['subjects'].values())} of "
-                         f"{sum(r['checks'] for r in e['subjects'].values())} at "
-                         f"{e['universal_steps'] / 1e6:.2f} M" for e in evaluations)
+        each = ", ".join(f"{passed} of {of} at {steps_m:.2f} M" for steps_m, passed, of in evaluations)
         lines.append(f"evaluate-policy by the adoption rule, every body: {each} checks passed; adopted: "
                      f"{', '.join(adoption.get('adopted') or []) or 'none'}.")
     if points:
