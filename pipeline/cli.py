@@ -187,7 +187,7 @@ def cmd_transfer(args: argparse.Namespace) -> int:
 
 def cmd_adopt_universal(args: argparse.Namespace) -> int:
     from pipeline.commands.adoption import append_record, evaluate_checkpoint
-    from pipeline.paths import REPO_ROOT, UNIVERSAL_DIR
+    from pipeline.paths import REPO_ROOT, UNIVERSAL_DIR, repo_relative
     from sim.learn.pool import UniversalParams
 
     params = load_params(args.params)
@@ -197,7 +197,7 @@ def cmd_adopt_universal(args: argparse.Namespace) -> int:
                               progress=not args.json)
     if not args.no_record:  # no path of this machine in the record
         folder = universal.resolve()
-        where = folder.relative_to(REPO_ROOT).as_posix() if folder.is_relative_to(REPO_ROOT) else "a copy"
+        where = repo_relative(folder) if folder.is_relative_to(REPO_ROOT) else "a copy"
         how = (f"python -m pipeline adopt-universal {' '.join(args.subjects)}".rstrip()
                + f" (the checkpoint in {where})")
         append_record(universal, doc, how)
