@@ -187,8 +187,9 @@ def cmd_transfer(args: argparse.Namespace) -> int:
 
 def cmd_adopt_universal(args: argparse.Namespace) -> int:
     from pipeline.commands.adoption import append_record, evaluate_checkpoint
-    from pipeline.paths import REPO_ROOT, UNIVERSAL_DIR, repo_relative
+    from pipeline.paths import REPO_ROOT, UNIVERSAL_DIR
     from sim.learn.pool import UniversalParams
+    from sim.learn.universal import shown_path
 
     params = load_params(args.params)
     subjects = args.subjects or list(params.section("universal", UniversalParams).subjects)
@@ -196,8 +197,7 @@ def cmd_adopt_universal(args: argparse.Namespace) -> int:
     doc = evaluate_checkpoint(params, universal, subjects, root=args.root or PROCESSED_ROOT,
                               progress=not args.json)
     if not args.no_record:  # no path of this machine in the record
-        folder = universal.resolve()
-        where = repo_relative(folder) if folder.is_relative_to(REPO_ROOT) else "a copy"
+        where = shown_path(str(universal.resolve()), REPO_ROOT)
         how = (f"python -m pipeline adopt-universal {' '.join(args.subjects)}".rstrip()
                + f" (the checkpoint in {where})")
         append_record(universal, doc, how)

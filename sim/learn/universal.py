@@ -380,12 +380,13 @@ def params_from_yaml(path: Path) -> tuple[TrainParams, UniversalParams, dict[str
     return p, up, scenarios
 
 
-def _shown(arg: str) -> str:
-    """A command-line argument as the progress record keeps it: an absolute path relative to the
-    checkout, or, outside it, `<outside>/<name>` (no path of one machine in a committed record)."""
+def shown_path(arg: str, root: Path | None = None) -> str:
+    """An argument as a committed record keeps it: an absolute path relative to `root` (default: the
+    working directory), or, outside it, `<outside>/<name>`; anything else as given (no path of one
+    machine in a committed record)."""
     if not os.path.isabs(arg):
         return arg
-    path, here = Path(arg).resolve(), Path.cwd().resolve()
+    path, here = Path(arg).resolve(), (root or Path.cwd()).resolve()
     return str(path.relative_to(here)) if path.is_relative_to(here) else f"<outside>/{path.name}"
 
 
@@ -419,7 +420,8 @@ def main(argv: list[str] | None = None) -> int:
         p = replace(p, checkpoint_steps=args.checkpoint_steps)
     resume = args.resume and (args.out / PROGRESS_FILE).exists()
     init = None if resume else (args.init_from or Path("data/policies") / up.init_from)
-    command = "python -m sim.learn.universal " + " ".join(map(_shown, sys.argv[1:] if argv is None else argv))
+    shown = map(shown_path, sys.argv[1:] if argv is None else argv)
+    command = "python -m sim.learn.universal " + " ".join(shown)
     rec = train_universal(sources_of(up.subjects, args.processed), p, up, args.out, scenarios, init_from=init,
                           resume=resume, total_steps=args.steps, n_envs=args.n_envs,
                           subprocess=args.subprocess, workers=args.workers, max_wall_s=args.max_wall_s,

@@ -222,10 +222,11 @@ def test_grouped_workers_step_as_one_process_does(universal, camargo):
 
 
 def test_the_recorded_command_names_no_path_of_this_machine(tmp_path, monkeypatch):
-    from sim.learn.universal import _shown
+    from sim.learn.universal import shown_path
 
     monkeypatch.chdir(tmp_path)
     (tmp_path / "data").mkdir()
-    assert _shown(str(tmp_path / "data" / "universal")) == "data/universal"
-    assert _shown("/somewhere/else/u") == "<outside>/u"
-    assert [_shown(a) for a in ("--resume", "--n-envs", "16")] == ["--resume", "--n-envs", "16"]
+    assert shown_path(str(tmp_path / "data" / "universal")) == "data/universal"
+    assert shown_path("/somewhere/else/u") == "<outside>/u"
+    assert [shown_path(a) for a in ("--resume", "--n-envs", "16")] == ["--resume", "--n-envs", "16"]
+    assert shown_path(str(tmp_path / "data" / "universal"), root=tmp_path / "data") == "universal"
