@@ -379,17 +379,24 @@ def transfer_checks(subject: str, gate: Mapping | None) -> list[QualityCheck]:
     """One `policy` row per scenario check of a transferred policy's gate (`pipeline.stages.transfer`:
     `checks` name -> {pass, required}): value 1 passed, 0 failed; a failed required check is `fail`,
     a failed one the gate does not require (its source policy fails it too) `warn`, an unjudged one
-    `n/a`. No gate (a committed policy, or none at all): no rows."""
+    `n/a`. No gate (a committed policy, or none at all): no rows. The note names the source (for the
+    universal policy its checkpoint's steps) and the gate's walks per check, the sample a pass rests on."""
     if not gate:
         return []
-    source = (f"fine-tuned from {gate.get('source')} (distance {gate.get('distance')}, "
-              f"{gate.get('steps')} steps)")
+    if gate.get("source") == "universal":
+        source = (f"the universal policy at {gate.get('universal_steps')} steps, fine-tuned "
+                  f"{gate.get('steps')} steps on this body")
+    else:
+        source = (f"fine-tuned from {gate.get('source')} (distance {gate.get('distance')}, "
+                  f"{gate.get('steps')} steps)")
+    walks = f" ({gate['gate_seeds']} walks per check)" if gate.get("gate_seeds") else ""
     out = []
     for name, c in (gate.get("checks") or {}).items():
         ok = c.get("pass")
         value = None if ok is None else float(bool(ok))
         limits = GATE_LIMITS_REQUIRED if c.get("required") else GATE_LIMITS_OPTIONAL
-        what = "required by the transfer gate" if c.get("required") else "not required (its source fails it)"
+        what = (f"required by the transfer gate{walks}" if c.get("required")
+                else f"not required (its source fails it){walks}")
         out.append(check(subject, "policy", name, value, limits, f"{source}; {what}", higher_is_worse=False,
                          missing="the gate did not judge it"))
     if not out:

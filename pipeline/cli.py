@@ -26,6 +26,7 @@ from pipeline.paths import (
     SWEEPS_ROOT,
     TUNED_GAINS,
     TUNING_REPORT,
+    UNIVERSAL_DIR,
 )
 from pipeline.stages.outputs import json_text, write_json
 
@@ -178,16 +179,18 @@ def cmd_transfer(args: argparse.Namespace) -> int:
     from pipeline.stages.transfer import run_transfer
 
     rec = run_transfer(args.subject, load_params(args.params), args.root or PROCESSED_ROOT,
-                       steps=args.steps, max_wall_s=args.max_wall_s)
+                       steps=args.steps, max_wall_s=args.max_wall_s,
+                       universal_dir=args.universal or UNIVERSAL_DIR)
     verdict = "passed" if rec["pass"] else f"FAILED ({', '.join(rec['failed']) or 'no check required'})"
-    print(f"{args.subject}: fine-tuned from {rec['source']} (distance {rec['distance']}) for {rec['steps']} "
-          f"steps, {rec['wall_s']:.0f} s; gate {verdict}", file=sys.stderr)
+    source = rec["source"] + (f" (distance {rec['distance']})" if "distance" in rec else "")
+    how = f"fine-tuned for {rec['steps']} steps" if rec["steps"] else "zero-shot"
+    print(f"{args.subject}: from {source}, {how}, {rec['wall_s']:.0f} s; gate {verdict}", file=sys.stderr)
     return 0
 
 
 def cmd_adopt_universal(args: argparse.Namespace) -> int:
     from pipeline.commands.adoption import append_record, evaluate_checkpoint
-    from pipeline.paths import REPO_ROOT, UNIVERSAL_DIR
+    from pipeline.paths import REPO_ROOT
     from sim.learn.pool import UniversalParams
     from sim.learn.universal import shown_path
 
@@ -502,6 +505,8 @@ def build_parser() -> argparse.ArgumentParser:
                           "transfer.max_wall_s)")
     transfer.add_argument("--root", type=Path, help="<root>/<subject>/{model,real} in "
                           "(default: data/processed)")
+    transfer.add_argument("--universal", type=Path, help="the universal checkpoint's folder, e.g. a copy of "
+                          "the one adopt-universal judged (default: data/universal)")
     transfer.set_defaults(func=cmd_transfer)
 
     adopt = commands.add_parser("adopt-universal", help="the adoption rule on the universal run's "

@@ -255,8 +255,15 @@ def cross_section_problems(doc: dict) -> list[str]:
         out.append("sensitivity.study must differ from sweep.study and fall_intervention.study")
     if "free" in _names(studies["sensitivity"], "conditions"):
         out.append("sensitivity.conditions: 'free' has no robot to make responsive")
+    trained, transferred = _names(doc, "train", "subjects"), _names(doc, "transfer", "subjects")
     out += [f"transfer.subjects: {name!r} has a committed policy (train.subjects)"
-            for name in _names(doc, "transfer", "subjects") if name in _names(doc, "train", "subjects")]
+            for name in transferred if name in trained]
+    for name in _names(doc, "transfer", "adopted"):
+        if name not in _names(doc, "subjects"):
+            out.append(f"transfer.adopted: {name!r} is not in subjects")
+        elif name in trained or name in transferred:
+            out.append(f"transfer.adopted: {name!r} is also in "
+                       f"{'train.subjects' if name in trained else 'transfer.subjects'}")
     out += [f"tune.scenarios: no scenario {name!r} in scenarios.commands"
             for name in _names(doc, "tune", "scenarios") if name not in scenarios]
     return out

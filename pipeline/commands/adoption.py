@@ -9,8 +9,9 @@ without a committed policy adopts the checkpoint when its gate passes; a subject
 (`train.subjects`) only when the checkpoint passes at least as many of evaluate-policy's checks as
 its committed policy does. `decide` is that rule; `evaluate_checkpoint` runs it; the command
 `python -m pipeline adopt-universal` appends the result to `data/universal/adoption.json`.
-Nothing is copied into `data/policies/`: a subject that adopts gets its policy through
-`transfer@<subject>` (zero-shot), a committed one by hand, as the record says.
+Nothing is copied into `data/policies/`: a subject that adopts is listed in `transfer.adopted` and
+gets the checkpoint's export through the transfer command (zero-shot), committed by the frozen stage
+`adopted@<subject>`; a committed one is replaced by hand.
 """
 
 from __future__ import annotations

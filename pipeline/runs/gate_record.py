@@ -31,7 +31,8 @@ def usable_policy(folder: Path) -> bool:
 
 def gate_summary(gate: dict) -> dict:
     """What the rollouts' summary (and so the quality rows) carries of a gate record."""
-    keys = ("source", "distance", "pass", "failed", "checks", "steps", "wall_s", "gate")
+    keys = ("source", "universal_steps", "distance", "pass", "failed", "checks", "steps", "wall_s", "gate",
+            "gate_seeds")
     return {k: gate[k] for k in keys if k in gate}
 
 

@@ -231,7 +231,11 @@ def tune_from_source(subject: str, params: Params, work_root: Path, *, max_wall_
         required = universal_required(params, policy_root)
         tuned = universal_until_gate(subject, params, work_root, universal, required, max_wall_s=max_wall_s,
                                      root=root, reports=reports, progress=progress)
-        return tuned, {"source": "universal", "gate": t.gate}
+        from sim.learn.universal import UNIVERSAL_FILE
+
+        origin = json.loads((paths.policy_dir(work_root, subject) / UNIVERSAL_FILE).read_text())
+        steps = origin["steps"] - origin["fine_tuned_steps"]  # the checkpoint's, as exported
+        return tuned, {"source": "universal", "universal_steps": steps, "gate": t.gate}
     choice, features = choose_source(subject, params, root, policy_root)
     source_dir = paths.policy_dir(policy_root, choice.source)
     tuned = fine_tune_until_gate(subject, params, work_root, source_dir,

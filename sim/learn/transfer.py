@@ -127,6 +127,8 @@ class TransferSection(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     subjects: tuple[str, ...]   # every subject of `subjects` without a committed policy (train.subjects)
+    adopted: tuple[str, ...] = ()  # bundled subjects whose committed policy is the universal policy's
+                                   # export that the adoption rule adopted (frozen stage adopted@<subject>)
     source: Literal["universal", "nearest"] = "universal"  # data/universal's policy, or the nearest committed
     steps: Annotated[int, Field(ge=1)]  # env steps of fine-tuning at most
     chunk_steps: Annotated[int, Field(ge=1)]  # gated after every this many

@@ -91,6 +91,48 @@ def test_transfer_subjects_are_subjects_without_a_committed_policy(params):
     assert len(set(params.transfer.subjects)) == len(params.transfer.subjects)
 
 
+def test_adopted_subjects_are_bundled_subjects_without_another_policy(params):
+    others = set(params.train.subjects) | set(params.transfer.subjects)
+    assert set(params.transfer.adopted) <= set(params.subjects) - others
+    assert len(set(params.transfer.adopted)) == len(params.transfer.adopted)
+
+
+def test_adopted_stage_is_the_transfer_stage_frozen_with_its_outputs_committed():
+    """`adopted@<subject>` runs transfer@'s command with its deps and params, but `dvc repro` never
+    reruns it (a later checkpoint of the universal run would make another policy) and a fresh clone
+    finds its outputs in git."""
+    stages = yaml.safe_load((REPO / "dvc.yaml").read_text())["stages"]
+    adopted, transfer = stages["adopted"], stages["transfer"]
+    assert adopted["foreach"] == "${transfer.adopted}" and adopted["do"]["frozen"] is True
+    assert {k: adopted["do"][k] for k in ("cmd", "deps", "params")} == {
+        k: transfer["do"][k] for k in ("cmd", "deps", "params")}
+    outs = [*adopted["do"]["outs"], *adopted["do"]["metrics"]]
+    assert all(next(iter(o.values())) == {"cache": False} for o in outs)
+    assert {next(iter(o)).rsplit("/", 1)[1] for o in outs} >= {*POLICY_FILES, GATE_FILE, UNIVERSAL_FILE}
+
+
+ADOPTED = yaml.safe_load(PARAMS_FILE.read_text())["transfer"].get("adopted", [])
+
+
+@pytest.mark.parametrize("subject", ADOPTED)
+def test_an_adopted_policy_is_the_export_the_adoption_rule_adopted(subject, policies_root):
+    """The committed policy of an adopted subject is the zero-shot export of a universal checkpoint
+    that `adopt-universal` judged and adopted (data/universal/adoption.json), and its gate's walks
+    are the ones the rule judged: the same checks pass."""
+    from pipeline.paths import ADOPTION_FILE, UNIVERSAL_DIR
+
+    folder = policies_root / subject
+    gate = json.loads((folder / GATE_FILE).read_text())
+    assert gate["pass"] and gate["source"] == "universal" and gate["steps"] == 0  # zero-shot
+    steps = json.loads((folder / UNIVERSAL_FILE).read_text())["steps"]
+    record = json.loads((UNIVERSAL_DIR / ADOPTION_FILE).read_text())
+    judged = [e["subjects"][subject] for e in record["evaluations"]
+              if e["universal_steps"] == steps and subject in e["adopted"]]
+    assert judged, f"no adoption of {subject} at {steps} steps in {ADOPTION_FILE}"
+    evaluation = json.loads((folder / EVALUATION_FILE).read_text())
+    assert sorted(k for k, ok in evaluation["checks"].items() if ok is True) == judged[-1]["passed"]
+
+
 def test_transfer_stage_depends_on_every_committed_policy(params):
     stage = yaml.safe_load((REPO / "dvc.yaml").read_text())["stages"]["transfer"]
     assert stage["foreach"] == "${transfer.subjects}"
@@ -125,6 +167,10 @@ def test_params_schema_accepts_the_transfer_section(params):
      r"params\.yaml: transfer\.weights: at least one weight must be positive"),
     (lambda t: t.update(subjects=["camargo"]),
      r"params\.yaml: transfer\.subjects: 'camargo' has a committed policy \(train\.subjects\)$"),
+    (lambda t: t.update(adopted=["camargo"]),
+     r"params\.yaml: transfer\.adopted: 'camargo' is also in train\.subjects$"),
+    (lambda t: t.update(adopted=["nobody"]),
+     r"params\.yaml: transfer\.adopted: 'nobody' is not in subjects$"),
 ])
 def test_bad_transfer_params_name_params_yaml(tmp_path, edit, message):
     document = yaml.safe_load(PARAMS_FILE.read_text())
@@ -313,6 +359,14 @@ def test_failed_gate_gives_fail_quality_rows_and_no_policy_rows(processed, polic
     (report,) = run_report([subject], [subject], db, tmp_path / "reports", False, ReportParams(dpi=40))
     head = report.read_text().split("## Quality gates")[0]
     assert "transfer gate FAILED" in head and "replay rows only" in head
+
+
+def test_a_universal_gate_row_names_the_checkpoint_and_its_sample():
+    gate = {"source": "universal", "universal_steps": 60931328, "steps": 0, "gate_seeds": 2, "pass": True,
+            "checks": {"scenario_steady_free_no_fall": {"pass": True, "required": True}}}
+    (row,) = transfer_checks("kgc6", gate)
+    assert row.status == "ok" and "universal policy at 60931328 steps" in row.note
+    assert "2 walks per check" in row.note and "distance" not in row.note
 
 
 def test_no_gate_no_policy_rows():
