@@ -72,13 +72,16 @@ def load_tunings(root: Path = TUNING_ROOT) -> list[dict]:
 
 def evaluation_rows(doc: dict, subject: str, variant: str) -> list[dict]:
     """One row per check of an `evaluate-policy` result (`POLICY_CHECK_COLUMNS`): its `check_rows`,
-    or for an evaluation from before them its `checks` with value, bound and unit None."""
+    or for an evaluation from before them its `checks` with value, bound and unit None; `walks` the
+    evaluation's walks per condition (its free walks, `free.rollouts`: every condition ran as many)."""
+    walks = (doc.get("free") or {}).get("rollouts")
     if "check_rows" in doc:
         return [{"subject": subject, "variant": variant, "check": r["check"], "passed": r["passed"],
-                 "value": r["value"], "low": r["bound"][0], "high": r["bound"][1], "unit": r["unit"]}
-                for r in doc["check_rows"]]
+                 "value": r["value"], "low": r["bound"][0], "high": r["bound"][1], "unit": r["unit"],
+                 "walks": walks} for r in doc["check_rows"]]
     return [{"subject": subject, "variant": variant, "check": check, "passed": passed, "value": None,
-             "low": None, "high": None, "unit": None} for check, passed in doc["checks"].items()]
+             "low": None, "high": None, "unit": None, "walks": walks}
+            for check, passed in doc["checks"].items()]
 
 
 def load_policy_checks(subjects: list[str], root: Path = POLICIES_ROOT) -> pd.DataFrame:

@@ -44,9 +44,10 @@ QUALITY_DDL = ('run_id BIGINT NOT NULL, subject VARCHAR NOT NULL, stage VARCHAR,
                "cause VARCHAR")
 # evaluate-policy's checks (`evaluation.json` of each policy folder): one row per check with its
 # measured value and the closed interval [low, high] it must lie in (NULL: open side; value, low,
-# high and unit NULL for an evaluation from before `check_rows`); a new version per (subject,
-# variant) when its rows change.
-POLICY_CHECK_COLUMNS = ["subject", "variant", "check", "passed", "value", "low", "high", "unit"]
+# high and unit NULL for an evaluation from before `check_rows`) and the walks per condition the
+# evaluation ran (`evaluate_policy.n_seeds`, or `transfer.gate_seeds` for a transfer gate's: a pass
+# over 2 walks says less than one over 10); a new version per (subject, variant) when its rows change.
+POLICY_CHECK_COLUMNS = ["subject", "variant", "check", "passed", "value", "low", "high", "unit", "walks"]
 POLICY_CHECKS_DDL = ('version_id BIGINT NOT NULL, subject VARCHAR NOT NULL, variant VARCHAR NOT NULL, '
                      '"check" VARCHAR NOT NULL, passed BOOLEAN, value DOUBLE, low DOUBLE, high DOUBLE, '
-                     "unit VARCHAR, content_hash VARCHAR, run_id BIGINT, created_at TIMESTAMP")
+                     "unit VARCHAR, content_hash VARCHAR, run_id BIGINT, created_at TIMESTAMP, walks INTEGER")

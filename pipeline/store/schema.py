@@ -93,6 +93,7 @@ def ensure_schema(con: duckdb.DuckDBPyConnection, registry: Iterable[MetricTable
     con.execute(f"CREATE TABLE IF NOT EXISTS quality ({QUALITY_DDL})")
     con.execute("ALTER TABLE quality ADD COLUMN IF NOT EXISTS cause VARCHAR")  # stores from before it
     con.execute(f"CREATE TABLE IF NOT EXISTS policy_checks ({POLICY_CHECKS_DDL})")
+    con.execute("ALTER TABLE policy_checks ADD COLUMN IF NOT EXISTS walks INTEGER")  # stores from before it
     con.execute("CREATE TABLE IF NOT EXISTS subjects (subject VARCHAR PRIMARY KEY, round_trip_of VARCHAR, "
                 "run_id BIGINT NOT NULL)")
     con.execute("CREATE TABLE IF NOT EXISTS run_groups (run_id BIGINT NOT NULL, subject VARCHAR NOT NULL, "

@@ -13,6 +13,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import duckdb
+import pandas as pd
 import pytest
 import yaml
 
@@ -386,6 +387,24 @@ def test_a_tuning_whose_every_search_rollout_fell_is_marked_no_signal(tmp_path):
     assert "96/96 **no signal**" in lines and f"{healthy_pid.search_falls}/96" in lines
 
 
+def test_policy_checks_of_a_store_from_before_walks_gain_the_column(tmp_path):
+    """A store whose `policy_checks` predates `walks` takes new rows with it (older rows: NULL)."""
+    from pipeline.stages.store import evaluation_rows
+
+    db = tmp_path / "results.duckdb"
+    with open_store(db, False, 1.0, 0.05) as con:
+        con.execute('CREATE TABLE policy_checks (version_id BIGINT NOT NULL, subject VARCHAR NOT NULL, '
+                    'variant VARCHAR NOT NULL, "check" VARCHAR NOT NULL, passed BOOLEAN, value DOUBLE, '
+                    "low DOUBLE, high DOUBLE, unit VARCHAR, content_hash VARCHAR, run_id BIGINT, "
+                    "created_at TIMESTAMP)")
+    gate = {"free": {"rollouts": 2}, "checks": {"scenario_steady_free_no_fall": True}}
+    rows = pd.DataFrame(evaluation_rows(gate, "kgc6", "healthy"))
+    store_results(db, [], FAST, rev="rev1", policy_checks=rows)
+    stored = query(db, 'SELECT "check", passed, walks FROM policy_checks_latest')
+    assert stored.to_dict("records") == [
+        {"check": "scenario_steady_free_no_fall", "passed": True, "walks": 2}]
+
+
 def test_policy_checks_come_from_each_policy_folders_evaluation(tmp_path):
     """The committed camargo evaluation.json (from before `check_rows`) gives one row per check with
     its pass flag and NULL value and bound; a cohort variant's evaluation with `check_rows` gives
@@ -411,6 +430,7 @@ def test_policy_checks_come_from_each_policy_folders_evaluation(tmp_path):
     assert len(healthy) == len(cohort) == len(committed["checks"]) == 29
     assert dict(zip(healthy["check"], healthy["passed"], strict=True)) == committed["checks"]
     assert healthy[["value", "low", "high", "unit"]].isna().all().all()
+    assert set(stored["walks"]) == {committed["free"]["rollouts"]} == {10}  # the sample each pass rests on
     assert dict(zip(cohort["check"], cohort["passed"], strict=True)) == committed["checks"]
     assert (cohort["passed"] == (cohort["value"] <= cohort["high"])).all() and cohort["low"].isna().all()
     assert set(stored["unit"].dropna()) == {"s"}
