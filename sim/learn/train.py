@@ -428,6 +428,16 @@ def policy_env(out_dir: str | Path, env: WalkEnvParams) -> WalkEnvParams:
                                          turn_lean=law.get("turn_lean"), heading_lead_deg=lead))
 
 
+def save_for_rollouts(src: str | Path, dest: str | Path) -> None:
+    """The PPO policy in `src` saved at `dest` with an Adam optimizer that has taken no step: the
+    weights, and so every rollout, unchanged, without training's moments (a committed policy keeps
+    what rollouts need: 0.74 MB instead of 2.2 MB; docs/policies.md, "Committed policies")."""
+    model = PPO.load(str(src), device="cpu")
+    used = model.policy.optimizer
+    model.policy.optimizer = type(used)(model.policy.parameters(), **used.defaults)
+    model.save(str(dest))
+
+
 def load_policy(out_dir: str | Path) -> tuple[PPO, VecNormalize | None]:
     """The trained PPO policy and its observation normaliser (for `PolicyHuman`)."""
     out = Path(out_dir)
@@ -437,5 +447,5 @@ def load_policy(out_dir: str | Path) -> tuple[PPO, VecNormalize | None]:
 
 __all__ = ["AMP_FILE", "BODY_FILE", "CYCLE_FILE", "NORM_FILE", "POLICY_FILE", "PROGRESS_FILE",
            "STEERING_FILE", "Budget", "MetricsLog", "TrainParams", "UpdateThreads", "load_body", "load_norm",
-           "load_policy", "make_vec_env", "new_ppo", "policy_env", "save_body", "save_steering", "train",
-           "variant_cycle", "widen_policy"]
+           "load_policy", "make_vec_env", "new_ppo", "policy_env", "save_body", "save_for_rollouts",
+           "save_steering", "train", "variant_cycle", "widen_policy"]

@@ -55,6 +55,7 @@ from sim.learn.train import (
     new_ppo,
     ppo_settings,
     save_body,
+    save_for_rollouts,
     save_steering,
 )
 from sim.learn.vec import GroupedSubprocVecEnv
@@ -316,8 +317,8 @@ def export_subject(universal_dir: str | Path, src: Source, p: WalkEnvParams, out
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     src_dir = Path(universal_dir)
-    for name in (POLICY_FILE, NORM_FILE):
-        shutil.copyfile(src_dir / name, out / name)
+    save_for_rollouts(src_dir / POLICY_FILE, out / POLICY_FILE)  # no optimizer moments: no rollout needs them
+    shutil.copyfile(src_dir / NORM_FILE, out / NORM_FILE)
     save_body(out, src.xml, load_reference(src.reference_npz).cycle)
     save_steering(out, p.commands)
     rec = json.loads((src_dir / PROGRESS_FILE).read_text())

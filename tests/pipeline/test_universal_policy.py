@@ -5,13 +5,14 @@ rollout machinery as a single-body policy (sim.learn.universal.export_subject, P
 from __future__ import annotations
 
 import numpy as np
+import torch
 
 from pipeline.paths import UNIVERSAL_DIR
 from pipeline.runs.jobs import policy_setup, scenario_jobs
 from sim.learn.bodies import body_observation
 from sim.learn.policy_human import ActorMlp, BodyConditioned
 from sim.learn.pool import UNIVERSAL_OBS_SIZE, Source
-from sim.learn.train import load_body, load_policy
+from sim.learn.train import POLICY_FILE, load_body, load_policy
 from sim.learn.universal import UNIVERSAL_FILE, export_subject
 from sim.learn.walk_env import OBS_SIZE, make_walk_env
 from sim.rollout.batch import run_batch
@@ -26,6 +27,12 @@ def test_an_exported_subject_policy_walks_its_own_body(params, train_params, cam
     assert (folder / UNIVERSAL_FILE).is_file()
     model, norm = load_policy(folder)
     assert model.observation_space.shape == (UNIVERSAL_OBS_SIZE,)
+    # what rollouts need: the run's weights, an optimizer without training's moments
+    run, _ = load_policy(universal)
+    weights = run.policy.state_dict()
+    assert all(torch.equal(v, weights[k]) for k, v in model.policy.state_dict().items())
+    assert model.policy.optimizer.state_dict()["state"] == {} and run.policy.optimizer.state_dict()["state"]
+    assert (folder / POLICY_FILE).stat().st_size < 0.5 * (universal / POLICY_FILE).stat().st_size
 
     # the body the policy is told about is the folder's own
     xml, cycle = load_body(folder)
