@@ -258,12 +258,8 @@ def cross_section_problems(doc: dict) -> list[str]:
     trained, transferred = _names(doc, "train", "subjects"), _names(doc, "transfer", "subjects")
     out += [f"transfer.subjects: {name!r} has a committed policy (train.subjects)"
             for name in transferred if name in trained]
-    for name in _names(doc, "transfer", "adopted"):
-        if name not in _names(doc, "subjects"):
-            out.append(f"transfer.adopted: {name!r} is not in subjects")
-        elif name in trained or name in transferred:
-            out.append(f"transfer.adopted: {name!r} is also in "
-                       f"{'train.subjects' if name in trained else 'transfer.subjects'}")
+    out += [f"transfer.adopted: {name!r} is also in {'train' if name in trained else 'transfer'}.subjects"
+            for name in _names(doc, "transfer", "adopted") if name in trained or name in transferred]
     out += [f"tune.scenarios: no scenario {name!r} in scenarios.commands"
             for name in _names(doc, "tune", "scenarios") if name not in scenarios]
     return out

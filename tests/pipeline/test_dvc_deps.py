@@ -314,11 +314,12 @@ def test_stage_code_deps_are_only_the_code_it_runs(stage):
 def test_a_metrics_module_reruns_only_the_stages_that_import_it():
     """metrics/spm.py (SPM1D) is run by the metrics, store and report stages (the store's tables and
     the report's titles come from the metric tables' registry), the bench that times them and the
-    transfer gate (its SPM checks), and by nothing upstream of them or the studies."""
+    transfer gate (its SPM checks; `adopted` runs the transfer command), and by nothing upstream of
+    them or the studies."""
     spm = Path("metrics/spm.py")
     running = {name for name, st in STAGES.items() if not uncovered(st["deps"], [spm])}
     assert "metrics" in running
-    assert running <= {"metrics", "store", "report", "summary", "bench", "transfer"}, running
+    assert running <= {"metrics", "store", "report", "summary", "bench", "transfer", "adopted"}, running
 
 
 def test_broken_dvc_yaml_is_reported():

@@ -169,8 +169,8 @@ def test_params_schema_accepts_the_transfer_section(params):
      r"params\.yaml: transfer\.subjects: 'camargo' has a committed policy \(train\.subjects\)$"),
     (lambda t: t.update(adopted=["camargo"]),
      r"params\.yaml: transfer\.adopted: 'camargo' is also in train\.subjects$"),
-    (lambda t: t.update(adopted=["nobody"]),
-     r"params\.yaml: transfer\.adopted: 'nobody' is not in subjects$"),
+    (lambda t: t.update(adopted=["lenhart2015"], subjects=["lenhart2015"]),
+     r"params\.yaml: transfer\.adopted: 'lenhart2015' is also in transfer\.subjects$"),
 ])
 def test_bad_transfer_params_name_params_yaml(tmp_path, edit, message):
     document = yaml.safe_load(PARAMS_FILE.read_text())
