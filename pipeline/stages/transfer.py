@@ -229,10 +229,10 @@ def tune_from_source(subject: str, params: Params, work_root: Path, *, max_wall_
     universal = universal_source(params, universal_dir)
     if universal is not None:
         required = universal_required(params, policy_root)
-        tuned = universal_until_gate(subject, params, work_root, universal, required, max_wall_s=max_wall_s,
-                                     root=root, reports=reports, progress=progress)
         from sim.learn.universal import UNIVERSAL_FILE
 
+        tuned = universal_until_gate(subject, params, work_root, universal, required, max_wall_s=max_wall_s,
+                                     root=root, reports=reports, progress=progress)
         origin = json.loads((paths.policy_dir(work_root, subject) / UNIVERSAL_FILE).read_text())
         steps = origin["steps"] - origin["fine_tuned_steps"]  # the checkpoint's, as exported
         return tuned, {"source": "universal", "universal_steps": steps, "gate": t.gate}
