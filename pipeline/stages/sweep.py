@@ -80,6 +80,7 @@ class SweepJob:
     onset_jitter_s: float = 0.0
     policy_hash: str = ""             # sha256 (16 hex) of the policy file the job runs
     responsiveness: Responsiveness | None = None  # None: the robot as params `robot` has it
+    code_hash: str = ""               # `rollout_code_hash`: the code that runs the job and makes its row
 
     @property
     def event_name(self) -> str:
@@ -97,6 +98,8 @@ class SweepJob:
             doc += [dataclasses.asdict(self.event), self.onset_jitter_s]
         if self.responsiveness is not None:  # the twin's own point keeps the key of a plain job
             doc += [dataclasses.asdict(self.responsiveness)]
+        if self.code_hash:
+            doc += [self.code_hash]
         return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()[:20]
 
     def rollout_job(self) -> RolloutJob:
@@ -104,6 +107,22 @@ class SweepJob:
         walk = PolicyWalk(scenario=self.scenario, event=self.event, event_jitter_s=self.onset_jitter_s)
         trial = f"{self.scenario}{tag}_{self.condition}_seed{self.seed}"
         return RolloutJob(self.condition, self.seed, trial, walk)
+
+
+CODE_PACKAGES = ("ingest", "sim", "metrics", "pipeline")
+
+
+def rollout_code_hash(root: Path = paths.REPO_ROOT, packages: tuple[str, ...] = CODE_PACKAGES) -> str:
+    """sha256 (16 hex) of every module of the project's packages (path and contents): part of each
+    job's key, so that a row made by other code is not resumed as this code's (`dvc repro` reruns the
+    stage when its code changes, and the finished jobs of before must then run again; an interrupted
+    study of the same code still resumes)."""
+    h = hashlib.sha256()
+    for package in packages:
+        for path in sorted((root / package).rglob("*.py")):
+            if "__pycache__" not in path.parts:
+                h.update(path.relative_to(root).as_posix().encode() + b"\0" + path.read_bytes() + b"\0")
+    return h.hexdigest()[:16]
 
 
 def rollout_params_hash(params: Params) -> str:
@@ -157,13 +176,13 @@ def sweep_jobs(params: Params, policy_root: Path = paths.POLICIES_ROOT,
         jobs, _, notes = sensitivity_jobs(params, policy_root, sw)
         return jobs, notes
     events = params.section("fall_intervention", FallInterventionSection).events_of(sw.events)
-    digest = rollout_params_hash(params)
+    digest, code = rollout_params_hash(params), rollout_code_hash()
     jobs, notes = [], []
     for subject, variant, policy in _policies(sw, policy_root, notes):
         for condition in sw.conditions:
             gains = {} if condition == "free" else dict(controllers[condition].get("gains", {}))
             jobs += [SweepJob(sw.study, subject, variant, condition, gains, scenario, seed, digest, event,
-                              sw.onset_jitter_s if event is not None else 0.0, policy)
+                              sw.onset_jitter_s if event is not None else 0.0, policy, code_hash=code)
                      for scenario in sw.scenarios for event in events for seed in range(sw.seeds)]
     return jobs, notes
 
@@ -182,7 +201,7 @@ def sensitivity_jobs(params: Params, policy_root: Path = paths.POLICIES_ROOT,
     sw = sw or params.section("sensitivity", SensitivitySection)
     robot, controllers = params.section("robot", RobotSection).build(), controller_specs(params)
     twin = twin_responsiveness(robot)
-    digest = rollout_params_hash(params)
+    digest, code = rollout_params_hash(params), rollout_code_hash()
     cells: list[tuple[str, float, Responsiveness]] = []
     for factor, levels in sw.levels().items():
         values = sorted({*levels, getattr(twin, factor)})
@@ -200,7 +219,8 @@ def sensitivity_jobs(params: Params, policy_root: Path = paths.POLICIES_ROOT,
                 for scenario in sw.scenarios:
                     for seed in range(sw.seeds):
                         job = SweepJob(sw.study, subject, variant, condition, gains, scenario, seed, digest,
-                                       policy_hash=policy, responsiveness=None if at_twin else point)
+                                       policy_hash=policy, responsiveness=None if at_twin else point,
+                                       code_hash=code)
                         jobs.setdefault(job.key, job)
                         design.append({"job_key": job.key, "factor": factor, "level": level, "twin": at_twin})
     frame = pd.DataFrame(design, columns=DESIGN_COLUMNS[1:]).drop_duplicates(["job_key", "factor", "level"])
@@ -314,5 +334,5 @@ def run_sweep(params: Params, root: Path = paths.SWEEPS_ROOT, policy_root: Path 
     return summary
 
 
-__all__ = ["SweepJob", "check_failed", "error_text", "job_label", "job_row", "run_sweep",
-           "sensitivity_jobs", "study_params", "sweep_jobs"]
+__all__ = ["CODE_PACKAGES", "SweepJob", "check_failed", "error_text", "job_label", "job_row",
+           "rollout_code_hash", "run_sweep", "sensitivity_jobs", "study_params", "sweep_jobs"]

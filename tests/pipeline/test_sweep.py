@@ -12,6 +12,7 @@ import signal
 import subprocess
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import pandas as pd
@@ -23,7 +24,7 @@ from pipeline.params import load_params, parse_params
 from pipeline.paths import POLICIES_ROOT, TUNED_GAINS
 from pipeline.runs.studies import RaySection
 from pipeline.runs.tuned_gains import read_tuned, write_tuned
-from pipeline.stages.sweep import rollout_params_hash, run_sweep, sweep_jobs
+from pipeline.stages.sweep import rollout_code_hash, rollout_params_hash, run_sweep, sweep_jobs
 from pipeline.store.connection import StoreParams
 from pipeline.store.read import query
 from pipeline.store.write import store_results
@@ -170,3 +171,19 @@ def test_job_keys_name_what_shapes_a_rollout(tmp_path):
     pid_keys = {j.key for j in sweep_jobs(changed)[0] if j.condition == "pid"}
     assert not pid_keys & keys  # other gains: other jobs
     assert rollout_params_hash(changed) == rollout_params_hash(params)  # gains are in the key itself
+    job = sweep_jobs(params)[0][0]
+    assert job.code_hash == rollout_code_hash()
+    assert replace(job, code_hash="other code").key not in keys  # a row of other code is not resumed
+
+
+def test_the_code_hash_follows_every_module_and_nothing_else(tmp_path):
+    module = tmp_path / "sim" / "robot" / "pid.py"
+    module.parent.mkdir(parents=True)
+    module.write_text("KP = 1.0\n")
+    (tmp_path / "sim" / "__pycache__").mkdir()
+    before = rollout_code_hash(tmp_path, ("sim",))
+    (tmp_path / "sim" / "__pycache__" / "pid.cpython-311.py").write_text("")
+    (tmp_path / "sim" / "notes.txt").write_text("not code")
+    assert rollout_code_hash(tmp_path, ("sim",)) == before
+    module.write_text("KP = 2.0\n")
+    assert rollout_code_hash(tmp_path, ("sim",)) != before
