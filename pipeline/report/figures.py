@@ -39,7 +39,8 @@ def evaluation_totals(adoption: dict | None) -> list[tuple[float, int, int]]:
 def progress_curves(progress: dict, adoption: dict | None, window: int = PROGRESS_WINDOW) -> dict:
     """What the universal run's progress figure draws (`metrics.plots.training_progress_figure`):
     env steps (M) of each checkpoint, its quick-gate checks passed in all and per subject's own body,
-    their running means over the last `window` checkpoints, the run segments (start step, machine),
+    their running means over the last `window` checkpoints, the run's stretches on one kind of machine
+    (start step, machine; resumes on the same kind continue a stretch),
     and evaluate-policy's checks passed over every body at each adoption evaluation (`adoption`,
     adoption.json: steps, passed, of how many)."""
     points = progress.get("checkpoints", [])
@@ -50,8 +51,9 @@ def progress_curves(progress: dict, adoption: dict | None, window: int = PROGRES
            for s in subjects}
     segments, done = [], 0
     for run in progress.get("runs", []):
-        segments.append((done / 1e6, f"{run.get('cpu_count', '?')} cores"
-                         + (", cuda" if run.get("device") == "cuda" else "")))
+        where = f"{run.get('cpu_count', '?')} cores" + (", cuda" if run.get("device") == "cuda" else "")
+        if not segments or segments[-1][1] != where:  # a resume on the same kind of machine: one stretch
+            segments.append((done / 1e6, where))
         done += run.get("steps", 0)
     return {"steps": steps, "passed": passed.tolist(), "checks": points[-1]["checks"] if points else 0,
             "passed_mean": passed.rolling(window, min_periods=1).mean().tolist(),

@@ -504,7 +504,7 @@ def test_progress_curves_average_the_one_walk_checks_and_count_evaluations():
                                 {"steps": 10 ** 6, "passed": 0, "checks": 2, "gate": gate(False, False)},
                                 {"steps": 2 * 10 ** 6, "passed": 1, "checks": 2, "gate": gate(True, False)}],
                 "runs": [{"steps": 10 ** 6, "cpu_count": 16, "device": "cuda"},
-                         {"steps": 10 ** 6, "cpu_count": 2}]}
+                         {"steps": 5 * 10 ** 5, "cpu_count": 2}, {"steps": 5 * 10 ** 5, "cpu_count": 2}]}
     adoption = {"evaluations": [{"policy": "a start without steps"},
                                 {"universal_steps": 2 * 10 ** 6,
                                  "subjects": {"camargo": {"checks_passed": 5, "checks": 29},
