@@ -395,8 +395,8 @@ def transfer_checks(subject: str, gate: Mapping | None) -> list[QualityCheck]:
         ok = c.get("pass")
         value = None if ok is None else float(bool(ok))
         limits = GATE_LIMITS_REQUIRED if c.get("required") else GATE_LIMITS_OPTIONAL
-        what = (f"required by the transfer gate{walks}" if c.get("required")
-                else f"not required (its source fails it){walks}")
+        what = "required by the transfer gate" if c.get("required") else "not required (its source fails it)"
+        what += walks
         out.append(check(subject, "policy", name, value, limits, f"{source}; {what}", higher_is_worse=False,
                          missing="the gate did not judge it"))
     if not out:

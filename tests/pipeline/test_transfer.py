@@ -119,6 +119,7 @@ def test_an_adopted_policy_is_the_export_the_adoption_rule_adopted(subject, poli
     """The committed policy of an adopted subject is the zero-shot export of a universal checkpoint
     that `adopt-universal` judged and adopted (data/universal/adoption.json), and its gate's walks
     are the ones the rule judged: the same checks pass."""
+    from pipeline.commands.adoption import passed_checks
     from pipeline.paths import ADOPTION_FILE, UNIVERSAL_DIR
 
     folder = policies_root / subject
@@ -130,7 +131,7 @@ def test_an_adopted_policy_is_the_export_the_adoption_rule_adopted(subject, poli
               if e["universal_steps"] == steps and subject in e["adopted"]]
     assert judged, f"no adoption of {subject} at {steps} steps in {ADOPTION_FILE}"
     evaluation = json.loads((folder / EVALUATION_FILE).read_text())
-    assert sorted(k for k, ok in evaluation["checks"].items() if ok is True) == judged[-1]["passed"]
+    assert passed_checks(evaluation) == judged[-1]["passed"]
 
 
 def test_transfer_stage_depends_on_every_committed_policy(params):
