@@ -406,6 +406,10 @@ def training_progress_figure(curves: dict, title: str = "Universal walking polic
         if where != shown:
             ax.text(start, curves["checks"], where, fontsize=6, rotation=90, va="top", ha="right")
             shown = where
+    for at, label in curves.get("changes", []):  # the observation widened (body values appended)
+        for a in (ax, ax2, ax3):
+            a.axvline(at, color="tab:red", linestyle="--", linewidth=0.8)
+        ax.text(at, curves["checks"], label, fontsize=6, rotation=90, va="top", ha="left", color="tab:red")
     for a in (ax, ax2, ax3):
         a.set_xlabel("env steps (M)")
         a.set_xlim(0, max(steps) * 1.02)

@@ -7,7 +7,9 @@ A checkpoint of the universal run (`data/universal`) is exported to every bundle
 (`pipeline.runs.gate.universal_required`, as the transfer stage requires of a universal export). A subject
 without a committed policy adopts the checkpoint when its gate passes; a subject with one
 (`train.subjects`) only when the checkpoint passes at least as many of evaluate-policy's checks as
-its committed policy does. `decide` is that rule; `evaluate_checkpoint` runs it; the command
+its committed policy does. A checkpoint the 2-walk rule would adopt is confirmed with evaluate-policy's
+own walks (`evaluate_policy.n_seeds`; the amendment of 2026-11-28): the same rule again on that
+evaluation. `decide` is that rule; `evaluate_checkpoint` runs it; the command
 `python -m pipeline adopt-universal` appends the result to `data/universal/adoption.json`.
 Nothing is copied into `data/policies/`: a subject that adopts is listed in `transfer.adopted` and
 gets the checkpoint's export through the transfer command (zero-shot), committed by the frozen stage
@@ -25,7 +27,8 @@ from pathlib import Path
 from pipeline import paths
 from pipeline.params import Params
 from pipeline.paths import ADOPTION_FILE
-from pipeline.runs.gate import judge, run_gate, universal_required
+from pipeline.runs.evaluation import EvalParams
+from pipeline.runs.gate import run_gate, universal_required
 from pipeline.runs.gate_record import source_evaluation
 from pipeline.runs.setup import train_params
 
@@ -35,20 +38,35 @@ def passed_checks(evaluation: dict) -> list[str]:
     return sorted(k for k, ok in evaluation.get("checks", {}).items() if ok is True)
 
 
-def decide(verdict: dict, evaluation: dict, committed: dict | None) -> dict:
-    """The rule for one subject. `verdict`: the gate's (`pipeline.runs.gate.judge`); `evaluation`:
-    the checkpoint's evaluate-policy result on the subject; `committed`: the subject's committed
-    policy's evaluation (None: it has none). Returns the record: checks passed, the gate, the
-    committed policy's count and whether the subject adopts the checkpoint."""
+def gate_rule(verdict: dict, evaluation: dict, committed: dict | None) -> dict:
+    """The 2-walk rule for one subject. `verdict`: the gate's (`pipeline.runs.gate.judge`);
+    `evaluation`: the checkpoint's evaluate-policy result on the subject; `committed`: the subject's
+    committed policy's evaluation (None: it has none). Returns the record: checks passed, walks per
+    check, the gate, the committed policy's count and whether the rule adopts (`adopt`, `why`)."""
     passed = passed_checks(evaluation)
     out = {"checks_passed": len(passed), "checks": len(evaluation.get("checks", {})),
-           "gate_pass": bool(verdict["pass"]), "failed_required": list(verdict["failed"]), "passed": passed}
+           "walks": evaluation.get("free", {}).get("rollouts"), "gate_pass": bool(verdict["pass"]),
+           "failed_required": list(verdict["failed"]), "passed": passed}
     if committed is None:
         return {**out, "adopt": out["gate_pass"], "why": "gate" if out["gate_pass"] else "gate failed"}
     theirs = len(passed_checks(committed))
-    better = out["checks_passed"] >= theirs
-    return {**out, "committed_checks_passed": theirs, "adopt": better,
+    return {**out, "committed_checks_passed": theirs, "adopt": out["checks_passed"] >= theirs,
             "why": f"{out['checks_passed']} checks against the committed policy's {theirs}"}
+
+
+def decide(verdict: dict, evaluation: dict, committed: dict | None,
+           confirmation: tuple[dict, dict] | None = None) -> dict:
+    """The amended rule (module docstring): `gate_rule` on the gate's walks, and where that adopts,
+    `gate_rule` again on `confirmation` (evaluate-policy's result with its own walks, its verdict;
+    None: not run, so not adopted). The record keeps the confirmation's under `confirmation`."""
+    first = gate_rule(verdict, evaluation, committed)
+    if not first["adopt"]:
+        return first
+    if confirmation is None:
+        return {**first, "adopt": False, "why": f"{first['why']}; not confirmed (not run at its own walks)"}
+    conf = gate_rule(confirmation[1], confirmation[0], committed)
+    return {**first, "confirmation": conf, "adopt": conf["adopt"],
+            "why": f"{first['why']}; at {conf['walks']} walks {conf['why']}"}
 
 
 def evaluate_checkpoint(params: Params, universal_dir: Path, subjects: list[str], *,
@@ -66,6 +84,7 @@ def evaluate_checkpoint(params: Params, universal_dir: Path, subjects: list[str]
     t = params.section("transfer", TransferSection)
     required = universal_required(params, policy_root)
     env = train_params(params).env
+    walks = params.section("evaluate_policy", EvalParams).n_seeds
     start, judged = time.perf_counter(), {}
     with tempfile.TemporaryDirectory(prefix="adoption-") as tmp:
         work, snapshot = Path(tmp), Path(tmp) / ".checkpoint"  # a running training rewrites its folder
@@ -77,11 +96,15 @@ def evaluate_checkpoint(params: Params, universal_dir: Path, subjects: list[str]
             xml, npz = train_inputs(subject, root)
             export_subject(snapshot, Source(subject, str(xml), str(npz)), env,
                            paths.policy_dir(work, subject), label=f"universal@{steps}")
-            doc, _ = run_gate(subject, params, work, required, root=root, reports=work / "reports",
-                              progress=progress)
+            doc, verdict = run_gate(subject, params, work, required, root=root, reports=work / "reports",
+                                    progress=progress)
             committed = source_evaluation(paths.policy_dir(policy_root, subject))
-            judged[subject] = decide(judge(doc["checks"], required), doc, committed)
-    return {"universal_steps": steps, "gate_seeds": t.gate_seeds,
+            confirm = None
+            if gate_rule(verdict, doc, committed)["adopt"]:
+                confirm = run_gate(subject, params, work, required, root=root, reports=work / "reports",
+                                   progress=progress, seeds=walks)
+            judged[subject] = decide(verdict, doc, committed, confirm)
+    return {"universal_steps": steps, "gate_seeds": t.gate_seeds, "confirm_seeds": walks,
             "required": sorted(required) if required is not None else "every scenario check",
             "subjects": judged, "adopted": sorted(s for s, r in judged.items() if r["adopt"]),
             "wall_s": round(time.perf_counter() - start, 1)}
@@ -98,4 +121,4 @@ def append_record(universal_dir: Path, evaluation: dict, how: str) -> Path:
     return path
 
 
-__all__ = ["append_record", "decide", "evaluate_checkpoint", "passed_checks"]
+__all__ = ["append_record", "decide", "evaluate_checkpoint", "gate_rule", "passed_checks"]

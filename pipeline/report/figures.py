@@ -40,8 +40,8 @@ def progress_curves(progress: dict, adoption: dict | None, window: int = PROGRES
     """What the universal run's progress figure draws (`metrics.plots.training_progress_figure`):
     env steps (M) of each checkpoint, its quick-gate checks passed in all and per subject's own body,
     their running means over the last `window` checkpoints, the run's stretches on one kind of machine
-    (start step, machine; resumes on the same kind continue a stretch),
-    and evaluate-policy's checks passed over every body at each adoption evaluation (`adoption`,
+    (start step, machine; resumes on the same kind continue a stretch), where its observation was
+    widened (`changes`: step, label), and evaluate-policy's checks passed over every body at each adoption evaluation (`adoption`,
     adoption.json: steps, passed, of how many)."""
     points = progress.get("checkpoints", [])
     steps = [c["steps"] / 1e6 for c in points]
@@ -58,7 +58,9 @@ def progress_curves(progress: dict, adoption: dict | None, window: int = PROGRES
     return {"steps": steps, "passed": passed.tolist(), "checks": points[-1]["checks"] if points else 0,
             "passed_mean": passed.rolling(window, min_periods=1).mean().tolist(),
             "own_mean": {s: v.rolling(window, min_periods=1).mean().tolist() for s, v in own.items()},
-            "window": window, "segments": segments, "evaluations": evaluation_totals(adoption)}
+            "window": window, "segments": segments, "evaluations": evaluation_totals(adoption),
+            "changes": [(w["steps"] / 1e6, f"inputs {w['obs_size'][0]} -> {w['obs_size'][1]}")
+                        for w in progress.get("widened", [])]}
 
 # Every figure a report can have, in the order the index shows them, with its caption.
 FIGURES = {

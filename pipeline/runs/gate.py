@@ -71,11 +71,12 @@ def judge(checks: dict[str, bool | None], required: set[str] | None) -> dict:
 
 def run_gate(subject: str, params: Params, policy_root: Path, required: set[str] | None, *,
              root: Path = paths.PROCESSED_ROOT, reports: Path = paths.REPORTS_ROOT,
-             progress: bool = True) -> tuple[dict, dict]:
-    """(evaluate-policy's result with `transfer.gate_seeds` walks per check, the gate's verdict)."""
+             progress: bool = True, seeds: int | None = None) -> tuple[dict, dict]:
+    """(evaluate-policy's result with `seeds` walks per check, default `transfer.gate_seeds`, the
+    gate's verdict)."""
     from pipeline.runs.evaluate_policy import evaluate_policy  # torch: only when a gate runs
 
-    seeds = params.section("transfer", TransferSection).gate_seeds
+    seeds = seeds or params.section("transfer", TransferSection).gate_seeds
     doc = evaluate_policy(subject, gate_params(params, seeds), root, policy_root, reports, progress)
     return doc, judge(doc["checks"], required)
 

@@ -8,7 +8,11 @@ left and right alike), the motor torque limits x mass x length (torque ~ m g L),
 reference cycle carried over by dynamic similarity (Alexander & Jayes 1983, J Zool 201:135): the
 same joint angles, stride x the leg-length ratio lambda, time x sqrt(lambda), so speed x
 sqrt(lambda) (equal Froude number). The policy sees the body through `body_observation`: log
-ratios of standing height, mass, leg length, cycle speed and cycle period to a nominal adult.
+ratios of standing height, mass, leg length, cycle speed and cycle period to a nominal adult, then
+where the standing body's centre of mass lies fore-aft of the ankles and of the pelvis, per leg
+length (bodies alike in the first five can need different balance: a subject's upper body leaning
+back puts it behind the ankles). Values are only ever appended: a policy trained on the first n
+(`BODY_OBS_SIZES`) reads the first n.
 """
 
 from __future__ import annotations
@@ -28,7 +32,9 @@ from sim.motion.reference import ReferenceCycle
 SEGMENTS = ("pelvis", "torso", "head", "upper_arm", "forearm", "thigh", "shank", "foot")
 # nominal adult the body observation is relative to (about the bundled subjects' middle)
 NOMINAL = {"height_m": 1.70, "mass_kg": 70.0, "leg_length_m": 0.85, "speed_mps": 1.25, "period_s": 1.10}
-BODY_OBS_SIZE = len(NOMINAL)
+BALANCE = ("com_ahead_of_ankles", "com_ahead_of_pelvis")  # standing, / leg length (appended 2026-11-28)
+BODY_OBS_SIZE = len(NOMINAL) + len(BALANCE)
+BODY_OBS_SIZES = (len(NOMINAL), BODY_OBS_SIZE)  # every body observation a policy has been trained on
 
 
 @dataclass(frozen=True)
@@ -146,19 +152,25 @@ def similar_cycle(source: mujoco.MjModel, body: mujoco.MjModel, cycle: Reference
                    stride_length_m=cycle.stride_length_m * lam, speed_mps=cycle.speed_mps * lam / tau)
 
 
-def body_observation(model: mujoco.MjModel, cycle: ReferenceCycle) -> np.ndarray:
-    """What the policy knows of the body it walks (module docstring), (BODY_OBS_SIZE,): log ratios
-    of standing height (joints at zero, feet on the floor), mass, leg length and the cycle's speed
-    and period to `NOMINAL`."""
+def body_observation(model: mujoco.MjModel, cycle: ReferenceCycle, size: int = BODY_OBS_SIZE) -> np.ndarray:
+    """What the policy knows of the body it walks (module docstring), (size,): log ratios of standing
+    height (joints at zero, feet on the floor), mass, leg length and the cycle's speed and period to
+    `NOMINAL`, then the standing centre of mass's fore-aft distance ahead of the ankle joints' midpoint
+    and of the pelvis, each / leg length (`BALANCE`); `size`: the first values only (`BODY_OBS_SIZES`)."""
+    if size not in BODY_OBS_SIZES:
+        raise ValueError(f"a body observation has {' or '.join(map(str, BODY_OBS_SIZES))} values, not {size}")
     data = mujoco.MjData(model)
     feet = np.array([model.body(f"foot_{s}").id for s in SIDE_SUFFIXES])
     data.qpos[:] = standing_pose(model, feet)
-    mujoco.mj_kinematics(model, data)
+    mujoco.mj_forward(model, data)  # subtree_com: the root's is the whole body's (facing +x)
+    leg, pelvis = leg_length(model), model.body("pelvis").id
     values = {"height_m": standing_height(model, data), "mass_kg": float(model.body_mass.sum()),
-              "leg_length_m": leg_length(model), "speed_mps": float(cycle.speed_mps),
-              "period_s": float(cycle.period_s)}
-    return np.array([math.log(values[k] / NOMINAL[k]) for k in NOMINAL], np.float32)
+              "leg_length_m": leg, "speed_mps": float(cycle.speed_mps), "period_s": float(cycle.period_s)}
+    com_x = float(data.subtree_com[pelvis, 0])
+    balance = (com_x - float(data.xpos[feet, 0].mean()), com_x - float(data.xpos[pelvis, 0]))
+    obs = [math.log(values[k] / NOMINAL[k]) for k in NOMINAL] + [b / leg for b in balance]
+    return np.array(obs[:size], np.float32)
 
 
-__all__ = ["BODY_OBS_SIZE", "NOMINAL", "SEGMENTS", "BodyDraw", "BodyScales", "body_observation",
-           "draw_scales", "leg_length", "scale_spec", "similar_cycle"]
+__all__ = ["BALANCE", "BODY_OBS_SIZE", "BODY_OBS_SIZES", "NOMINAL", "SEGMENTS", "BodyDraw", "BodyScales",
+           "body_observation", "draw_scales", "leg_length", "scale_spec", "similar_cycle"]

@@ -29,8 +29,7 @@ import numpy as np
 
 from sim.body.balance_loss import BalanceLoss, BalanceLossRun, add_trip_constraints, steady_onset
 from sim.errors import SimulationError
-from sim.learn.bodies import body_observation
-from sim.learn.pool import UNIVERSAL_OBS_SIZE
+from sim.learn.bodies import BODY_OBS_SIZES, body_observation
 from sim.learn.steering import command_at
 from sim.learn.walk_env import (
     AMP_SIZE,
@@ -186,8 +185,9 @@ class PolicyHuman(HumanDriver):
 
 def check_policy_io(folder: str, n_obs: int, n_act: int) -> None:
     """A policy fits the steered walking human: `OBS_SIZE` observations (a body-conditioned one
-    `UNIVERSAL_OBS_SIZE`, `BodyConditioned`), 21 actions."""
-    if n_obs not in (OBS_SIZE, UNIVERSAL_OBS_SIZE) or n_act != 21:
+    that many followed by a body observation of one of `BODY_OBS_SIZES`, `BodyConditioned`), 21
+    actions."""
+    if n_obs - OBS_SIZE not in (0, *BODY_OBS_SIZES) or n_act != 21:
         hint = " (a straight walker from before steering: retrain with `--init-from`)" \
             if n_obs == LEGACY_OBS_SIZE else ""
         raise SimulationError(folder, f"policy expects {n_obs} observations / {n_act} actions, the "
@@ -297,8 +297,9 @@ class PolicySource:
         walk_env = make_walk_env(str(body_xml), cycle, env)
         ref = walk_env.ref
         policy = ActorMlp.from_sb3(model, norm)
-        if model.observation_space.shape[0] == UNIVERSAL_OBS_SIZE:
-            policy = BodyConditioned(policy, body_observation(walk_env.model, cycle))
+        n_body = model.observation_space.shape[0] - OBS_SIZE
+        if n_body:  # the body values it was trained on (an export from before values were appended: fewer)
+            policy = BodyConditioned(policy, body_observation(walk_env.model, cycle, n_body))
 
         def make(walk: PolicyWalk, seed: int) -> HumanRun:
             rng = np.random.default_rng(seed)

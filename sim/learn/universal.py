@@ -11,7 +11,9 @@ images (their starts, stops and turns).
 
 The run starts from a single-body policy (`init_from`, e.g. camargo's committed one), its first
 layers widened with zero weights for the body inputs (`widen_for_body`), so it walks from step
-one; it is ONE run that resumes from its own folder (`resume`). At every checkpoint it writes the
+one; it is ONE run that resumes from its own folder (`resume`). A run resumed after body values were
+appended to the observation is widened the same way for them, its optimizer state kept (`widened`
+in the record). At every checkpoint it writes the
 policy, the observation statistics, the discriminator and `progress.json`: steps, wall time and
 `quick_gate` (each subject's body, its cycle: walk_10m and turn_90, no fall, standing at the end,
 steady speed within the bound) against steps.
@@ -41,6 +43,7 @@ from stable_baselines3.common.callbacks import BaseCallback, CallbackList
 from stable_baselines3.common.vec_env import DummyVecEnv, VecMonitor, VecNormalize
 
 from sim.learn.amp import AMP, AMPCallback
+from sim.learn.bodies import BODY_OBS_SIZE, BODY_OBS_SIZES
 from sim.learn.pool import UNIVERSAL_OBS_SIZE, MultiBodyEnv, Source, UniversalParams, make_body
 from sim.learn.train import (
     AMP_FILE,
@@ -95,29 +98,47 @@ def amp_reference_sampler(pool: MultiBodyEnv, up: UniversalParams, dt_s: float, 
 
 
 def widen_for_body(old: PPO, old_norm: VecNormalize, venv, p: TrainParams, body_mean: np.ndarray,
-                   body_std: np.ndarray) -> tuple[VecNormalize, PPO]:
-    """A body-conditioned policy that acts exactly as the single-body `old` whatever the body: the
-    first layers of the policy and value networks get the body inputs with zero weights, the old
-    inputs keep their weights and normalisation statistics, the body inputs are normalised by
-    `body_mean`, `body_std` (the pool's), and the statistics stay fixed: updated by the other bodies'
-    observations, they would change what the old inputs mean to the network."""
+                   body_std: np.ndarray, *, optimizer: bool = False) -> tuple[VecNormalize, PPO]:
+    """A policy with `UNIVERSAL_OBS_SIZE` inputs that acts exactly as `old` whatever the inputs it
+    lacks: a single-body policy (`OBS_SIZE` inputs) or a body-conditioned one trained on fewer body
+    values (`sim.learn.bodies.BODY_OBS_SIZES`). The first layers of the policy and value networks get
+    the added inputs (the last ones) with zero weights, the old inputs keep their weights and
+    normalisation statistics, the added ones are normalised by `body_mean`, `body_std` (the pool's),
+    and the statistics stay fixed: updated by other bodies' observations, they would change what
+    the old inputs mean to the network. `optimizer`: Adam's moments carried over too (zero for the
+    added weights), so a resumed run goes on as it was; otherwise a fresh optimizer."""
     n_old = old.observation_space.shape[0]
-    if n_old != OBS_SIZE:
-        raise ValueError(f"the start policy has {n_old} observations, not the walking env's {OBS_SIZE}")
+    if n_old - OBS_SIZE not in (0, *BODY_OBS_SIZES[:-1]) or len(body_mean) != UNIVERSAL_OBS_SIZE - n_old:
+        raise ValueError(f"the start policy has {n_old} observations: not the walking env's {OBS_SIZE} "
+                         f"followed by fewer body values than {BODY_OBS_SIZE} {BODY_OBS_SIZES}, or "
+                         f"{len(body_mean)} statistics for {UNIVERSAL_OBS_SIZE - n_old} added inputs")
     norm = VecNormalize(venv, norm_obs=True, norm_reward=False, clip_obs=10.0, gamma=p.gamma)
     mean = np.concatenate([old_norm.obs_rms.mean, body_mean])
     var = np.concatenate([old_norm.obs_rms.var, np.square(body_std) - norm.epsilon])
     norm.obs_rms.mean, norm.obs_rms.var, norm.obs_rms.count = mean, var, old_norm.obs_rms.count
     norm.training = False
     model = new_ppo(norm, p)
+    keys = [f"mlp_extractor.{net}.0.weight" for net in ("policy_net", "value_net")]
     state = {k: v.clone() for k, v in old.policy.state_dict().items()}
-    for net in ("policy_net", "value_net"):
-        key = f"mlp_extractor.{net}.0.weight"
-        w = torch.zeros((state[key].shape[0], UNIVERSAL_OBS_SIZE), dtype=state[key].dtype)
-        w[:, :n_old] = state[key]
-        state[key] = w
+    for key in keys:
+        state[key] = _pad_columns(state[key])
     model.policy.load_state_dict(state)
+    if optimizer:
+        names = [n for n, _ in old.policy.named_parameters()]
+        opt = old.policy.optimizer.state_dict()
+        for key in keys:
+            moments = opt["state"].get(names.index(key), {})
+            for m in ("exp_avg", "exp_avg_sq"):
+                if m in moments:
+                    moments[m] = _pad_columns(moments[m])
+        model.policy.optimizer.load_state_dict(opt)
     return norm, model
+
+
+def _pad_columns(w: torch.Tensor) -> torch.Tensor:
+    out = torch.zeros((w.shape[0], UNIVERSAL_OBS_SIZE), dtype=w.dtype)
+    out[:, :w.shape[1]] = w
+    return out
 
 
 class CriticWarmup(BaseCallback):
@@ -223,7 +244,17 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
     pool = MultiBodyEnv(sources, replace(up, refresh_probability=0.0), p.env, p.seed)  # AMP references, stats
     body_obs = np.array([b.obs for b in pool.bodies])
     frozen = bool(prior.get("obs_stats_frozen")) if prior else init_from is not None
-    if prior:
+    widened = list(prior.get("widened", []))
+    if prior and int(prior.get("obs_size", UNIVERSAL_OBS_SIZE)) < UNIVERSAL_OBS_SIZE:  # body values appended
+        old = PPO.load(str(out / POLICY_FILE), device="cpu", custom_objects=ppo_settings(p))
+        n_old = old.observation_space.shape[0] - OBS_SIZE
+        venv, model = widen_for_body(old, load_norm(out), venv, p, body_obs[:, n_old:].mean(0),
+                                     np.maximum(body_obs[:, n_old:].std(0), 0.02), optimizer=True)
+        model.num_timesteps = old.num_timesteps
+        widened.append({"steps": int(old.num_timesteps), "obs_size": [OBS_SIZE + n_old, UNIVERSAL_OBS_SIZE]})
+        if device != "cpu":
+            model = _to_device(model, venv, p, device)
+    elif prior:
         venv = VecNormalize.load(str(out / NORM_FILE), venv)
         venv.training = not frozen
         model = PPO.load(str(out / POLICY_FILE), env=venv, device=device, custom_objects=ppo_settings(p))
@@ -267,7 +298,7 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
         run_wall = time.perf_counter() - start
         rec = {"steps": int(model.num_timesteps), "wall_s": wall, **origin,
                "subjects": [s.name for s in sources], "obs_size": UNIVERSAL_OBS_SIZE,
-               "obs_stats_frozen": frozen,
+               "obs_stats_frozen": frozen, **({"widened": widened} if widened else {}),
                "runs": runs + [{"command": command, "n_envs": n_envs, "subprocess": subprocess,
                                 "workers": workers,
                                 "device": device, "threads": threads, "cpu_count": os.cpu_count(),
@@ -305,6 +336,8 @@ def _to_device(model: PPO, venv: VecNormalize, p: TrainParams, device: str) -> P
     moved = PPO("MlpPolicy", venv, **ppo_settings(p), seed=p.seed, device=device, verbose=0,
                 policy_kwargs=model.policy_kwargs)
     moved.policy.load_state_dict(model.policy.state_dict())
+    moved.policy.optimizer.load_state_dict(model.policy.optimizer.state_dict())  # moved to its device
+    moved.num_timesteps = model.num_timesteps
     return moved
 
 

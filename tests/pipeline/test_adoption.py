@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from pipeline.cli import main
-from pipeline.commands.adoption import decide
+from pipeline.commands.adoption import decide, gate_rule
 from pipeline.paths import ADOPTION_FILE
 from pipeline.runs.gate import SCENARIO_PREFIX, universal_required
 from sim.learn.train import NORM_FILE, POLICY_FILE, PROGRESS_FILE
@@ -23,21 +23,36 @@ def verdict(passed: bool, failed: list[str] | None = None) -> dict:
     return {"pass": passed, "failed": failed or []}
 
 
-def evaluation(n_passed: int, n_checks: int = 29) -> dict:
-    return {"checks": {f"check_{i}": i < n_passed for i in range(n_checks)}}
+def evaluation(n_passed: int, n_checks: int = 29, walks: int = 10) -> dict:
+    return {"checks": {f"check_{i}": i < n_passed for i in range(n_checks)}, "free": {"rollouts": walks}}
 
 
 def test_a_subject_without_a_committed_policy_adopts_on_its_gate():
-    assert decide(verdict(True), evaluation(5), None)["adopt"] is True  # few checks, but the gate passed
-    rec = decide(verdict(False, ["scenario_turn_90_free_no_fall"]), evaluation(28), None)
+    assert gate_rule(verdict(True), evaluation(5), None)["adopt"] is True  # few checks, but the gate passed
+    rec = gate_rule(verdict(False, ["scenario_turn_90_free_no_fall"]), evaluation(28), None)
     assert rec["adopt"] is False and rec["failed_required"] == ["scenario_turn_90_free_no_fall"]
     assert rec["checks_passed"] == 28 and rec["checks"] == 29
 
 
 def test_a_committed_policy_is_replaced_only_by_as_many_checks():
-    assert decide(verdict(True), evaluation(21), evaluation(22))["adopt"] is False  # gate passed, 1 fewer
-    rec = decide(verdict(False), evaluation(22), evaluation(22))
+    assert gate_rule(verdict(True), evaluation(21), evaluation(22))["adopt"] is False  # gate passed, 1 fewer
+    rec = gate_rule(verdict(False), evaluation(22), evaluation(22))
     assert rec["adopt"] is True and rec["committed_checks_passed"] == 22
+
+
+def test_an_adoption_is_confirmed_with_evaluate_policys_own_walks():
+    """The amendment of 2026-11-28: a 2-walk pass adopts only when 10 walks pass it too (kgc6's
+    case: its gate passed at 2 walks, and 10 walks found required checks failing)."""
+    two, ten = evaluation(26, walks=2), evaluation(10, walks=10)
+    assert decide(verdict(True), two, None)["adopt"] is False  # no confirmation run: not adopted
+    rec = decide(verdict(True), two, None, (ten, verdict(False, ["scenario_push_free_recovered"])))
+    assert rec["adopt"] is False and rec["confirmation"]["walks"] == 10 and rec["walks"] == 2
+    assert rec["confirmation"]["failed_required"] == ["scenario_push_free_recovered"]
+    assert decide(verdict(True), two, None, (ten, verdict(True)))["adopt"] is True
+    committed, no = evaluation(22), verdict(False)  # a committed policy: counted at 10 walks on both sides
+    assert decide(no, evaluation(23), committed, (evaluation(21), no))["adopt"] is False
+    assert decide(no, evaluation(23), committed, (evaluation(22), no))["adopt"] is True
+    assert "confirmation" not in decide(verdict(True), evaluation(3), committed, (ten, verdict(True)))
 
 
 def test_the_gate_requires_what_the_runs_source_passes(params, policies_root):
@@ -72,8 +87,13 @@ def test_adopt_universal_judges_the_checkpoint_and_records_it(processed, tmp_pat
     rec = doc["subjects"][SUBJECT]
     assert doc["universal_steps"] == json.loads((universal / PROGRESS_FILE).read_text())["steps"]
     assert rec["checks"] >= 20 and rec["checks_passed"] == len(rec["passed"])
-    assert rec["adopt"] == rec["gate_pass"] and (SUBJECT in doc["adopted"]) == rec["adopt"]
+    assert (SUBJECT in doc["adopted"]) == rec["adopt"] and rec["walks"] == doc["gate_seeds"]
     assert rec["gate_pass"] == (not rec["failed_required"])
+    if rec["gate_pass"]:  # confirmed with evaluate-policy's own walks before it adopts
+        assert rec["confirmation"]["walks"] == doc["confirm_seeds"]
+        assert rec["adopt"] == rec["confirmation"]["gate_pass"]
+    else:
+        assert not rec["adopt"] and "confirmation" not in rec
     assert set(rec["failed_required"]) <= set(doc["required"])
     record = json.loads((universal / ADOPTION_FILE).read_text())
     assert record["evaluations"][-1]["subjects"] == doc["subjects"] and record["adopted"] == doc["adopted"]

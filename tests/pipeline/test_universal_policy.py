@@ -9,7 +9,7 @@ import torch
 
 from pipeline.paths import UNIVERSAL_DIR
 from pipeline.runs.jobs import policy_setup, scenario_jobs
-from sim.learn.bodies import body_observation
+from sim.learn.bodies import BODY_OBS_SIZE, BODY_OBS_SIZES, body_observation
 from sim.learn.policy_human import ActorMlp, BodyConditioned
 from sim.learn.pool import UNIVERSAL_OBS_SIZE, Source
 from sim.learn.train import POLICY_FILE, load_body, load_policy
@@ -46,3 +46,14 @@ def test_an_exported_subject_policy_walks_its_own_body(params, train_params, cam
     outcomes = run_batch(setup, scenario_jobs(params, ("free",), 1, ("steady",)), 1, "", False)
     assert len(outcomes) == 1 and outcomes[0].stable
     assert len(outcomes[0].pelvis_xy) > 100
+
+
+def test_an_export_from_before_body_values_were_appended_reads_the_first_ones(params, policies_root):
+    """kgc6's adopted policy was exported when the body observation had five values: the policy
+    source gives it those five (`BODY_OBS_SIZES`), and it walks."""
+    model, _ = load_policy(policies_root / "kgc6")
+    n_body = model.observation_space.shape[0] - OBS_SIZE
+    assert n_body in BODY_OBS_SIZES and n_body < BODY_OBS_SIZE
+    setup = policy_setup("kgc6", params, policy_root=policies_root)
+    outcomes = run_batch(setup, scenario_jobs(params, ("free",), 1, ("steady",)), 1, "", False)
+    assert len(outcomes) == 1 and outcomes[0].stable and len(outcomes[0].pelvis_xy) > 100

@@ -7,6 +7,7 @@ import json
 import math
 from dataclasses import replace
 
+import gymnasium as gym
 import mujoco
 import numpy as np
 import pytest
@@ -15,6 +16,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
 from sim.learn.bodies import (
     BODY_OBS_SIZE,
+    BODY_OBS_SIZES,
     BodyDraw,
     BodyScales,
     body_observation,
@@ -92,7 +94,7 @@ def test_the_body_observation_reads_the_body(camargo):
     a, b = body_observation(model, cycle), body_observation(big, similar_cycle(model, big, cycle))
     assert a.shape == (BODY_OBS_SIZE,)
     np.testing.assert_allclose(b - a, [math.log(1.1), math.log(1.2), math.log(1.1), 0.5 * math.log(1.1),
-                                       0.5 * math.log(1.1)], atol=0.01)
+                                       0.5 * math.log(1.1), 0.0, 0.0], atol=0.01)  # balance: per leg length
 
 
 @pytest.fixture(scope="module")
@@ -154,6 +156,76 @@ def test_one_run_resumes_and_records_its_gate(universal, camargo, tmp_path):
     assert model.observation_space.shape == (UNIVERSAL_OBS_SIZE,)
     assert norm.obs_rms.mean.shape == (UNIVERSAL_OBS_SIZE,)
     assert load_norm(out).obs_rms.count > 0
+
+
+class _FirstInputs(gym.ObservationWrapper):
+    """A pool whose observation stops after the first `n` values (a run from before values were appended)."""
+
+    def __init__(self, env: gym.Env, n: int) -> None:
+        super().__init__(env)
+        self.n, self.observation_space = n, gym.spaces.Box(-np.inf, np.inf, (n,), np.float32)
+
+    def observation(self, obs):
+        return obs[:self.n]
+
+
+def test_a_run_resumed_after_body_values_were_appended_is_widened(universal, camargo, tmp_path):
+    """A checkpoint trained on the first five body values resumes with zero weights on the appended
+    ones (`BALANCE`): the same actions whatever they are, Adam's moments kept, `widened` recorded."""
+    p, up, scenarios = universal
+    p = replace(p, n_steps=64, batch_size=128, n_epochs=1, checkpoint_steps=256, net_arch=(32, 32))
+    out, src = tmp_path / "universal", camargo[0]
+    train_universal((src,), p, up, out, scenarios, total_steps=256, n_envs=2, gate=False)
+    model, norm = load_policy(out)
+    n_old = OBS_SIZE + BODY_OBS_SIZES[0]  # the checkpoint as a run from before BALANCE saved it
+    narrow_norm = VecNormalize(DummyVecEnv([lambda: _FirstInputs(MultiBodyEnv((src,), up, p.env, 0), n_old)]),
+                               norm_obs=True, norm_reward=False, clip_obs=10.0)
+    narrow_norm.obs_rms.mean, narrow_norm.obs_rms.var = norm.obs_rms.mean[:n_old], norm.obs_rms.var[:n_old]
+    narrow_norm.training = False
+    narrow = new_ppo(narrow_norm, p)
+    first = [f"mlp_extractor.{n}.0.weight" for n in ("policy_net", "value_net")]
+    state = model.policy.state_dict()
+    narrow.policy.load_state_dict({k: v[:, :n_old] if k in first else v for k, v in state.items()})
+    opt, names = model.policy.optimizer.state_dict(), [n for n, _ in model.policy.named_parameters()]
+    for k in first:
+        moments = opt["state"][names.index(k)]
+        for m in ("exp_avg", "exp_avg_sq"):
+            moments[m] = moments[m][:, :n_old]
+    narrow.policy.optimizer.load_state_dict(opt)
+    narrow.num_timesteps = model.num_timesteps
+    narrow.save(str(out / "policy.zip"))
+    narrow_norm.save(str(out / "vecnormalize.pkl"))
+    rec = json.loads((out / "progress.json").read_text())
+    (out / "progress.json").write_text(json.dumps({**rec, "obs_size": n_old}))
+
+    again = train_universal((src,), p, up, out, scenarios, total_steps=256, n_envs=2, resume=True, gate=False)
+    assert again["obs_size"] == UNIVERSAL_OBS_SIZE and again["widened"] == [
+        {"steps": 256, "obs_size": [n_old, UNIVERSAL_OBS_SIZE]}]
+    wide, wide_norm = load_policy(out)
+    assert wide.observation_space.shape == (UNIVERSAL_OBS_SIZE,) and wide.num_timesteps == 256
+    rng = np.random.default_rng(3)
+    for _ in range(5):
+        obs = rng.normal(size=UNIVERSAL_OBS_SIZE).astype(np.float32)
+        a_old, _ = narrow.predict(narrow_norm.normalize_obs(obs[None, :n_old]), deterministic=True)
+        a_new, _ = wide.predict(wide_norm.normalize_obs(obs[None]), deterministic=True)
+        np.testing.assert_allclose(a_new, a_old, atol=1e-6)
+    state, names = wide.policy.optimizer.state_dict()["state"], [n for n, _ in wide.policy.named_parameters()]
+    for k in first:
+        moments, before = state[names.index(k)]["exp_avg_sq"], opt["state"][names.index(k)]["exp_avg_sq"]
+        np.testing.assert_array_equal(moments[:, :n_old].numpy(), before.numpy())
+        assert not moments[:, n_old:].any()
+    last = train_universal((src,), p, up, out, scenarios, total_steps=512, n_envs=2, resume=True, gate=False)
+    assert last["steps"] == 512 and last["widened"] == again["widened"]  # widened once, then resumed as usual
+
+
+def test_the_body_observation_keeps_its_first_values(camargo):
+    """A policy trained on fewer body values reads the first ones (`BODY_OBS_SIZES`)."""
+    _, model, cycle = camargo
+    full = body_observation(model, cycle)
+    np.testing.assert_array_equal(body_observation(model, cycle, BODY_OBS_SIZES[0]), full[:BODY_OBS_SIZES[0]])
+    assert full[-2] > 0.03  # camargo's standing centre of mass is ahead of its ankles (/ leg length)
+    with pytest.raises(ValueError, match="not 6"):
+        body_observation(model, cycle, 6)
 
 
 def test_the_universal_params_reject_unknown_keys():
