@@ -48,6 +48,9 @@ class UniversalParams:
     gate_speed_tolerance: float          # steady speed within +- this of the cycle's
     gate_standing_mps: float             # standing at the end: pelvis slower than this over the last second
     bodies: BodyDraw
+    teachers: tuple[str, ...]            # committed single-body policies distilled on their own bodies
+    teacher_steps: int                   # Adam steps of that distillation after each PPO update (0: none)
+    teacher_batch: int                   # states per step
 
     @classmethod
     def from_dict(cls, d: dict) -> UniversalParams:
@@ -63,11 +66,11 @@ class UniversalParams:
                     what = "unknown" if set(v) - names else "missing"
                     raise KeyError(f"universal.bodies: {what} key {bad[0]!r}")
                 out[k] = BodyDraw(**{a: float(b) for a, b in v.items()})
-            elif k in ("subjects", "gate_scenarios"):
+            elif k in ("subjects", "gate_scenarios", "teachers"):
                 out[k] = tuple(str(x) for x in v)
             elif k == "init_from":
                 out[k] = str(v)
-            elif k in ("drawn", "gate_seeds", "critic_warmup_steps"):
+            elif k in ("drawn", "gate_seeds", "critic_warmup_steps", "teacher_steps", "teacher_batch"):
                 out[k] = int(v)
             else:
                 out[k] = float(v)

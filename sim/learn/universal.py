@@ -162,6 +162,101 @@ class CriticWarmup(BaseCallback):
         return True
 
 
+Teacher = tuple[np.ndarray, PPO, VecNormalize]  # a teacher's body observation, policy, observation statistics
+
+
+class Teachers(BaseCallback):
+    """Policy distillation (Rusu et al. 2016, "Policy distillation", ICLR) from committed single-body
+    policies, DAgger-style (Ross, Gordon & Bagnell 2011): the rollout's states on a teacher's own body
+    (`teachers`: that body's observation, the teacher and its observation statistics), labelled with
+    the teacher's deterministic action, pull the policy's mean action toward it (squared error) by
+    `steps` Adam steps of `batch` states after each PPO update. The states are the rollout buffer's
+    as the policy saw them; the raw observations behind them (which body, the teacher's input) are
+    kept step by step. The steps run when the next rollout starts, with their own optimizer (PPO's
+    moments stay PPO's; a resumed run starts it afresh). `log(step, metrics)` receives the squared
+    error before and after and the states used."""
+
+    def __init__(self, teachers: list[Teacher], steps: int, batch: int, lr: float, max_grad_norm: float,
+                 log, seed: int = 0) -> None:
+        super().__init__()
+        self.teachers, self.steps, self.batch, self.lr = teachers, steps, batch, lr
+        self.max_grad_norm, self.log_fn = max_grad_norm, log
+        self.rng = np.random.default_rng(seed)
+        self.raw: list[np.ndarray] = []
+        self.pending: tuple[np.ndarray, np.ndarray] | None = None
+        self.optimizer: torch.optim.Optimizer | None = None
+
+    def _actor(self) -> list[torch.nn.Parameter]:
+        pol = self.model.policy
+        return [*pol.mlp_extractor.policy_net.parameters(), *pol.action_net.parameters()]
+
+    def labelled(self, seen: np.ndarray, raw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(the rows of `seen`, observations as the policy saw them, whose `raw` observation is on a
+        teacher's body, the teacher's actions for them)."""
+        xs, ys = [seen[:0]], [np.zeros((0, self.model.action_space.shape[0]), np.float32)]
+        for body, teacher, norm in self.teachers:
+            hit = np.all(raw[:, OBS_SIZE:] == body, axis=1)
+            if hit.any():
+                action, _ = teacher.predict(norm.normalize_obs(raw[hit, :OBS_SIZE]), deterministic=True)
+                xs.append(seen[hit])
+                ys.append(np.asarray(action, np.float32))
+        return np.vstack(xs), np.vstack(ys)
+
+    def _on_step(self) -> bool:
+        self.raw.append(self.model.get_vec_normalize_env().get_original_obs().copy())  # the next row's
+        return True
+
+    def _on_rollout_end(self) -> None:
+        seen = self.model.rollout_buffer.observations
+        raw = np.stack(self.raw[:len(seen)])
+        self.pending = self.labelled(seen.reshape(-1, seen.shape[-1]), raw.reshape(-1, raw.shape[-1]))
+
+    def _error(self, x: torch.Tensor, y: torch.Tensor) -> torch.Tensor:
+        return torch.square(self.model.policy.get_distribution(x).distribution.mean - y).mean()
+
+    def _on_rollout_start(self) -> None:
+        if self.pending is not None and len(self.pending[0]) and self.steps > 0:
+            self._distil(*self.pending)
+        self.pending = None
+        self.raw = [self.model.get_vec_normalize_env().get_original_obs().copy()]  # the first row's
+
+    def _distil(self, seen: np.ndarray, action: np.ndarray) -> None:
+        dev = self.model.device
+        x = torch.as_tensor(seen, dtype=torch.float32, device=dev)
+        y = torch.as_tensor(action, dtype=torch.float32, device=dev)
+        if self.optimizer is None:
+            self.optimizer = torch.optim.Adam(self._actor(), lr=self.lr)
+        with torch.no_grad():
+            before = float(self._error(x, y))
+        for _ in range(self.steps):
+            idx = torch.as_tensor(self.rng.integers(0, len(x), min(self.batch, len(x))), device=dev)
+            loss = self._error(x[idx], y[idx])
+            self.optimizer.zero_grad()
+            loss.backward()
+            torch.nn.utils.clip_grad_norm_(self._actor(), self.max_grad_norm)
+            self.optimizer.step()
+        with torch.no_grad():
+            after = float(self._error(x, y))
+        self.log_fn(self.num_timesteps, {"teacher_error_before": before, "teacher_error_after": after,
+                                         "teacher_states": len(x)})
+
+
+def load_teachers(names: tuple[str, ...], pool: MultiBodyEnv, root: Path) -> list[Teacher]:
+    """`Teachers`' teachers: each named subject's committed policy in `root/<name>` (a single-body one,
+    `OBS_SIZE` observations) with its own body's observation from `pool`."""
+    out = []
+    for name in names:
+        own = [b for b in pool.bodies if b.source == name and b.scales is None]
+        if not own:
+            raise ValueError(f"universal.teachers: {name!r} is not one of universal.subjects")
+        model = PPO.load(str(root / name / POLICY_FILE), device="cpu")
+        if model.observation_space.shape[0] != OBS_SIZE:
+            raise ValueError(f"{root / name / POLICY_FILE}: a teacher must be a single-body policy "
+                             f"({OBS_SIZE} observations), not {model.observation_space.shape[0]}")
+        out.append((own[0].obs, model, load_norm(root / name)))
+    return out
+
+
 def make_pool_env(sources: tuple[Source, ...], up: UniversalParams, p: WalkEnvParams,
                   seed: int) -> MultiBodyEnv:
     """One env process's pool of bodies (one torch thread: the envs never run torch)."""
@@ -228,10 +323,11 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
                     resume: bool = False, total_steps: int | None = None, n_envs: int | None = None,
                     subprocess: bool = False, max_wall_s: float | None = None, device: str = "auto",
                     threads: int = 1, command: str = "", progress: bool = False, gate: bool = True,
-                    workers: int | None = None) -> dict:
+                    workers: int | None = None, teacher_root: str | Path = "data/policies") -> dict:
     """Train (or resume) the universal policy into `out_dir` (module docstring); returns the
     progress record. `subprocess`: the envs in `workers` processes (default one per env,
-    `sim.learn.vec.GroupedSubprocVecEnv`); `gate`: False skips `quick_gate` at the checkpoints."""
+    `sim.learn.vec.GroupedSubprocVecEnv`); `gate`: False skips `quick_gate` at the checkpoints;
+    `teacher_root`: where `up.teachers`' committed policies are (`Teachers`)."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     device = device_of(device)
@@ -282,6 +378,7 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
         model.num_timesteps = 0
     total = total_steps or p.total_steps
     gate_wall = [0.0]
+    taught = bool(up.teachers) and up.teacher_steps > 0
 
     def save() -> dict:
         model.save(str(out / POLICY_FILE))
@@ -300,6 +397,7 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
                "subjects": [s.name for s in sources], "obs_size": UNIVERSAL_OBS_SIZE,
                "obs_stats_frozen": frozen, **({"widened": widened} if widened else {}),
                "runs": runs + [{"command": command, "n_envs": n_envs, "subprocess": subprocess,
+                                **({"teachers": list(up.teachers)} if taught else {}),
                                 "workers": workers,
                                 "device": device, "threads": threads, "cpu_count": os.cpu_count(),
                                 "steps": run_steps,
@@ -317,6 +415,9 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
                  Budget(total, p.checkpoint_steps, save, max_wall_s, False)]
     if not prior and init_from is not None and up.critic_warmup_steps > 0:
         callbacks.append(CriticWarmup(up.critic_warmup_steps))
+    if taught:
+        callbacks.append(Teachers(load_teachers(up.teachers, pool, Path(teacher_root)), up.teacher_steps,
+                                  up.teacher_batch, p.learning_rate, p.max_grad_norm, log, p.seed))
     callbacks = CallbackList(callbacks)
     remaining = max(total - steps0, 0)
     if not prior and gate:

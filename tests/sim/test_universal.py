@@ -25,10 +25,10 @@ from sim.learn.bodies import (
     scale_spec,
     similar_cycle,
 )
-from sim.learn.pool import UNIVERSAL_OBS_SIZE, MultiBodyEnv, Source, UniversalParams
+from sim.learn.pool import UNIVERSAL_OBS_SIZE, MultiBodyEnv, Source, UniversalParams, make_body
 from sim.learn.steering import geom_bottom, subtree
 from sim.learn.train import load_norm, load_policy, new_ppo
-from sim.learn.universal import params_from_yaml, train_universal, widen_for_body
+from sim.learn.universal import load_teachers, params_from_yaml, train_universal, widen_for_body
 from sim.learn.walk_env import OBS_SIZE, make_walk_env
 from sim.motion.reference import load_reference
 from sim.rollout.scenarios import PHASES
@@ -216,6 +216,43 @@ def test_a_run_resumed_after_body_values_were_appended_is_widened(universal, cam
         assert not moments[:, n_old:].any()
     last = train_universal((src,), p, up, out, scenarios, total_steps=512, n_envs=2, resume=True, gate=False)
     assert last["steps"] == 512 and last["widened"] == again["widened"]  # widened once, then resumed as usual
+
+
+def test_teachers_pull_the_policy_toward_their_actions_on_their_own_bodies(universal, camargo, policies_root,
+                                                                          tmp_path):
+    """Distillation (`Teachers`): camargo's committed policy teaching on camargo's own body. After the
+    same short run with and without its Adam steps, the policy's actions on camargo's states are
+    nearer the teacher's with them; a teacher must be one of the run's subjects."""
+    p, up, scenarios = universal
+    p = replace(p, n_steps=128, batch_size=128, n_epochs=1, checkpoint_steps=512, net_arch=(32, 32))
+    src = camargo[0]
+    teacher, teacher_norm = load_policy(policies_root / "camargo")
+    body = make_body(src, camargo[2], None, p.env, 0)
+    walk, rng = [], np.random.default_rng(0)
+    obs, _ = body.env.reset(seed=0)
+    for _ in range(200):  # camargo's states under its own policy, a little noise on its actions
+        walk.append(obs)
+        action, _ = teacher.predict(teacher_norm.normalize_obs(obs[None]), deterministic=True)
+        obs, _, fell, _, _ = body.env.step(np.clip(action[0] + rng.normal(0, 0.2, action.shape[1]), -1, 1))
+        if fell:
+            obs, _ = body.env.reset(seed=len(walk))
+    walk = np.array(walk)
+    target, _ = teacher.predict(teacher_norm.normalize_obs(walk), deterministic=True)
+    error = {}
+    for steps in (0, 300):
+        taught = replace(up, teachers=("camargo",), teacher_steps=steps, teacher_batch=64)
+        out = tmp_path / f"taught_{steps}"
+        rec = train_universal((src,), p, taught, out, scenarios, total_steps=512, n_envs=2, gate=False,
+                              teacher_root=policies_root)
+        assert rec["runs"][-1].get("teachers") == (["camargo"] if steps else None)
+        model, norm = load_policy(out)
+        full = np.hstack([walk, np.repeat(body.obs[None], len(walk), 0)])
+        action, _ = model.predict(norm.normalize_obs(full), deterministic=True)
+        error[steps] = float(np.mean(np.square(action - target)))
+    assert error[300] < 0.85 * error[0], error  # one distillation, then a PPO update
+    pool = MultiBodyEnv((src,), up, p.env, seed=0)
+    with pytest.raises(ValueError, match="'opencap4' is not one of universal.subjects"):
+        load_teachers(("opencap4",), pool, policies_root)
 
 
 def test_the_body_observation_keeps_its_first_values(camargo):
