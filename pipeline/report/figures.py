@@ -41,8 +41,8 @@ def progress_curves(progress: dict, adoption: dict | None, window: int = PROGRES
     env steps (M) of each checkpoint, its quick-gate checks passed in all and per subject's own body,
     their running means over the last `window` checkpoints, the run's stretches on one kind of machine
     (start step, machine; resumes on the same kind continue a stretch), where its observation was
-    widened (`changes`: step, label), and evaluate-policy's checks passed over every body at each adoption evaluation (`adoption`,
-    adoption.json: steps, passed, of how many)."""
+    widened (`changes`: step, label), and evaluate-policy's checks passed over every body at each
+    adoption evaluation (`adoption`, adoption.json: steps, passed, of how many)."""
     points = progress.get("checkpoints", [])
     steps = [c["steps"] / 1e6 for c in points]
     passed = pd.Series([c["passed"] for c in points], dtype=float)

@@ -32,7 +32,7 @@ from sim.motion.reference import ReferenceCycle
 SEGMENTS = ("pelvis", "torso", "head", "upper_arm", "forearm", "thigh", "shank", "foot")
 # nominal adult the body observation is relative to (about the bundled subjects' middle)
 NOMINAL = {"height_m": 1.70, "mass_kg": 70.0, "leg_length_m": 0.85, "speed_mps": 1.25, "period_s": 1.10}
-BALANCE = ("com_ahead_of_ankles", "com_ahead_of_pelvis")  # standing, / leg length (appended 2026-11-28)
+BALANCE = ("com_ahead_of_ankles", "com_ahead_of_pelvis")  # standing, / leg length (appended to NOMINAL's)
 BODY_OBS_SIZE = len(NOMINAL) + len(BALANCE)
 BODY_OBS_SIZES = (len(NOMINAL), BODY_OBS_SIZE)  # every body observation a policy has been trained on
 
