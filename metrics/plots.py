@@ -377,7 +377,8 @@ def training_progress_figure(curves: dict, title: str = "Universal walking polic
     """A training run's progress (`pipeline.report.figures.progress_curves`): the quick gate's checks
     passed at each checkpoint and their running mean (left), the running mean per subject's own body
     (middle), evaluate-policy's checks passed over every body at each adoption evaluation (right);
-    dotted lines where a run segment began (its machine in the label, where it changed)."""
+    dotted lines where a run segment began (its machine in the label, where it changed), dashed red
+    ones where the observation was widened (in the legend)."""
     fig, (ax, ax2, ax3) = plt.subplots(1, 3, figsize=(14, 3.8))
     if not curves["steps"]:
         ax.text(0.5, 0.5, "no checkpoint yet", ha="center", va="center", transform=ax.transAxes)
@@ -387,6 +388,9 @@ def training_progress_figure(curves: dict, title: str = "Universal walking polic
     ax.plot(steps, curves["passed_mean"], "-", color="k", label=f"mean of the last {w}")
     ax.set_ylim(0, curves["checks"])
     ax.set_ylabel(f"quick gate: checks passed (of {curves['checks']})")
+    for at, label in curves.get("changes", []):
+        for a in (ax, ax2, ax3):
+            a.axvline(at, color="tab:red", linestyle="--", linewidth=0.8, label=label if a is ax else None)
     ax.legend(fontsize=7, loc="upper right")
     for s, mean in curves["own_mean"].items():
         ax2.plot(steps, mean, "-", label=s)
@@ -406,10 +410,6 @@ def training_progress_figure(curves: dict, title: str = "Universal walking polic
         if where != shown:
             ax.text(start, curves["checks"], where, fontsize=6, rotation=90, va="top", ha="right")
             shown = where
-    for at, label in curves.get("changes", []):  # the observation widened (body values appended)
-        for a in (ax, ax2, ax3):
-            a.axvline(at, color="tab:red", linestyle="--", linewidth=0.8)
-        ax.text(at, curves["checks"], label, fontsize=6, rotation=90, va="top", ha="left", color="tab:red")
     for a in (ax, ax2, ax3):
         a.set_xlabel("env steps (M)")
         a.set_xlim(0, max(steps) * 1.02)
