@@ -55,6 +55,7 @@ from sim.learn.train import (
     TrainParams,
     UpdateThreads,
     load_norm,
+    load_policy,
     new_ppo,
     ppo_settings,
     save_body,
@@ -141,6 +142,11 @@ def _pad_columns(w: torch.Tensor) -> torch.Tensor:
     return out
 
 
+def mean_action_parameters(policy) -> list[torch.nn.Parameter]:
+    """The weights of a PPO policy's mean action (its policy network and action layer)."""
+    return [*policy.mlp_extractor.policy_net.parameters(), *policy.action_net.parameters()]
+
+
 class CriticWarmup(BaseCallback):
     """The first `steps` env steps of a run started from a single-body policy update the value
     network only: its values were learnt on one body, and advantages from them would first push the
@@ -150,12 +156,8 @@ class CriticWarmup(BaseCallback):
         super().__init__()
         self.steps = steps
 
-    def _actor(self) -> list[torch.nn.Parameter]:
-        pol = self.model.policy
-        return [*pol.mlp_extractor.policy_net.parameters(), *pol.action_net.parameters(), pol.log_std]
-
     def _on_rollout_start(self) -> None:
-        for prm in self._actor():
+        for prm in [*mean_action_parameters(self.model.policy), self.model.policy.log_std]:
             prm.requires_grad_(self.num_timesteps >= self.steps)
 
     def _on_step(self) -> bool:
@@ -186,9 +188,8 @@ class Teachers(BaseCallback):
         self.pending: tuple[np.ndarray, np.ndarray] | None = None
         self.optimizer: torch.optim.Optimizer | None = None
 
-    def _actor(self) -> list[torch.nn.Parameter]:
-        pol = self.model.policy
-        return [*pol.mlp_extractor.policy_net.parameters(), *pol.action_net.parameters()]
+    def _init_callback(self) -> None:
+        self.norm = self.model.get_vec_normalize_env()  # raw observations: which body, the teacher input
 
     def labelled(self, seen: np.ndarray, raw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(the rows of `seen`, observations as the policy saw them, whose `raw` observation is on a
@@ -203,7 +204,7 @@ class Teachers(BaseCallback):
         return np.vstack(xs), np.vstack(ys)
 
     def _on_step(self) -> bool:
-        self.raw.append(self.model.get_vec_normalize_env().get_original_obs().copy())  # the next row's
+        self.raw.append(self.norm.get_original_obs().copy())  # the next row's
         return True
 
     def _on_rollout_end(self) -> None:
@@ -218,14 +219,14 @@ class Teachers(BaseCallback):
         if self.pending is not None and len(self.pending[0]) and self.steps > 0:
             self._distil(*self.pending)
         self.pending = None
-        self.raw = [self.model.get_vec_normalize_env().get_original_obs().copy()]  # the first row's
+        self.raw = [self.norm.get_original_obs().copy()]  # the first row's
 
     def _distil(self, seen: np.ndarray, action: np.ndarray) -> None:
         dev = self.model.device
         x = torch.as_tensor(seen, dtype=torch.float32, device=dev)
         y = torch.as_tensor(action, dtype=torch.float32, device=dev)
         if self.optimizer is None:
-            self.optimizer = torch.optim.Adam(self._actor(), lr=self.lr)
+            self.optimizer = torch.optim.Adam(mean_action_parameters(self.model.policy), lr=self.lr)
         with torch.no_grad():
             before = float(self._error(x, y))
         for _ in range(self.steps):
@@ -233,7 +234,7 @@ class Teachers(BaseCallback):
             loss = self._error(x[idx], y[idx])
             self.optimizer.zero_grad()
             loss.backward()
-            torch.nn.utils.clip_grad_norm_(self._actor(), self.max_grad_norm)
+            torch.nn.utils.clip_grad_norm_(mean_action_parameters(self.model.policy), self.max_grad_norm)
             self.optimizer.step()
         with torch.no_grad():
             after = float(self._error(x, y))
@@ -249,11 +250,12 @@ def load_teachers(names: tuple[str, ...], pool: MultiBodyEnv, root: Path) -> lis
         own = [b for b in pool.bodies if b.source == name and b.scales is None]
         if not own:
             raise ValueError(f"universal.teachers: {name!r} is not one of universal.subjects")
-        model = PPO.load(str(root / name / POLICY_FILE), device="cpu")
-        if model.observation_space.shape[0] != OBS_SIZE:
+        model, norm = load_policy(root / name)
+        if model.observation_space.shape[0] != OBS_SIZE or norm is None:
             raise ValueError(f"{root / name / POLICY_FILE}: a teacher must be a single-body policy "
-                             f"({OBS_SIZE} observations), not {model.observation_space.shape[0]}")
-        out.append((own[0].obs, model, load_norm(root / name)))
+                             f"({OBS_SIZE} observations, not {model.observation_space.shape[0]}) "
+                             f"with its {NORM_FILE}")
+        out.append((own[0].obs, model, norm))
     return out
 
 
