@@ -468,7 +468,7 @@ def fine_tune_body(universal_dir: str | Path, src: Source, p: TrainParams, up: U
                    work_dir: str | Path, *, steps: int, max_wall_s: float | None = None, command: str = "",
                    progress: bool = False) -> dict:
     """The universal policy fine-tuned on one body (`src`'s own, no drawn bodies): the transfer
-    stage's fine-tune of a subject the universal policy does not walk yet. The run continues the
+    stage's fine-tune of a subject the universal policy does not walk yet (no teachers). The run continues the
     universal one's weights, observation statistics (frozen) and discriminator in `work_dir`,
     resuming there; `steps`: env steps of fine-tuning in all. Returns the progress record, with
     `fine_tuned_steps` (this fine-tune's env steps) and `initial_steps` (the universal policy's)."""
@@ -482,7 +482,7 @@ def fine_tune_body(universal_dir: str | Path, src: Source, p: TrainParams, up: U
                  "obs_stats_frozen": True, "runs": [], "checkpoints": []}
         (work / PROGRESS_FILE).write_text(json.dumps(first, indent=1) + "\n")
     start = int(json.loads((work / PROGRESS_FILE).read_text())["initial_steps"])
-    rec = train_universal((src,), p, replace(up, drawn=0, adaptive_share=0.0), work, {},
+    rec = train_universal((src,), p, replace(up, drawn=0, adaptive_share=0.0, teachers=()), work, {},
                           resume=True, total_steps=start + steps, max_wall_s=max_wall_s, command=command,
                           progress=progress, gate=False)
     rec = {**rec, "fine_tuned_steps": int(rec["steps"]) - start}
