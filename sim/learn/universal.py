@@ -13,7 +13,8 @@ The run starts from a single-body policy (`init_from`, e.g. camargo's committed 
 layers widened with zero weights for the body inputs (`widen_for_body`), so it walks from step
 one; it is ONE run that resumes from its own folder (`resume`). A run resumed after body values were
 appended to the observation is widened the same way for them, its optimizer state kept (`widened`
-in the record). At every checkpoint it writes the
+in the record); one taken back to an earlier checkpoint of its own (`--rewind-from`) keeps the
+branch it gave up (`discarded`). At every checkpoint it writes the
 policy, the observation statistics, the discriminator and `progress.json`: steps, wall time and
 `quick_gate` (each subject's body, its cycle: walk_10m and turn_90, no fall, standing at the end,
 steady speed within the bound) against steps.
@@ -342,7 +343,7 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
     pool = MultiBodyEnv(sources, replace(up, refresh_probability=0.0), p.env, p.seed)  # AMP references, stats
     body_obs = np.array([b.obs for b in pool.bodies])
     frozen = bool(prior.get("obs_stats_frozen")) if prior else init_from is not None
-    widened = list(prior.get("widened", []))
+    widened, discarded = list(prior.get("widened", [])), list(prior.get("discarded", []))
     if prior and int(prior.get("obs_size", UNIVERSAL_OBS_SIZE)) < UNIVERSAL_OBS_SIZE:  # body values appended
         old = PPO.load(str(out / POLICY_FILE), device="cpu", custom_objects=ppo_settings(p))
         n_old = old.observation_space.shape[0] - OBS_SIZE
@@ -398,6 +399,7 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
         rec = {"steps": int(model.num_timesteps), "wall_s": wall, **origin,
                "subjects": [s.name for s in sources], "obs_size": UNIVERSAL_OBS_SIZE,
                "obs_stats_frozen": frozen, **({"widened": widened} if widened else {}),
+               **({"discarded": discarded} if discarded else {}),
                "runs": runs + [{"command": command, "n_envs": n_envs, "subprocess": subprocess,
                                 **({"teachers": list(up.teachers)} if taught else {}),
                                 "workers": workers,
@@ -492,6 +494,38 @@ def fine_tune_body(universal_dir: str | Path, src: Source, p: TrainParams, up: U
 
 # -- command line: reads params.yaml and data/processed directly (no pipeline imports) -------------
 
+def rewound(current: dict, earlier: dict, why: str) -> dict:
+    """The progress record of a run taken back to an earlier checkpoint of its own (`earlier`: the
+    record as that checkpoint wrote it): `earlier`, with the branch given up appended to `discarded`
+    (from and to steps, `why`, its training wall time, runs and checkpoints), so the curve keeps what
+    was tried and the run's `wall_s` stays the time behind the policy it holds."""
+    at, end = int(earlier["steps"]), int(current["steps"])
+    if at >= end or at not in {c["steps"] for c in current.get("checkpoints", [])} or \
+            current.get("runs", [])[:len(earlier.get("runs", []))] != earlier.get("runs", []):
+        raise ValueError(f"rewind: the record at {at} steps is not an earlier checkpoint of this run "
+                         f"(at {end} steps)")
+    branch = {"from_steps": at, "to_steps": end, "why": why,
+              "wall_s": round(float(current["wall_s"]) - float(earlier["wall_s"]), 1),
+              "runs": current["runs"][len(earlier.get("runs", [])):],
+              "checkpoints": [c for c in current["checkpoints"] if c["steps"] > at]}
+    return {**earlier, "discarded": [*current.get("discarded", []), branch]}
+
+
+def rewind(out_dir: Path, earlier_dir: Path, why: str) -> dict:
+    """Take the run in `out_dir` back to the checkpoint saved in `earlier_dir` (its policy,
+    statistics, discriminator and progress record, e.g. from an earlier commit): `rewound`."""
+    for name in (POLICY_FILE, NORM_FILE, AMP_FILE, PROGRESS_FILE):
+        if not (earlier_dir / name).exists():
+            raise FileNotFoundError(f"{earlier_dir / name}: missing (a checkpoint needs {POLICY_FILE}, "
+                                    f"{NORM_FILE}, {AMP_FILE} and {PROGRESS_FILE})")
+    rec = rewound(json.loads((out_dir / PROGRESS_FILE).read_text()),
+                  json.loads((earlier_dir / PROGRESS_FILE).read_text()), why)
+    for name in (POLICY_FILE, NORM_FILE, AMP_FILE):
+        shutil.copyfile(earlier_dir / name, out_dir / name)
+    (out_dir / PROGRESS_FILE).write_text(json.dumps(rec, indent=1) + "\n")
+    return rec
+
+
 def sources_of(subjects: tuple[str, ...], processed: Path) -> tuple[Source, ...]:
     """The bundled subjects' scaled humans and references under `processed` (checked to exist)."""
     out = []
@@ -547,7 +581,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--checkpoint-steps", type=int, default=None)
     ap.add_argument("--export-to", type=Path, default=None, help="write every subject's policy folder from "
                     "the policy in --out into this root (<root>/<subject>/) and stop")
+    ap.add_argument("--rewind-from", type=Path, default=None, help="take the run in --out back to "
+                    "its own earlier checkpoint saved here (the branch kept in `discarded`) and stop")
+    ap.add_argument("--why", default="", help="with --rewind-from: the reason, kept in the record")
     args = ap.parse_args(argv)
+    if args.rewind_from is not None:
+        rec = rewind(args.out, args.rewind_from, args.why)
+        gave_up = rec["discarded"][-1]["to_steps"]
+        print(f"rewound to {rec['steps']} steps; the branch to {gave_up} steps kept in `discarded`")
+        return 0
     p, up, scenarios = params_from_yaml(args.params)
     if args.export_to is not None:
         for src in sources_of(up.subjects, args.processed):
