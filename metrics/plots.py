@@ -378,7 +378,8 @@ def training_progress_figure(curves: dict, title: str = "Universal walking polic
     passed at each checkpoint and their running mean (left), the running mean per subject's own body
     (middle), evaluate-policy's checks passed over every body at each adoption evaluation (right);
     dotted lines where a run segment began (its machine in the label, where it changed), dashed red
-    ones where the observation was widened (in the legend)."""
+    ones where the observation was widened or the run taken back (in the legend), crosses for the
+    checkpoints of a branch given up."""
     fig, (ax, ax2, ax3) = plt.subplots(1, 3, figsize=(14, 3.8))
     if not curves["steps"]:
         ax.text(0.5, 0.5, "no checkpoint yet", ha="center", va="center", transform=ax.transAxes)
@@ -386,6 +387,8 @@ def training_progress_figure(curves: dict, title: str = "Universal walking polic
     steps, w = curves["steps"], curves["window"]
     ax.plot(steps, curves["passed"], "o", color="0.6", ms=2, label="each checkpoint")
     ax.plot(steps, curves["passed_mean"], "-", color="k", label=f"mean of the last {w}")
+    for i, (x, passed) in enumerate(curves.get("discarded", [])):
+        ax.plot(x, passed, "x", color="tab:red", ms=3, label=None if i else "branch given up")
     ax.set_ylim(0, curves["checks"])
     ax.set_ylabel(f"quick gate: checks passed (of {curves['checks']})")
     for at, label in curves.get("changes", []):
@@ -412,7 +415,7 @@ def training_progress_figure(curves: dict, title: str = "Universal walking polic
             shown = where
     for a in (ax, ax2, ax3):
         a.set_xlabel("env steps (M)")
-        a.set_xlim(0, max(steps) * 1.02)
+        a.set_xlim(0, max([*steps, *(x for xs, _ in curves.get("discarded", []) for x in xs)]) * 1.02)
         a.grid(alpha=0.3)
     fig.suptitle(title)
     fig.tight_layout()

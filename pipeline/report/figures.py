@@ -41,8 +41,9 @@ def progress_curves(progress: dict, adoption: dict | None, window: int = PROGRES
     env steps (M) of each checkpoint, its quick-gate checks passed in all and per subject's own body,
     their running means over the last `window` checkpoints, the run's stretches on one kind of machine
     (start step, machine; resumes on the same kind continue a stretch), where its observation was
-    widened (`changes`: step, label), and evaluate-policy's checks passed over every body at each
-    adoption evaluation (`adoption`, adoption.json: steps, passed, of how many)."""
+    widened or taken back to an earlier checkpoint (`changes`: step, label), the checkpoints of the
+    branches given up (`discarded`: steps, passed, per branch), and evaluate-policy's checks passed
+    over every body at each adoption evaluation (`adoption`, adoption.json: steps, passed, of how many)."""
     points = progress.get("checkpoints", [])
     steps = [c["steps"] / 1e6 for c in points]
     passed = pd.Series([c["passed"] for c in points], dtype=float)
@@ -60,7 +61,11 @@ def progress_curves(progress: dict, adoption: dict | None, window: int = PROGRES
             "own_mean": {s: v.rolling(window, min_periods=1).mean().tolist() for s, v in own.items()},
             "window": window, "segments": segments, "evaluations": evaluation_totals(adoption),
             "changes": [(w["steps"] / 1e6, f"inputs {w['obs_size'][0]} -> {w['obs_size'][1]}")
-                        for w in progress.get("widened", [])]}
+                        for w in progress.get("widened", [])] +
+                       [(d["from_steps"] / 1e6, f"taken back from {d['to_steps'] / 1e6:.2f} M")
+                        for d in progress.get("discarded", [])],
+            "discarded": [([c["steps"] / 1e6 for c in d["checkpoints"]],
+                           [c["passed"] for c in d["checkpoints"]]) for d in progress.get("discarded", [])]}
 
 # Every figure a report can have, in the order the index shows them, with its caption.
 FIGURES = {

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import shutil
 from dataclasses import replace
 
 import gymnasium as gym
@@ -28,7 +29,14 @@ from sim.learn.bodies import (
 from sim.learn.pool import UNIVERSAL_OBS_SIZE, MultiBodyEnv, Source, UniversalParams, make_body
 from sim.learn.steering import geom_bottom, subtree
 from sim.learn.train import load_norm, load_policy, new_ppo
-from sim.learn.universal import load_teachers, params_from_yaml, train_universal, widen_for_body
+from sim.learn.universal import (
+    load_teachers,
+    params_from_yaml,
+    rewind,
+    rewound,
+    train_universal,
+    widen_for_body,
+)
 from sim.learn.walk_env import OBS_SIZE, make_walk_env
 from sim.motion.reference import load_reference
 from sim.rollout.scenarios import PHASES
@@ -149,6 +157,8 @@ def test_one_run_resumes_and_records_its_gate(universal, camargo, tmp_path):
     for name, row in gate["gate"]["camargo"].items():  # a fall names where in the scenario it came
         if name.endswith("_no_fall"):
             assert len(row["fell_in"]) == row["value"] and set(row["fell_in"]) <= set(PHASES)
+    early = tmp_path / "early"
+    shutil.copytree(out, early)
     again = train_universal((camargo[0],), p, up, out, scenarios, total_steps=512, n_envs=2, resume=True)
     assert again["steps"] == 512 and [c["steps"] for c in again["checkpoints"]] == [0, 256, 512]
     assert len(again["runs"]) == 2 and json.loads((out / "progress.json").read_text()) == again
@@ -156,6 +166,17 @@ def test_one_run_resumes_and_records_its_gate(universal, camargo, tmp_path):
     assert model.observation_space.shape == (UNIVERSAL_OBS_SIZE,)
     assert norm.obs_rms.mean.shape == (UNIVERSAL_OBS_SIZE,)
     assert load_norm(out).obs_rms.count > 0
+
+    back = rewind(out, early, "a test")  # the branch from 256 to 512 given up, kept in the record
+    assert back["steps"] == 256 and load_policy(out)[0].num_timesteps == 256
+    assert back["discarded"] == [{"from_steps": 256, "to_steps": 512, "why": "a test",
+                                  "wall_s": round(again["wall_s"] - rec["wall_s"], 1),
+                                  "runs": again["runs"][1:], "checkpoints": again["checkpoints"][2:]}]
+    with pytest.raises(ValueError, match="not an earlier checkpoint of this run"):
+        rewound(rec, again, "a later record is no earlier checkpoint")
+    last = train_universal((camargo[0],), p, up, out, scenarios, total_steps=512, n_envs=2, resume=True)
+    assert [c["steps"] for c in last["checkpoints"]] == [0, 256, 512]
+    assert last["discarded"] == back["discarded"]  # carried on by the resumed run
 
 
 class _FirstInputs(gym.ObservationWrapper):
