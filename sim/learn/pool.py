@@ -49,8 +49,8 @@ class UniversalParams:
     gate_standing_mps: float             # standing at the end: pelvis slower than this over the last second
     bodies: BodyDraw
     teachers: tuple[str, ...]            # committed single-body policies distilled on their own bodies
-    teacher_steps: int                   # Adam steps of that distillation after each PPO update (0: none)
-    teacher_batch: int                   # states per step
+    teacher_weight: float                # its term's weight in PPO's loss (0: none)
+    teacher_batch: int                   # teacher states per PPO optimizer step
 
     @classmethod
     def from_dict(cls, d: dict) -> UniversalParams:
@@ -70,7 +70,7 @@ class UniversalParams:
                 out[k] = tuple(str(x) for x in v)
             elif k == "init_from":
                 out[k] = str(v)
-            elif k in ("drawn", "gate_seeds", "critic_warmup_steps", "teacher_steps", "teacher_batch"):
+            elif k in ("drawn", "gate_seeds", "critic_warmup_steps", "teacher_batch"):
                 out[k] = int(v)
             else:
                 out[k] = float(v)

@@ -169,28 +169,29 @@ Teacher = tuple[np.ndarray, PPO, VecNormalize]  # a teacher's body observation, 
 
 
 class Teachers(BaseCallback):
-    """Policy distillation (Rusu et al. 2016, "Policy distillation", ICLR) from committed single-body
-    policies, DAgger-style (Ross, Gordon & Bagnell 2011): the rollout's states on a teacher's own body
-    (`teachers`: that body's observation, the teacher and its observation statistics), labelled with
-    the teacher's deterministic action, pull the policy's mean action toward it (squared error) by
-    `steps` Adam steps of `batch` states after each PPO update. The states are the rollout buffer's
-    as the policy saw them; the raw observations behind them (which body, the teacher's input) are
-    kept step by step. The steps run when the next rollout starts, with their own optimizer (PPO's
-    moments stay PPO's; a resumed run starts it afresh). `log(step, metrics)` receives the squared
-    error before and after and the states used."""
+    """Kickstarting (Schmitt et al. 2018, "Kickstarting deep reinforcement learning") from committed
+    single-body policies, DAgger-style (Ross, Gordon & Bagnell 2011): the rollout's states on a
+    teacher's own body (`teachers`: that body's observation, the teacher and its observation
+    statistics), labelled with the teacher's deterministic action, add `weight` x the squared error
+    of the policy's mean action, averaged over the whole rollout (other states add nothing), to
+    PPO's loss. At each of PPO's optimizer steps its gradient on `batch` of those states is added to
+    PPO's before the step: one optimizer, so PPO's own terms weigh against it (a separate Adam moved
+    every weight a learning rate per step toward one body and took every other body down).
+    `log(step, metrics)` receives the squared error before and after each update and the states."""
 
-    def __init__(self, teachers: list[Teacher], steps: int, batch: int, lr: float, max_grad_norm: float,
-                 log, seed: int = 0) -> None:
+    def __init__(self, teachers: list[Teacher], weight: float, batch: int, log, seed: int = 0) -> None:
         super().__init__()
-        self.teachers, self.steps, self.batch, self.lr = teachers, steps, batch, lr
-        self.max_grad_norm, self.log_fn = max_grad_norm, log
+        self.teachers, self.weight, self.batch, self.log_fn = teachers, weight, batch, log
         self.rng = np.random.default_rng(seed)
         self.raw: list[np.ndarray] = []
-        self.pending: tuple[np.ndarray, np.ndarray] | None = None
-        self.optimizer: torch.optim.Optimizer | None = None
+        self.x: torch.Tensor | None = None
+        self.y: torch.Tensor | None = None
+        self.share, self.before = 0.0, 0.0
+        self.hook = None
 
     def _init_callback(self) -> None:
         self.norm = self.model.get_vec_normalize_env()  # raw observations: which body, the teacher input
+        self.hook = self.model.policy.optimizer.register_step_pre_hook(self._add_term)
 
     def labelled(self, seen: np.ndarray, raw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(the rows of `seen`, observations as the policy saw them, whose `raw` observation is on a
@@ -208,39 +209,46 @@ class Teachers(BaseCallback):
         self.raw.append(self.norm.get_original_obs().copy())  # the next row's
         return True
 
-    def _on_rollout_end(self) -> None:
-        seen = self.model.rollout_buffer.observations
-        raw = np.stack(self.raw[:len(seen)])
-        self.pending = self.labelled(seen.reshape(-1, seen.shape[-1]), raw.reshape(-1, raw.shape[-1]))
-
     def _error(self, x: torch.Tensor, y: torch.Tensor) -> torch.Tensor:
         return torch.square(self.model.policy.get_distribution(x).distribution.mean - y).mean()
 
-    def _on_rollout_start(self) -> None:
-        if self.pending is not None and len(self.pending[0]) and self.steps > 0:
-            self._distil(*self.pending)
-        self.pending = None
+    def _on_rollout_end(self) -> None:  # before PPO's update of this rollout
+        seen = self.model.rollout_buffer.observations
+        raw = np.stack(self.raw[:len(seen)])
+        x, y = self.labelled(seen.reshape(-1, seen.shape[-1]), raw.reshape(-1, raw.shape[-1]))
+        dev = self.model.device
+        self.x, self.y = torch.as_tensor(x, device=dev), torch.as_tensor(y, device=dev)
+        self.share = len(x) / (seen.shape[0] * seen.shape[1])
+        if len(x):
+            with torch.no_grad():
+                self.before = float(self._error(self.x, self.y))
+
+    def _on_rollout_start(self) -> None:  # after PPO's update of the last rollout
+        if self.x is not None and len(self.x):
+            with torch.no_grad():
+                after = float(self._error(self.x, self.y))
+            self.log_fn(self.num_timesteps, {"teacher_error_before": self.before,
+                                             "teacher_error_after": after, "teacher_states": len(self.x)})
+        self.x = None
         self.raw = [self.norm.get_original_obs().copy()]  # the first row's
 
-    def _distil(self, seen: np.ndarray, action: np.ndarray) -> None:
-        dev = self.model.device
-        x = torch.as_tensor(seen, dtype=torch.float32, device=dev)
-        y = torch.as_tensor(action, dtype=torch.float32, device=dev)
-        if self.optimizer is None:
-            self.optimizer = torch.optim.Adam(mean_action_parameters(self.model.policy), lr=self.lr)
-        with torch.no_grad():
-            before = float(self._error(x, y))
-        for _ in range(self.steps):
-            idx = torch.as_tensor(self.rng.integers(0, len(x), min(self.batch, len(x))), device=dev)
-            loss = self._error(x[idx], y[idx])
-            self.optimizer.zero_grad()
-            loss.backward()
-            torch.nn.utils.clip_grad_norm_(mean_action_parameters(self.model.policy), self.max_grad_norm)
-            self.optimizer.step()
-        with torch.no_grad():
-            after = float(self._error(x, y))
-        self.log_fn(self.num_timesteps, {"teacher_error_before": before, "teacher_error_after": after,
-                                         "teacher_states": len(x)})
+    def _add_term(self, optimizer, args, kwargs) -> None:
+        """Before each of PPO's optimizer steps: the teacher term's gradient added to PPO's."""
+        if self.x is None or not len(self.x):
+            return
+        params = [q for q in mean_action_parameters(self.model.policy) if q.requires_grad]
+        pick = self.rng.integers(0, len(self.x), min(self.batch, len(self.x)))
+        idx = torch.as_tensor(pick, device=self.x.device)
+        with torch.enable_grad():
+            loss = self.weight * self.share * self._error(self.x[idx], self.y[idx])
+            grads = torch.autograd.grad(loss, params)
+        for q, g in zip(params, grads, strict=True):
+            q.grad = g if q.grad is None else q.grad + g
+
+    def _on_training_end(self) -> None:
+        if self.hook is not None:
+            self.hook.remove()
+            self.hook = None
 
 
 def load_teachers(names: tuple[str, ...], pool: MultiBodyEnv, root: Path) -> list[Teacher]:
@@ -381,7 +389,7 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
         model.num_timesteps = 0
     total = total_steps or p.total_steps
     gate_wall = [0.0]
-    taught = bool(up.teachers) and up.teacher_steps > 0
+    taught = bool(up.teachers) and up.teacher_weight > 0
 
     def save() -> dict:
         model.save(str(out / POLICY_FILE))
@@ -420,8 +428,8 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
     if not prior and init_from is not None and up.critic_warmup_steps > 0:
         callbacks.append(CriticWarmup(up.critic_warmup_steps))
     if taught:
-        callbacks.append(Teachers(load_teachers(up.teachers, pool, Path(teacher_root)), up.teacher_steps,
-                                  up.teacher_batch, p.learning_rate, p.max_grad_norm, log, p.seed))
+        callbacks.append(Teachers(load_teachers(up.teachers, pool, Path(teacher_root)), up.teacher_weight,
+                                  up.teacher_batch, log, p.seed))
     callbacks = CallbackList(callbacks)
     remaining = max(total - steps0, 0)
     if not prior and gate:
