@@ -477,9 +477,9 @@ def export_subject(universal_dir: str | Path, src: Source, p: WalkEnvParams, out
 def fine_tune_body(universal_dir: str | Path, src: Source, p: TrainParams, up: UniversalParams,
                    work_dir: str | Path, *, steps: int, max_wall_s: float | None = None, command: str = "",
                    progress: bool = False) -> dict:
-    """The universal policy fine-tuned on one body (`src`'s own, no drawn bodies): the transfer
-    stage's fine-tune of a subject the universal policy does not walk yet (no teachers). The run continues the
-    universal one's weights, observation statistics (frozen) and discriminator in `work_dir`,
+    """The universal policy fine-tuned on one body (`src`'s own, no drawn bodies, no teachers): the
+    transfer stage's fine-tune of a subject the universal policy does not walk yet. The run continues
+    the universal one's weights, observation statistics (frozen) and discriminator in `work_dir`,
     resuming there; `steps`: env steps of fine-tuning in all. Returns the progress record, with
     `fine_tuned_steps` (this fine-tune's env steps) and `initial_steps` (the universal policy's)."""
     work = Path(work_dir)
@@ -499,8 +499,6 @@ def fine_tune_body(universal_dir: str | Path, src: Source, p: TrainParams, up: U
     (work / PROGRESS_FILE).write_text(json.dumps(rec, indent=1) + "\n")
     return rec
 
-
-# -- command line: reads params.yaml and data/processed directly (no pipeline imports) -------------
 
 def rewound(current: dict, earlier: dict, why: str) -> dict:
     """The progress record of a run taken back to an earlier checkpoint of its own (`earlier`: the
@@ -533,6 +531,8 @@ def rewind(out_dir: Path, earlier_dir: Path, why: str) -> dict:
     (out_dir / PROGRESS_FILE).write_text(json.dumps(rec, indent=1) + "\n")
     return rec
 
+
+# -- command line: reads params.yaml and data/processed directly (no pipeline imports) -------------
 
 def sources_of(subjects: tuple[str, ...], processed: Path) -> tuple[Source, ...]:
     """The bundled subjects' scaled humans and references under `processed` (checked to exist)."""
