@@ -379,7 +379,7 @@ def training_progress_figure(curves: dict, title: str = "Universal walking polic
     (middle), evaluate-policy's checks passed over every body at each adoption evaluation (right);
     dotted lines where a run segment began (its machine in the label, where it changed), dashed red
     ones where the observation was widened or the run taken back (in the legend), crosses for the
-    checkpoints of a branch given up."""
+    checkpoints of a branch given up, shading where teachers taught."""
     fig, (ax, ax2, ax3) = plt.subplots(1, 3, figsize=(14, 3.8))
     if not curves["steps"]:
         ax.text(0.5, 0.5, "no checkpoint yet", ha="center", va="center", transform=ax.transAxes)
@@ -391,6 +391,10 @@ def training_progress_figure(curves: dict, title: str = "Universal walking polic
         ax.plot(x, passed, "x", color="tab:red", ms=3, label=None if i else "branch given up")
     ax.set_ylim(0, curves["checks"])
     ax.set_ylabel(f"quick gate: checks passed (of {curves['checks']})")
+    for i, (start, end) in enumerate(curves.get("taught", [])):
+        for a in (ax, ax2, ax3):
+            a.axvspan(start, end, color="tab:orange", alpha=0.12, lw=0,
+                      label="with a teacher" if a is ax and not i else None)
     for at, label in curves.get("changes", []):
         for a in (ax, ax2, ax3):
             a.axvline(at, color="tab:red", linestyle="--", linewidth=0.8, label=label if a is ax else None)

@@ -41,7 +41,8 @@ def progress_curves(progress: dict, adoption: dict | None, window: int = PROGRES
     env steps (M) of each checkpoint, its quick-gate checks passed in all and per subject's own body,
     their running means over the last `window` checkpoints, the run's stretches on one kind of machine
     (start step, machine; resumes on the same kind continue a stretch), where its observation was
-    widened or taken back to an earlier checkpoint (`changes`: step, label), the checkpoints of the
+    widened or taken back to an earlier checkpoint (`changes`: step, label), the stretches trained
+    with teachers (`taught`: start and end step), the checkpoints of the
     branches given up (`discarded`: steps, passed, per branch), and evaluate-policy's checks passed
     over every body at each adoption evaluation (`adoption`, adoption.json: steps, passed, of how many)."""
     points = progress.get("checkpoints", [])
@@ -50,16 +51,19 @@ def progress_curves(progress: dict, adoption: dict | None, window: int = PROGRES
     subjects = list(points[-1]["gate"]) if points else []
     own = {s: pd.Series([sum(r["pass"] for r in c["gate"].get(s, {}).values()) for c in points], dtype=float)
            for s in subjects}
-    segments, done = [], 0
+    segments, taught, done = [], [], 0
     for run in progress.get("runs", []):
         where = f"{run.get('cpu_count', '?')} cores" + (", cuda" if run.get("device") == "cuda" else "")
         if not segments or segments[-1][1] != where:  # a resume on the same kind of machine: one stretch
             segments.append((done / 1e6, where))
+        if run.get("teachers"):
+            taught.append((done / 1e6, (done + run.get("steps", 0)) / 1e6))
         done += run.get("steps", 0)
     return {"steps": steps, "passed": passed.tolist(), "checks": points[-1]["checks"] if points else 0,
             "passed_mean": passed.rolling(window, min_periods=1).mean().tolist(),
             "own_mean": {s: v.rolling(window, min_periods=1).mean().tolist() for s, v in own.items()},
-            "window": window, "segments": segments, "evaluations": evaluation_totals(adoption),
+            "window": window, "segments": segments, "taught": taught,
+            "evaluations": evaluation_totals(adoption),
             "changes": [(w["steps"] / 1e6, f"inputs {w['obs_size'][0]} -> {w['obs_size'][1]}")
                         for w in progress.get("widened", [])] +
                        [(d["from_steps"] / 1e6, f"taken back from {d['to_steps'] / 1e6:.2f} M")
