@@ -69,6 +69,7 @@ from sim.motion.reference import load_reference, mirrored_motion
 from sim.rollout.scenarios import ProfileParams, Segment, command_profile
 
 UNIVERSAL_FILE = "universal.json"  # in a subject's policy folder exported from the universal one
+RUN_STATE = (POLICY_FILE, NORM_FILE, AMP_FILE)  # what the run resumes from, beside its PROGRESS_FILE
 
 
 def amp_reference_sampler(pool: MultiBodyEnv, up: UniversalParams, dt_s: float, seed: int):
@@ -485,7 +486,7 @@ def fine_tune_body(universal_dir: str | Path, src: Source, p: TrainParams, up: U
     work = Path(work_dir)
     if not (work / PROGRESS_FILE).exists():
         work.mkdir(parents=True, exist_ok=True)
-        for name in (POLICY_FILE, NORM_FILE, AMP_FILE):
+        for name in RUN_STATE:
             shutil.copyfile(Path(universal_dir) / name, work / name)
         start = int(json.loads((Path(universal_dir) / PROGRESS_FILE).read_text())["steps"])
         first = {"steps": start, "wall_s": 0.0, "initialised_from": "universal", "initial_steps": start,
@@ -520,13 +521,13 @@ def rewound(current: dict, earlier: dict, why: str) -> dict:
 def rewind(out_dir: Path, earlier_dir: Path, why: str) -> dict:
     """Take the run in `out_dir` back to the checkpoint saved in `earlier_dir` (its policy,
     statistics, discriminator and progress record, e.g. from an earlier commit): `rewound`."""
-    for name in (POLICY_FILE, NORM_FILE, AMP_FILE, PROGRESS_FILE):
+    for name in (*RUN_STATE, PROGRESS_FILE):
         if not (earlier_dir / name).exists():
-            raise FileNotFoundError(f"{earlier_dir / name}: missing (a checkpoint needs {POLICY_FILE}, "
-                                    f"{NORM_FILE}, {AMP_FILE} and {PROGRESS_FILE})")
+            raise FileNotFoundError(f"{earlier_dir / name}: missing (a checkpoint needs "
+                                    f"{', '.join(RUN_STATE)} and {PROGRESS_FILE})")
     rec = rewound(json.loads((out_dir / PROGRESS_FILE).read_text()),
                   json.loads((earlier_dir / PROGRESS_FILE).read_text()), why)
-    for name in (POLICY_FILE, NORM_FILE, AMP_FILE):
+    for name in RUN_STATE:
         shutil.copyfile(earlier_dir / name, out_dir / name)
     (out_dir / PROGRESS_FILE).write_text(json.dumps(rec, indent=1) + "\n")
     return rec
