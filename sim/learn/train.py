@@ -181,7 +181,8 @@ class Budget(BaseCallback):
 
 
 class MetricsLog:
-    """Per-rollout metrics to dvclive (`Live(dir)`) when installed, else to `metrics.csv`."""
+    """Per-rollout metrics to dvclive (`Live(dir)`) when installed, else to `metrics.csv` (rows of
+    step, metric, value)."""
 
     def __init__(self, folder: Path, resume: bool) -> None:
         self.folder = folder
@@ -200,11 +201,11 @@ class MetricsLog:
             self.live.next_step()
             return
         new = not self.csv_path.exists()
-        with self.csv_path.open("a", newline="") as f:
+        with self.csv_path.open("a", newline="") as f:  # long form: callers log different metrics
             w = csv.writer(f)
             if new:
-                w.writerow(["step", *metrics])
-            w.writerow([step, *(f"{v:.6g}" for v in metrics.values())])
+                w.writerow(["step", "metric", "value"])
+            w.writerows([step, k, f"{float(v):.6g}"] for k, v in metrics.items())
 
     def close(self) -> None:
         if self.live is not None:

@@ -166,6 +166,55 @@ class CriticWarmup(BaseCallback):
         return True
 
 
+class TrainingRecord(BaseCallback):
+    """What training itself saw between two checkpoints, for the progress record (`take`): each
+    body's episodes and falls (`sim.learn.pool.MultiBodyEnv`'s `pool_episode`: a subject's own body
+    by name, every drawn body as `drawn`) and PPO's updates (approximate KL, clip fraction, epochs
+    run of `n_epochs` before `target_kl` stopped them, explained variance, action std), each update
+    also to `log(step, metrics)`. Why: the quick gate walks each body twice; this is every episode."""
+
+    PPO_KEYS = ("approx_kl", "clip_fraction", "explained_variance", "std")
+
+    def __init__(self, log) -> None:
+        super().__init__()
+        self.log_fn = log
+        self.episodes: dict[str, list[int]] = {}
+        self.updates: list[dict] = []
+        self.n_updates = 0
+
+    def _init_callback(self) -> None:
+        self.n_updates = self.model._n_updates
+
+    def _on_step(self) -> bool:
+        for info in self.locals["infos"]:
+            if "pool_episode" in info:
+                body, fell = info["pool_episode"]
+                row = self.episodes.setdefault(body, [0, 0])
+                row[0] += 1
+                row[1] += int(fell)
+        return True
+
+    def _on_rollout_start(self) -> None:  # after PPO's update of the last rollout (SB3 records it)
+        seen = self.model.logger.name_to_value
+        if self.model._n_updates == self.n_updates or "train/approx_kl" not in seen:
+            return
+        row = {k: float(seen[f"train/{k}"]) for k in self.PPO_KEYS if f"train/{k}" in seen}
+        row["epochs"] = float(self.model._n_updates - self.n_updates)
+        self.n_updates = self.model._n_updates
+        self.updates.append(row)
+        self.log_fn(self.num_timesteps, {f"ppo_{k}": v for k, v in row.items()})
+
+    def take(self) -> dict:
+        """{"episodes": {body: [episodes, falls]}, "ppo": {statistic: mean over the updates},
+        "updates": n} since the last `take`; the counts start again."""
+        keys = sorted({k for u in self.updates for k in u})
+        out = {"episodes": dict(sorted(self.episodes.items())),
+               "ppo": {k: round(float(np.mean([u[k] for u in self.updates if k in u])), 5) for k in keys},
+               "updates": len(self.updates)}
+        self.episodes, self.updates = {}, []
+        return out
+
+
 Teacher = tuple[np.ndarray, PPO, VecNormalize]  # a teacher's body observation, policy, observation statistics
 
 
@@ -402,7 +451,8 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
             g = quick_gate(model, venv, sources, up, p.env, scenarios)
             gate_wall[0] += time.perf_counter() - t0
             checkpoints.append({"steps": int(model.num_timesteps), "wall_s": wall, "passed": g["passed"],
-                                "checks": g["checks"], "gate": g["subjects"]})
+                                "checks": g["checks"], "gate": g["subjects"],
+                                **({"training": record.take()} if record.num_timesteps else {})})
         run_steps = int(model.num_timesteps) - steps0
         run_wall = time.perf_counter() - start
         rec = {"steps": int(model.num_timesteps), "wall_s": wall, **origin,
@@ -424,7 +474,8 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
             print(f"{rec['steps']} steps, {wall:.0f} s: gate {g['passed']}/{g['checks']}", flush=True)
         return rec
 
-    callbacks = [UpdateThreads(threads), AMPCallback(amp, p.env.w_style, 6, log),
+    record = TrainingRecord(log)
+    callbacks = [UpdateThreads(threads), AMPCallback(amp, p.env.w_style, 6, log), record,
                  Budget(total, p.checkpoint_steps, save, max_wall_s, False)]
     if not prior and init_from is not None and up.critic_warmup_steps > 0:
         callbacks.append(CriticWarmup(up.critic_warmup_steps))

@@ -157,6 +157,11 @@ def test_one_run_resumes_and_records_its_gate(universal, camargo, tmp_path):
     for name, row in gate["gate"]["camargo"].items():  # a fall names where in the scenario it came
         if name.endswith("_no_fall"):
             assert len(row["fell_in"]) == row["value"] and set(row["fell_in"]) <= set(PHASES)
+    seen = gate["training"]  # what training saw since the last checkpoint: every episode, PPO's updates
+    assert "training" not in rec["checkpoints"][0] and seen["updates"] >= 1
+    assert seen["ppo"]["epochs"] == 1 and seen["ppo"]["approx_kl"] >= 0 and seen["ppo"]["std"] > 0
+    assert seen["episodes"] and set(seen["episodes"]) <= {"camargo", "drawn"}
+    assert all(0 <= falls <= n for n, falls in seen["episodes"].values())
     early = tmp_path / "early"
     shutil.copytree(out, early)
     again = train_universal((camargo[0],), p, up, out, scenarios, total_steps=512, n_envs=2, resume=True)

@@ -17,7 +17,7 @@ from sim.body.human_params import joint_kind
 from sim.learn.amp import AMP, style_reward
 from sim.learn.harness_twist import HarnessTwist, TwistParams
 from sim.learn.policy_human import ActorMlp, PolicyHuman
-from sim.learn.train import load_body, load_policy, train
+from sim.learn.train import MetricsLog, load_body, load_policy, train
 from sim.learn.walk_env import AMP_SIZE, OBS_SIZE, make_walk_env, motion_amp_features, motion_amp_pairs
 from sim.motion.reference import load_reference, mirrored_motion
 from sim.rollout.loop import RolloutParams, rollout
@@ -220,6 +220,16 @@ def test_short_training_run_checkpoints_and_resumes(tmp_path, setup, camargo_mod
         assert (tmp_path / "metrics.csv").read_text().count("\n") >= 2
     else:
         assert {"disc_acc_reference", "style_reward", "r_pose"} <= set(metrics)
+
+
+def test_metrics_without_dvclive_keep_each_callers_names(tmp_path):
+    log = MetricsLog(tmp_path, resume=False)
+    log.live = None  # as on a machine without dvclive
+    log(128, {"style_reward": 0.5, "episode_length": 200.0})
+    log(128, {"ppo_approx_kl": 0.01})  # another callback, other names, the same step
+    rows = (tmp_path / "metrics.csv").read_text().splitlines()
+    assert rows == ["step,metric,value", "128,style_reward,0.5", "128,episode_length,200",
+                    "128,ppo_approx_kl,0.01"]
 
 
 @pytest.mark.parametrize("subject", ["camargo", "opencap4"])
