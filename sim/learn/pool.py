@@ -163,8 +163,8 @@ class MultiBodyEnv(gym.Env):
         if fallen or truncated:
             m = self.up.fall_memory
             self.current.fall_rate = (1 - m) * self.current.fall_rate + m * float(fallen)
-            info = {**info, "pool_episode": (self.current.source if self.current.scales is None else "drawn",
-                                             bool(fallen))}
+            body = self.current.source if self.current.scales is None else "drawn"
+            info = {**info, "pool_episode": (body, bool(fallen), bool(self.current.env.pushes))}
         return np.concatenate([obs, self.current.obs]), reward, fallen, truncated, info
 
 

@@ -168,17 +168,19 @@ class CriticWarmup(BaseCallback):
 
 class TrainingRecord(BaseCallback):
     """What training itself saw between two checkpoints, for the progress record (`take`): each
-    body's episodes and falls (`sim.learn.pool.MultiBodyEnv`'s `pool_episode`: a subject's own body
-    by name, every drawn body as `drawn`) and PPO's updates (approximate KL, clip fraction, epochs
+    body's episodes and falls, in all and in the episodes with random pushes
+    (`sim.learn.pool.MultiBodyEnv`'s `pool_episode`: a subject's own body by name, every drawn body
+    as `drawn`) and PPO's updates (approximate KL, clip fraction, epochs
     run of `n_epochs` before `target_kl` stopped them, explained variance, action std), each update
     also to `log(step, metrics)`. Why: the quick gate walks each body twice; this is every episode."""
 
     PPO_KEYS = ("approx_kl", "clip_fraction", "explained_variance", "std")
+    COUNTS = ("episodes", "falls", "pushed", "pushed_falls")
 
     def __init__(self, log) -> None:
         super().__init__()
         self.log_fn = log
-        self.episodes: dict[str, list[int]] = {}
+        self.episodes: dict[str, dict[str, int]] = {}
         self.updates: list[dict] = []
         self.n_updates = 0
 
@@ -188,10 +190,10 @@ class TrainingRecord(BaseCallback):
     def _on_step(self) -> bool:
         for info in self.locals["infos"]:
             if "pool_episode" in info:
-                body, fell = info["pool_episode"]
-                row = self.episodes.setdefault(body, [0, 0])
-                row[0] += 1
-                row[1] += int(fell)
+                body, fell, pushed = info["pool_episode"]
+                row = self.episodes.setdefault(body, dict.fromkeys(self.COUNTS, 0))
+                for key, hit in zip(self.COUNTS, (True, fell, pushed, fell and pushed), strict=True):
+                    row[key] += int(hit)
         return True
 
     def _on_rollout_start(self) -> None:  # after PPO's update of the last rollout (SB3 records it)
@@ -205,7 +207,7 @@ class TrainingRecord(BaseCallback):
         self.log_fn(self.num_timesteps, {f"ppo_{k}": v for k, v in row.items()})
 
     def take(self) -> dict:
-        """{"episodes": {body: [episodes, falls]}, "ppo": {statistic: mean over the updates},
+        """{"episodes": {body: {count: n}} (`COUNTS`), "ppo": {statistic: mean over the updates},
         "updates": n} since the last `take`; the counts start again."""
         keys = sorted({k for u in self.updates for k in u})
         out = {"episodes": dict(sorted(self.episodes.items())),

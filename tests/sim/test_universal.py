@@ -161,7 +161,9 @@ def test_one_run_resumes_and_records_its_gate(universal, camargo, tmp_path):
     assert "training" not in rec["checkpoints"][0] and seen["updates"] >= 1
     assert seen["ppo"]["epochs"] == 1 and seen["ppo"]["approx_kl"] >= 0 and seen["ppo"]["std"] > 0
     assert seen["episodes"] and set(seen["episodes"]) <= {"camargo", "drawn"}
-    assert all(0 <= falls <= n for n, falls in seen["episodes"].values())
+    for n in seen["episodes"].values():
+        assert 0 <= n["pushed_falls"] <= min(n["falls"], n["pushed"])
+        assert max(n["falls"], n["pushed"]) <= n["episodes"]
     early = tmp_path / "early"
     shutil.copytree(out, early)
     again = train_universal((camargo[0],), p, up, out, scenarios, total_steps=512, n_envs=2, resume=True)
