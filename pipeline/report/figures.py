@@ -40,9 +40,9 @@ def progress_curves(progress: dict, adoption: dict | None, window: int = PROGRES
     """What the universal run's progress figure draws (`metrics.plots.training_progress_figure`):
     env steps (M) of each checkpoint, its quick-gate checks passed in all and per subject's own body,
     their running means over the last `window` checkpoints, the run's stretches on one kind of machine
-    (start step, machine; resumes on the same kind continue a stretch), where its observation was
-    widened or taken back to an earlier checkpoint (`changes`: step, label), the stretches trained
-    with teachers (`taught`: start and end step), the checkpoints of the
+    (start step, machine; resumes on the same kind continue a stretch), where its observation or its
+    hidden layers were widened or it was taken back to an earlier checkpoint (`changes`: step,
+    label), the stretches trained with teachers (`taught`: start and end step), the checkpoints of the
     branches given up (`discarded`: steps, passed, per branch), and evaluate-policy's checks passed
     over every body at each adoption evaluation (`adoption`, adoption.json: steps, passed, of how many)."""
     points = progress.get("checkpoints", [])
@@ -64,7 +64,8 @@ def progress_curves(progress: dict, adoption: dict | None, window: int = PROGRES
             "own_mean": {s: v.rolling(window, min_periods=1).mean().tolist() for s, v in own.items()},
             "window": window, "segments": segments, "taught": taught,
             "evaluations": evaluation_totals(adoption),
-            "changes": [(w["steps"] / 1e6, f"inputs {w['obs_size'][0]} -> {w['obs_size'][1]}")
+            "changes": [(w["steps"] / 1e6, f"inputs {w['obs_size'][0]} -> {w['obs_size'][1]}"
+                         if "obs_size" in w else f"layers {w['net_arch'][0]} -> {w['net_arch'][1]}")
                         for w in progress.get("widened", [])] +
                        [(d["from_steps"] / 1e6, f"taken back from {d['to_steps'] / 1e6:.2f} M")
                         for d in progress.get("discarded", [])],

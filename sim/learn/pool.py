@@ -51,6 +51,7 @@ class UniversalParams:
     teachers: tuple[str, ...]            # committed single-body policies distilled on their own bodies
     teacher_weight: float                # its term's weight in PPO's loss (0: none)
     teacher_batch: int                   # teacher states per PPO optimizer step
+    net_arch: tuple[int, ...] | None = None  # the run's hidden layers: narrower ones are widened (None: kept)
 
     @classmethod
     def from_dict(cls, d: dict) -> UniversalParams:
@@ -66,6 +67,8 @@ class UniversalParams:
                     what = "unknown" if set(v) - names else "missing"
                     raise KeyError(f"universal.bodies: {what} key {bad[0]!r}")
                 out[k] = BodyDraw(**{a: float(b) for a, b in v.items()})
+            elif k == "net_arch":
+                out[k] = None if v is None else tuple(int(x) for x in v)
             elif k in ("subjects", "gate_scenarios", "teachers"):
                 out[k] = tuple(str(x) for x in v)
             elif k == "init_from":

@@ -13,8 +13,9 @@ The run starts from a single-body policy (`init_from`, e.g. camargo's committed 
 layers widened with zero weights for the body inputs (`widen_for_body`), so it walks from step
 one; it is ONE run that resumes from its own folder (`resume`). A run resumed after body values were
 appended to the observation is widened the same way for them, its optimizer state kept (`widened`
-in the record); one taken back to an earlier checkpoint of its own (`--rewind-from`) keeps the
-branch it gave up (`discarded`). At every checkpoint it writes the
+in the record); one resumed with wider hidden layers (`UniversalParams.net_arch`) is widened acting
+as before (`widen_layers`, also in `widened`); one taken back to an earlier checkpoint of its own
+(`--rewind-from`) keeps the branch it gave up (`discarded`). At every checkpoint it writes the
 policy, the observation statistics, the discriminator and `progress.json`: steps, wall time and
 `quick_gate` (each subject's body, its cycle: walk_10m and turn_90, no fall, standing at the end,
 steady speed within the bound) against steps.
@@ -136,6 +137,52 @@ def widen_for_body(old: PPO, old_norm: VecNormalize, venv, p: TrainParams, body_
                     moments[m] = _pad_columns(moments[m])
         model.policy.optimizer.load_state_dict(opt)
     return norm, model
+
+
+def hidden_sizes(model: PPO) -> tuple[int, ...]:
+    """The widths of a PPO policy's hidden layers (its policy network's; the value network's match)."""
+    net = model.policy.mlp_extractor.policy_net
+    return tuple(m.out_features for m in net if isinstance(m, torch.nn.Linear))
+
+
+def widen_layers(old: PPO, venv, p: TrainParams, sizes: tuple[int, ...]) -> PPO:
+    """A PPO whose policy and value networks have hidden layers `sizes` (as many as `old`'s, none
+    narrower) that acts and values exactly as `old` (Net2WiderNet, Chen, Goodfellow & Shlens 2016,
+    in its simplest form): the added units get the fresh network's random incoming weights and zero
+    outgoing ones, so no layer after them uses them until training moves those weights. Adam's
+    moments are carried over; the added weights' first moments start at zero and their second at
+    their tensor's mean, so that their first steps are no larger than the others' (zero would make
+    them many learning rates long: the step count, hence no bias correction, is carried over too).
+    Why: more units for more bodies without starting the run again."""
+    before = hidden_sizes(old)
+    if len(sizes) != len(before) or any(a < b for a, b in zip(sizes, before, strict=True)):
+        raise ValueError(f"universal.net_arch {list(sizes)}: the run's layers {list(before)} can only be "
+                         "widened (as many layers, none narrower)")
+    model = new_ppo(venv, replace(p, net_arch=tuple(sizes)))
+    model.num_timesteps = old.num_timesteps
+    model._n_updates = old._n_updates
+    state = model.policy.state_dict()
+    names = [n for n, _ in old.policy.named_parameters()]
+    opt_old = old.policy.optimizer.state_dict()
+    opt_new = {"state": {}, "param_groups": opt_old["param_groups"]}
+    for name, w_old in old.policy.state_dict().items():
+        w = state[name].clone()
+        block = tuple(slice(0, n) for n in w_old.shape)
+        if w.dim() == 2 and w.shape[1] > w_old.shape[1]:  # inputs from added units: unused for now
+            w[:, w_old.shape[1]:] = 0.0
+        w[block] = w_old.cpu()
+        state[name] = w
+        moments = opt_old["state"].get(names.index(name), {}) if name in names else {}
+        if moments:
+            grown = {k: v for k, v in moments.items() if k == "step"}
+            grown["exp_avg"] = torch.zeros_like(w)
+            grown["exp_avg_sq"] = torch.full_like(w, float(moments["exp_avg_sq"].mean()))
+            for k in ("exp_avg", "exp_avg_sq"):
+                grown[k][block] = moments[k].cpu()
+            opt_new["state"][names.index(name)] = grown
+    model.policy.load_state_dict(state)
+    model.policy.optimizer.load_state_dict(opt_new)
+    return model
 
 
 def _pad_columns(w: torch.Tensor) -> torch.Tensor:
@@ -426,6 +473,12 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
     else:
         venv = VecNormalize(venv, norm_obs=True, norm_reward=False, clip_obs=10.0, gamma=p.gamma)
         model = new_ppo(venv, p) if device == "cpu" else _to_device(new_ppo(venv, p), venv, p, device)
+    if up.net_arch and hidden_sizes(model) != up.net_arch:
+        before = hidden_sizes(model)
+        model = widen_layers(model, venv, p, up.net_arch)
+        widened.append({"steps": int(model.num_timesteps), "net_arch": [list(before), list(up.net_arch)]})
+        if device != "cpu":
+            model = _to_device(model, venv, p, device)
     sampler = amp_reference_sampler(pool, up, pool.bodies[0].env.dt, p.seed)
     amp = AMP(2 * AMP_SIZE, p.amp, sampler, seed=p.seed, device=device)
     start_amp = out if prior else (Path(init_from) if init_from is not None else None)

@@ -506,7 +506,8 @@ def test_progress_curves_average_the_one_walk_checks_and_count_evaluations():
                 "runs": [{"steps": 10 ** 6, "cpu_count": 16, "device": "cuda"},
                          {"steps": 5 * 10 ** 5, "cpu_count": 2},
                          {"steps": 5 * 10 ** 5, "cpu_count": 2, "teachers": ["opencap4"]}],
-                "widened": [{"steps": 15 * 10 ** 5, "obs_size": [79, 81]}],
+                "widened": [{"steps": 15 * 10 ** 5, "obs_size": [79, 81]},
+                            {"steps": 18 * 10 ** 5, "net_arch": [[256, 256], [512, 512]]}],
                 "discarded": [{"from_steps": 10 ** 6, "to_steps": 2 * 10 ** 6,
                                "checkpoints": [{"steps": 2 * 10 ** 6, "passed": 1}]}]}
     adoption = {"evaluations": [{"policy": "a start without steps"},
@@ -518,6 +519,7 @@ def test_progress_curves_average_the_one_walk_checks_and_count_evaluations():
     assert c["passed_mean"] == [2.0, 1.0, 0.5] and c["own_mean"]["camargo"] == [2.0, 1.0, 0.5]
     assert c["segments"] == [(0.0, "16 cores, cuda"), (1.0, "2 cores")] and c["taught"] == [(1.5, 2.0)]
     assert c["evaluations"] == [(2.0, 12, 58)]
-    assert c["changes"] == [(1.5, "inputs 79 -> 81"), (1.0, "taken back from 2.00 M")]
+    assert c["changes"] == [(1.5, "inputs 79 -> 81"), (1.8, "layers [256, 256] -> [512, 512]"),
+                            (1.0, "taken back from 2.00 M")]
     assert c["discarded"] == [([2.0], [1])]
     assert progress_curves({}, None)["steps"] == [] and progress_curves({}, None)["changes"] == []

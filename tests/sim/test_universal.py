@@ -12,6 +12,7 @@ import gymnasium as gym
 import mujoco
 import numpy as np
 import pytest
+import torch
 from gymnasium.utils.env_checker import check_env
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
@@ -30,12 +31,14 @@ from sim.learn.pool import UNIVERSAL_OBS_SIZE, MultiBodyEnv, Source, UniversalPa
 from sim.learn.steering import geom_bottom, subtree
 from sim.learn.train import load_norm, load_policy, new_ppo
 from sim.learn.universal import (
+    hidden_sizes,
     load_teachers,
     params_from_yaml,
     rewind,
     rewound,
     train_universal,
     widen_for_body,
+    widen_layers,
 )
 from sim.learn.walk_env import OBS_SIZE, make_walk_env
 from sim.motion.reference import load_reference
@@ -146,6 +149,33 @@ def test_widening_keeps_the_single_body_policy(universal, camargo, tmp_path):
         np.testing.assert_allclose(a_new, a_old, atol=1e-6)
 
 
+def test_widened_layers_act_and_value_as_before(universal, camargo):
+    p, up, _ = universal
+    p = replace(p, net_arch=(32, 32))
+    venv = VecNormalize(DummyVecEnv([lambda: MultiBodyEnv((camargo[0],), up, p.env, seed=0)]), norm_obs=False)
+    old = new_ppo(venv, p)
+    x = torch.as_tensor(np.random.default_rng(3).normal(size=(64, UNIVERSAL_OBS_SIZE)), dtype=torch.float32)
+    old.policy.optimizer.zero_grad()
+    values, log_prob, _ = old.policy.evaluate_actions(x, torch.zeros((64, 21)))
+    (values.mean() + log_prob.mean()).backward()
+    old.policy.optimizer.step()  # Adam's moments to carry over
+    wide = widen_layers(old, venv, p, (48, 40))
+    assert hidden_sizes(wide) == (48, 40) and wide.num_timesteps == old.num_timesteps
+    with torch.no_grad():
+        mean = [m.policy.get_distribution(x).distribution.mean for m in (old, wide)]
+        values = [m.policy.predict_values(x) for m in (old, wide)]
+    for a, b in (mean, values):
+        np.testing.assert_allclose(b.numpy(), a.numpy(), atol=1e-5)
+    i = [n for n, _ in wide.policy.named_parameters()].index("mlp_extractor.policy_net.0.weight")
+    moments = wide.policy.optimizer.state_dict()["state"][i]
+    first = moments["exp_avg_sq"]  # the policy network's first layer: 32 of its 48 units carried over
+    assert first.shape == (48, UNIVERSAL_OBS_SIZE)
+    np.testing.assert_array_equal(first[:32], old.policy.optimizer.state_dict()["state"][i]["exp_avg_sq"])
+    assert torch.all(first[32:] > 0) and torch.all(moments["exp_avg"][32:] == 0)
+    with pytest.raises(ValueError, match="can only be widened"):
+        widen_layers(old, venv, p, (16, 32))
+
+
 def test_one_run_resumes_and_records_its_gate(universal, camargo, tmp_path):
     p, up, scenarios = universal
     p = replace(p, n_steps=64, batch_size=128, n_epochs=1, checkpoint_steps=256, net_arch=(32, 32))
@@ -181,9 +211,12 @@ def test_one_run_resumes_and_records_its_gate(universal, camargo, tmp_path):
                                   "runs": again["runs"][1:], "checkpoints": again["checkpoints"][2:]}]
     with pytest.raises(ValueError, match="not an earlier checkpoint of this run"):
         rewound(rec, again, "a later record is no earlier checkpoint")
-    last = train_universal((camargo[0],), p, up, out, scenarios, total_steps=512, n_envs=2, resume=True)
+    last = train_universal((camargo[0],), p, replace(up, net_arch=(48, 32)), out, scenarios, total_steps=512,
+                           n_envs=2, resume=True)  # resumed with wider layers
     assert [c["steps"] for c in last["checkpoints"]] == [0, 256, 512]
     assert last["discarded"] == back["discarded"]  # carried on by the resumed run
+    assert last["widened"] == [{"steps": 256, "net_arch": [[32, 32], [48, 32]]}]
+    assert hidden_sizes(load_policy(out)[0]) == (48, 32)
 
 
 class _FirstInputs(gym.ObservationWrapper):
