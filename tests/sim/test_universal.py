@@ -166,6 +166,8 @@ def test_widened_layers_act_and_value_as_before(universal, camargo):
         values = [m.policy.predict_values(x) for m in (old, wide)]
     for a, b in (mean, values):
         np.testing.assert_allclose(b.numpy(), a.numpy(), atol=1e-5)
+    first_old, first_wide = (m.policy.mlp_extractor.policy_net[0].weight.detach().abs() for m in (old, wide))
+    assert first_wide[32:].mean() < 0.3 * first_old.mean()  # added units start small: ADDED_UNIT_SCALE
     i = [n for n, _ in wide.policy.named_parameters()].index("mlp_extractor.policy_net.0.weight")
     moments = wide.policy.optimizer.state_dict()["state"][i]
     first = moments["exp_avg_sq"]  # the policy network's first layer: 32 of its 48 units carried over
