@@ -183,8 +183,8 @@ class Budget(BaseCallback):
 class MetricsLog:
     """Per-rollout metrics to dvclive (`Live(dir)`) when installed, else to `metrics.csv` (rows of
     step, metric, value). Each call appends its rows and rewrites the summary only: dvclive's
-    `next_step` parses every row logged so far (for Studio, even with Studio off), 0.6 s per call
-    after 80 M steps of the universal run, which grew with the run."""
+    `next_step` parses every row logged so far (for Studio, even with Studio off), a cost that grows
+    with a long run's history (measured in docs/results.md, "The universal walking policy")."""
 
     def __init__(self, folder: Path, resume: bool) -> None:
         self.folder = folder

@@ -153,9 +153,9 @@ def widen_layers(old: PPO, venv, p: TrainParams, sizes: tuple[int, ...]) -> PPO:
     narrower) that acts and values exactly as `old` (Net2WiderNet, Chen, Goodfellow & Shlens 2016,
     in its simplest form): the added units get the fresh network's random incoming weights x
     `ADDED_UNIT_SCALE` and zero outgoing ones, so no layer after them uses them until training moves
-    those weights. Scaled, because a trained layer's units are small and sparse (the run's second
-    layer at 83.43 M steps: mean |h| 0.05, fresh units 0.30) and Adam moved the outgoing weights of
-    six-times-larger added units so far that one PPO step took the policy 0.4 in KL. Adam's
+    those weights. Scaled, because a trained layer's units are small and sparse, and Adam moves
+    the outgoing weights of larger added units so far that one PPO step leaves the KL bound
+    (measured in docs/results.md, "The universal walking policy"). Adam's
     moments are carried over; the added weights' first moments start at zero and their second at
     their tensor's mean, so that their first steps are no larger than the others' (zero would make
     them many learning rates long: the step count, hence no bias correction, is carried over too).
