@@ -376,11 +376,13 @@ def training_progress_figure(curves: dict, title: str = "Universal walking polic
                              "training") -> Figure:
     """A training run's progress (`pipeline.report.figures.progress_curves`): the quick gate's checks
     passed at each checkpoint and their running mean (left), the running mean per subject's own body
-    (middle), evaluate-policy's checks passed over every body at each adoption evaluation (right);
-    dotted lines where a run segment began (its machine in the label, where it changed), dashed red
-    ones where the observation was widened or the run taken back (in the legend), crosses for the
-    checkpoints of a branch given up, shading where teachers taught."""
-    fig, (ax, ax2, ax3) = plt.subplots(1, 3, figsize=(14, 3.8))
+    (second), evaluate-policy's checks passed over every body at each adoption evaluation (third),
+    each body's share of falls in training's episodes without random pushes (right, from where the
+    record has it); dotted lines where a run segment began (its machine in the label, where it
+    changed), dashed red ones where the observation or the layers were widened or the run taken back
+    (in the legend), crosses for the checkpoints of a branch given up, shading where teachers taught."""
+    fig, (ax, ax2, ax3, ax4) = plt.subplots(1, 4, figsize=(18, 3.8))
+    panels = (ax, ax2, ax3, ax4)
     if not curves["steps"]:
         ax.text(0.5, 0.5, "no checkpoint yet", ha="center", va="center", transform=ax.transAxes)
         return fig
@@ -392,11 +394,11 @@ def training_progress_figure(curves: dict, title: str = "Universal walking polic
     ax.set_ylim(0, curves["checks"])
     ax.set_ylabel(f"quick gate: checks passed (of {curves['checks']})")
     for i, (start, end) in enumerate(curves.get("taught", [])):
-        for a in (ax, ax2, ax3):
+        for a in panels:
             a.axvspan(start, end, color="tab:orange", alpha=0.12, lw=0,
                       label="with a teacher" if a is ax and not i else None)
     for at, label in curves.get("changes", []):
-        for a in (ax, ax2, ax3):
+        for a in panels:
             a.axvline(at, color="tab:red", linestyle="--", linewidth=0.8, label=label if a is ax else None)
     ax.legend(fontsize=7, loc="upper right")
     for s, mean in curves["own_mean"].items():
@@ -410,17 +412,29 @@ def training_progress_figure(curves: dict, title: str = "Universal walking polic
         ax3.set_ylabel(f"evaluate-policy: checks passed (of {max(of)})")
     else:
         ax3.text(0.5, 0.5, "no adoption evaluation yet", ha="center", va="center", transform=ax3.transAxes)
+    for body, (x, share) in sorted(curves.get("calm_falls", {}).items()):
+        ax4.plot(x, share, ".-", ms=2, lw=0.8, label=body, color="0.5" if body == "drawn" else None)
+    ax4.set_ylim(0, 1)
+    ax4.set_ylabel("training: falls per calm episode")
+    if curves.get("calm_falls"):
+        ax4.legend(fontsize=6, ncol=2, loc="upper left")
+    else:
+        ax4.text(0.5, 0.5, "not recorded yet", ha="center", va="center", transform=ax4.transAxes)
     shown = None
     for start, where in curves["segments"]:
-        for a in (ax, ax2, ax3):
+        for a in panels:
             a.axvline(start, color="0.6", linestyle=":", linewidth=0.8)
         if where != shown:
             ax.text(start, curves["checks"], where, fontsize=6, rotation=90, va="top", ha="right")
             shown = where
-    for a in (ax, ax2, ax3):
+    last = max([*steps, *(x for xs, _ in curves.get("discarded", []) for x in xs)])
+    for a in panels:
         a.set_xlabel("env steps (M)")
-        a.set_xlim(0, max([*steps, *(x for xs, _ in curves.get("discarded", []) for x in xs)]) * 1.02)
+        a.set_xlim(0, last * 1.02)
         a.grid(alpha=0.3)
+    recorded = [x for xs, _ in curves.get("calm_falls", {}).values() for x in xs]
+    if recorded:  # the record is recent: its own stretch
+        ax4.set_xlim(min(recorded) - 0.5, max(recorded) + 0.5)
     fig.suptitle(title)
     fig.tight_layout()
     return fig

@@ -43,14 +43,24 @@ def progress_curves(progress: dict, adoption: dict | None, window: int = PROGRES
     (start step, machine; resumes on the same kind continue a stretch), where its observation or its
     hidden layers were widened or it was taken back to an earlier checkpoint (`changes`: step,
     label), the stretches trained with teachers (`taught`: start and end step), the checkpoints of the
-    branches given up (`discarded`: steps, passed, per branch), and evaluate-policy's checks passed
-    over every body at each adoption evaluation (`adoption`, adoption.json: steps, passed, of how many)."""
+    branches given up (`discarded`: steps, passed, per branch), evaluate-policy's checks passed
+    over every body at each adoption evaluation (`adoption`, adoption.json: steps, passed, of how many),
+    and each body's share of falls in training's episodes without random pushes at the checkpoints
+    that recorded it (`calm_falls`: body -> steps, share; `training` in the progress record)."""
     points = progress.get("checkpoints", [])
     steps = [c["steps"] / 1e6 for c in points]
     passed = pd.Series([c["passed"] for c in points], dtype=float)
     subjects = list(points[-1]["gate"]) if points else []
     own = {s: pd.Series([sum(r["pass"] for r in c["gate"].get(s, {}).values()) for c in points], dtype=float)
            for s in subjects}
+    calm_falls: dict[str, tuple[list, list]] = {}
+    for c in points:
+        for body, n in c.get("training", {}).get("episodes", {}).items():
+            calm = n["episodes"] - n["pushed"]
+            if calm:
+                x, y = calm_falls.setdefault(body, ([], []))
+                x.append(c["steps"] / 1e6)
+                y.append((n["falls"] - n["pushed_falls"]) / calm)
     segments, taught, done = [], [], 0
     for run in progress.get("runs", []):
         where = f"{run.get('cpu_count', '?')} cores" + (", cuda" if run.get("device") == "cuda" else "")
@@ -63,7 +73,7 @@ def progress_curves(progress: dict, adoption: dict | None, window: int = PROGRES
             "passed_mean": passed.rolling(window, min_periods=1).mean().tolist(),
             "own_mean": {s: v.rolling(window, min_periods=1).mean().tolist() for s, v in own.items()},
             "window": window, "segments": segments, "taught": taught,
-            "evaluations": evaluation_totals(adoption),
+            "evaluations": evaluation_totals(adoption), "calm_falls": calm_falls,
             "changes": [(w["steps"] / 1e6, f"inputs {w['obs_size'][0]} -> {w['obs_size'][1]}"
                          if "obs_size" in w else f"layers {w['net_arch'][0]} -> {w['net_arch'][1]}")
                         for w in progress.get("widened", [])] +

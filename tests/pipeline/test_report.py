@@ -502,7 +502,10 @@ def test_progress_curves_average_the_one_walk_checks_and_count_evaluations():
     gate = lambda a, b: {"camargo": {"x": {"pass": a}, "y": {"pass": b}}}  # noqa: E731
     progress = {"checkpoints": [{"steps": 0, "passed": 2, "checks": 2, "gate": gate(True, True)},
                                 {"steps": 10 ** 6, "passed": 0, "checks": 2, "gate": gate(False, False)},
-                                {"steps": 2 * 10 ** 6, "passed": 1, "checks": 2, "gate": gate(True, False)}],
+                                {"steps": 2 * 10 ** 6, "passed": 1, "checks": 2, "gate": gate(True, False),
+                                 "training": {"episodes": {  # 10 calm episodes, 2 calm falls; none calm
+                                     "camargo": {"episodes": 14, "falls": 5, "pushed": 4, "pushed_falls": 3},
+                                     "drawn": {"episodes": 3, "falls": 3, "pushed": 3, "pushed_falls": 3}}}}],
                 "runs": [{"steps": 10 ** 6, "cpu_count": 16, "device": "cuda"},
                          {"steps": 5 * 10 ** 5, "cpu_count": 2},
                          {"steps": 5 * 10 ** 5, "cpu_count": 2, "teachers": ["opencap4"]}],
@@ -522,4 +525,5 @@ def test_progress_curves_average_the_one_walk_checks_and_count_evaluations():
     assert c["changes"] == [(1.5, "inputs 79 -> 81"), (1.8, "layers [256, 256] -> [512, 512]"),
                             (1.0, "taken back from 2.00 M")]
     assert c["discarded"] == [([2.0], [1])]
+    assert c["calm_falls"] == {"camargo": ([2.0], [0.2])}  # falls per episode without random pushes
     assert progress_curves({}, None)["steps"] == [] and progress_curves({}, None)["changes"] == []
