@@ -167,7 +167,9 @@ class MultiBodyEnv(gym.Env):
             m = self.up.fall_memory
             self.current.fall_rate = (1 - m) * self.current.fall_rate + m * float(fallen)
             body = self.current.source if self.current.scales is None else "drawn"
-            info = {**info, "pool_episode": (body, bool(fallen), bool(self.current.env.pushes))}
+            env = self.current.env
+            phase = str(env.commands.phase[min(env.steps - 1, len(env.commands.phase) - 1)])  # as the gate
+            info = {**info, "pool_episode": (body, bool(fallen), bool(env.pushes), phase)}
         return np.concatenate([obs, self.current.obs]), reward, fallen, truncated, info
 
 

@@ -223,11 +223,12 @@ class CriticWarmup(BaseCallback):
 
 class TrainingRecord(BaseCallback):
     """What training itself saw between two checkpoints, for the progress record (`take`): each
-    body's episodes and falls, in all and in the episodes with random pushes
-    (`sim.learn.pool.MultiBodyEnv`'s `pool_episode`: a subject's own body by name, every drawn body
-    as `drawn`) and PPO's updates (approximate KL, clip fraction, epochs
-    run of `n_epochs` before `target_kl` stopped them, explained variance, action std), each update
-    also to `log(step, metrics)`. Why: the quick gate walks each body twice; this is every episode."""
+    body's episodes and falls, in all and in the episodes with random pushes, and the command phase
+    of each fall without them (`calm_fell_in`; `sim.learn.pool.MultiBodyEnv`'s `pool_episode`: a
+    subject's own body by name, every drawn body as `drawn`) and PPO's updates (approximate KL, clip
+    fraction, epochs run of `n_epochs` before `target_kl` stopped them, explained variance, action
+    std), each update also to `log(step, metrics)`. Why: the quick gate walks each body twice; this
+    is every episode."""
 
     PPO_KEYS = ("approx_kl", "clip_fraction", "explained_variance", "std")
     COUNTS = ("episodes", "falls", "pushed", "pushed_falls")
@@ -235,7 +236,7 @@ class TrainingRecord(BaseCallback):
     def __init__(self, log) -> None:
         super().__init__()
         self.log_fn = log
-        self.episodes: dict[str, dict[str, int]] = {}
+        self.episodes: dict[str, dict] = {}
         self.updates: list[dict] = []
         self.n_updates = 0
 
@@ -245,10 +246,12 @@ class TrainingRecord(BaseCallback):
     def _on_step(self) -> bool:
         for info in self.locals["infos"]:
             if "pool_episode" in info:
-                body, fell, pushed = info["pool_episode"]
-                row = self.episodes.setdefault(body, dict.fromkeys(self.COUNTS, 0))
+                body, fell, pushed, phase = info["pool_episode"]
+                row = self.episodes.setdefault(body, {**dict.fromkeys(self.COUNTS, 0), "calm_fell_in": {}})
                 for key, hit in zip(self.COUNTS, (True, fell, pushed, fell and pushed), strict=True):
                     row[key] += int(hit)
+                if fell and not pushed:
+                    row["calm_fell_in"][phase] = row["calm_fell_in"].get(phase, 0) + 1
         return True
 
     def _on_rollout_start(self) -> None:  # after PPO's update of the last rollout (SB3 records it)
@@ -262,8 +265,8 @@ class TrainingRecord(BaseCallback):
         self.log_fn(self.num_timesteps, {f"ppo_{k}": v for k, v in row.items()})
 
     def take(self) -> dict:
-        """{"episodes": {body: {count: n}} (`COUNTS`), "ppo": {statistic: mean over the updates},
-        "updates": n} since the last `take`; the counts start again."""
+        """{"episodes": {body: {count: n} (`COUNTS`), "calm_fell_in": {phase: n}}, "ppo": {statistic:
+        mean over the updates}, "updates": n} since the last `take`; the counts start again."""
         keys = sorted({k for u in self.updates for k in u})
         out = {"episodes": dict(sorted(self.episodes.items())),
                "ppo": {k: round(float(np.mean([u[k] for u in self.updates if k in u])), 5) for k in keys},
@@ -607,9 +610,9 @@ def fine_tune_body(universal_dir: str | Path, src: Source, p: TrainParams, up: U
                  "obs_stats_frozen": True, "runs": [], "checkpoints": []}
         (work / PROGRESS_FILE).write_text(json.dumps(first, indent=1) + "\n")
     start = int(json.loads((work / PROGRESS_FILE).read_text())["initial_steps"])
-    rec = train_universal((src,), p, replace(up, drawn=0, adaptive_share=0.0, teachers=()), work, {},
-                          resume=True, total_steps=start + steps, max_wall_s=max_wall_s, command=command,
-                          progress=progress, gate=False)
+    alone = replace(up, drawn=0, adaptive_share=0.0, teachers=(), net_arch=None)  # the policy as it is
+    rec = train_universal((src,), p, alone, work, {}, resume=True, total_steps=start + steps,
+                          max_wall_s=max_wall_s, command=command, progress=progress, gate=False)
     rec = {**rec, "fine_tuned_steps": int(rec["steps"]) - start}
     (work / PROGRESS_FILE).write_text(json.dumps(rec, indent=1) + "\n")
     return rec

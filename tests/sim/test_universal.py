@@ -112,7 +112,7 @@ def test_the_body_observation_reads_the_body(camargo):
 def universal(params, camargo):
     p, up, scenarios = params_from_yaml(params._path)
     up = replace(up, subjects=("camargo",), drawn=2, gate_seeds=1, gate_scenarios=("walk_10m",),
-                 critic_warmup_steps=256, teachers=())
+                 critic_warmup_steps=256, teachers=(), net_arch=None)
     return p, up, scenarios
 
 
@@ -196,6 +196,8 @@ def test_one_run_resumes_and_records_its_gate(universal, camargo, tmp_path):
     for n in seen["episodes"].values():
         assert 0 <= n["pushed_falls"] <= min(n["falls"], n["pushed"])
         assert max(n["falls"], n["pushed"]) <= n["episodes"]
+        assert sum(n["calm_fell_in"].values()) == n["falls"] - n["pushed_falls"]
+        assert set(n["calm_fell_in"]) <= set(PHASES)
     early = tmp_path / "early"
     shutil.copytree(out, early)
     again = train_universal((camargo[0],), p, up, out, scenarios, total_steps=512, n_envs=2, resume=True)
