@@ -168,7 +168,7 @@ def widen_layers(old: PPO, venv, p: TrainParams, sizes: tuple[int, ...]) -> PPO:
     model.num_timesteps = old.num_timesteps
     model._n_updates = old._n_updates
     state = model.policy.state_dict()
-    names = [n for n, _ in old.policy.named_parameters()]
+    index = {n: i for i, (n, _) in enumerate(old.policy.named_parameters())}  # the optimizer's numbering
     opt_old = old.policy.optimizer.state_dict()
     opt_new = {"state": {}, "param_groups": opt_old["param_groups"]}
     for name, w_old in old.policy.state_dict().items():
@@ -180,14 +180,14 @@ def widen_layers(old: PPO, venv, p: TrainParams, sizes: tuple[int, ...]) -> PPO:
             w[:, w_old.shape[1]:] = 0.0
         w[block] = w_old.cpu()
         state[name] = w
-        moments = opt_old["state"].get(names.index(name), {}) if name in names else {}
+        moments = opt_old["state"].get(index.get(name), {})
         if moments:
             grown = {k: v for k, v in moments.items() if k == "step"}
             grown["exp_avg"] = torch.zeros_like(w)
             grown["exp_avg_sq"] = torch.full_like(w, float(moments["exp_avg_sq"].mean()))
             for k in ("exp_avg", "exp_avg_sq"):
                 grown[k][block] = moments[k].cpu()
-            opt_new["state"][names.index(name)] = grown
+            opt_new["state"][index[name]] = grown
     model.policy.load_state_dict(state)
     model.policy.optimizer.load_state_dict(opt_new)
     return model
@@ -227,8 +227,8 @@ class TrainingRecord(BaseCallback):
     of each fall without them (`calm_fell_in`; `sim.learn.pool.MultiBodyEnv`'s `pool_episode`: a
     subject's own body by name, every drawn body as `drawn`) and PPO's updates (approximate KL, clip
     fraction, epochs run of `n_epochs` before `target_kl` stopped them, explained variance, action
-    std), each update also to `log(step, metrics)`. Why: the quick gate walks each body twice; this
-    is every episode."""
+    std), each update also to `log(step, metrics)`. Why: the quick gate walks each body once per
+    check; this is every episode."""
 
     PPO_KEYS = ("approx_kl", "clip_fraction", "explained_variance", "std")
     COUNTS = ("episodes", "falls", "pushed", "pushed_falls")
@@ -484,8 +484,8 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
     else:
         venv = VecNormalize(venv, norm_obs=True, norm_reward=False, clip_obs=10.0, gamma=p.gamma)
         model = new_ppo(venv, p) if device == "cpu" else _to_device(new_ppo(venv, p), venv, p, device)
-    if up.net_arch and hidden_sizes(model) != up.net_arch:
-        before = hidden_sizes(model)
+    before = hidden_sizes(model)
+    if up.net_arch and before != up.net_arch:
         model = widen_layers(model, venv, p, up.net_arch)
         widened.append({"steps": int(model.num_timesteps), "net_arch": [list(before), list(up.net_arch)]})
         if device != "cpu":
