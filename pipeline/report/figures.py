@@ -41,8 +41,8 @@ def progress_curves(progress: dict, adoption: dict | None, window: int = PROGRES
     env steps (M) of each checkpoint, its quick-gate checks passed in all and per subject's own body,
     their running means over the last `window` checkpoints, the run's stretches on one kind of machine
     (start step, machine; resumes on the same kind continue a stretch), where its observation or its
-    hidden layers were widened or it was taken back to an earlier checkpoint (`changes`: step,
-    label), the stretches trained with teachers (`taught`: start and end step), the checkpoints of the
+    hidden layers were widened, it was taken back to an earlier checkpoint or its training envs' values
+    changed (`changes`: step, label), the stretches trained with teachers (`taught`: start and end step), the checkpoints of the
     branches given up (`discarded`: steps, passed, per branch), evaluate-policy's checks passed
     over every body at each adoption evaluation (`adoption`, adoption.json: steps, passed, of how many),
     and each body's share of falls in training's episodes without random pushes at the checkpoints
@@ -61,8 +61,11 @@ def progress_curves(progress: dict, adoption: dict | None, window: int = PROGRES
                 x, y = calm_falls.setdefault(body, ([], []))
                 x.append(c["steps"] / 1e6)
                 y.append((n["falls"] - n["pushed_falls"]) / calm)
-    segments, taught, done = [], [], 0
+    segments, taught, retrained, env, done = [], [], [], {}, 0
     for run in progress.get("runs", []):
+        if run.get("env", {}) != env:  # the training envs' values changed from this run on
+            env = run.get("env", {})
+            retrained.append((done / 1e6, "env " + (", ".join(f"{k} {v}" for k, v in env.items()) or "as train")))
         where = f"{run.get('cpu_count', '?')} cores" + (", cuda" if run.get("device") == "cuda" else "")
         if not segments or segments[-1][1] != where:  # a resume on the same kind of machine: one stretch
             segments.append((done / 1e6, where))
@@ -78,7 +81,7 @@ def progress_curves(progress: dict, adoption: dict | None, window: int = PROGRES
                          if "obs_size" in w else f"layers {w['net_arch'][0]} -> {w['net_arch'][1]}")
                         for w in progress.get("widened", [])] +
                        [(d["from_steps"] / 1e6, f"taken back from {d['to_steps'] / 1e6:.2f} M")
-                        for d in progress.get("discarded", [])],
+                        for d in progress.get("discarded", [])] + retrained,
             "discarded": [([c["steps"] / 1e6 for c in d["checkpoints"]],
                            [c["passed"] for c in d["checkpoints"]]) for d in progress.get("discarded", [])]}
 

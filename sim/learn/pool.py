@@ -8,7 +8,7 @@ drawn body is replaced by a new draw. No torch here: `pipeline.params` checks `U
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 
 import gymnasium as gym
 import mujoco
@@ -52,6 +52,7 @@ class UniversalParams:
     teacher_weight: float                # its term's weight in PPO's loss (0: none)
     teacher_batch: int                   # teacher states per PPO optimizer step
     net_arch: tuple[int, ...] | None = None  # the run's hidden layers: narrower ones are widened (None: kept)
+    env: dict = field(default_factory=dict)  # the training envs' values that differ from `train.env`'s
 
     @classmethod
     def from_dict(cls, d: dict) -> UniversalParams:
@@ -69,6 +70,12 @@ class UniversalParams:
                 out[k] = BodyDraw(**{a: float(b) for a, b in v.items()})
             elif k == "net_arch":
                 out[k] = None if v is None else tuple(int(x) for x in v)
+            elif k == "env":
+                env_keys = {f.name for f in fields(WalkEnvParams)}
+                bad = sorted(set(v or {}) - env_keys)
+                if bad:
+                    raise KeyError(f"universal.env: {bad[0]!r} is not a train.env key")
+                out[k] = {a: tuple(b) if isinstance(b, list) else b for a, b in (v or {}).items()}
             elif k in ("subjects", "gate_scenarios", "teachers"):
                 out[k] = tuple(str(x) for x in v)
             elif k == "init_from":
@@ -77,7 +84,7 @@ class UniversalParams:
                 out[k] = int(v)
             else:
                 out[k] = float(v)
-        missing = sorted(set(known) - set(out))
+        missing = sorted(set(known) - set(out) - {"env"})
         if missing:
             raise KeyError(f"universal: missing key {missing[0]!r}")
         return cls(**out)

@@ -454,11 +454,12 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
     device = device_of(device)
     torch.set_num_threads(threads)
     n_envs = n_envs or p.n_envs
-    fns = [partial(make_pool_env, sources, up, p.env, p.seed * 1000 + 37 * i) for i in range(n_envs)]
+    env = replace(p.env, **up.env)  # the training envs; the gate walks `p.env`'s (pushes off either way)
+    fns = [partial(make_pool_env, sources, up, env, p.seed * 1000 + 37 * i) for i in range(n_envs)]
     vec = GroupedSubprocVecEnv(fns, workers or n_envs) if subprocess and n_envs > 1 else DummyVecEnv(fns)
     venv = VecMonitor(vec)
     prior = json.loads((out / PROGRESS_FILE).read_text()) if resume and (out / PROGRESS_FILE).exists() else {}
-    pool = MultiBodyEnv(sources, replace(up, refresh_probability=0.0), p.env, p.seed)  # AMP references, stats
+    pool = MultiBodyEnv(sources, replace(up, refresh_probability=0.0), env, p.seed)  # AMP references, stats
     body_obs = np.array([b.obs for b in pool.bodies])
     frozen = bool(prior.get("obs_stats_frozen")) if prior else init_from is not None
     widened, discarded = list(prior.get("widened", [])), list(prior.get("discarded", []))
@@ -527,6 +528,8 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
                **({"discarded": discarded} if discarded else {}),
                "runs": runs + [{"command": command, "n_envs": n_envs, "subprocess": subprocess,
                                 **({"teachers": list(up.teachers)} if taught else {}),
+                                **({"env": {k: list(v) if isinstance(v, tuple) else v
+                                            for k, v in up.env.items()}} if up.env else {}),
                                 "workers": workers,
                                 "device": device, "threads": threads, "cpu_count": os.cpu_count(),
                                 "steps": run_steps,

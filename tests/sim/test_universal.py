@@ -215,12 +215,15 @@ def test_one_run_resumes_and_records_its_gate(universal, camargo, tmp_path):
                                   "runs": again["runs"][1:], "checkpoints": again["checkpoints"][2:]}]
     with pytest.raises(ValueError, match="not an earlier checkpoint of this run"):
         rewound(rec, again, "a later record is no earlier checkpoint")
-    last = train_universal((camargo[0],), p, replace(up, net_arch=(48, 32)), out, scenarios, total_steps=512,
-                           n_envs=2, resume=True)  # resumed with wider layers
+    calmer = {"push_probability": 0.0, "push_force_n": (0.0, 100.0)}  # the training envs' own values
+    last = train_universal((camargo[0],), p, replace(up, net_arch=(48, 32), env=calmer), out, scenarios,
+                           total_steps=512, n_envs=2, resume=True)  # resumed with wider layers, no pushes
     assert [c["steps"] for c in last["checkpoints"]] == [0, 256, 512]
     assert last["discarded"] == back["discarded"]  # carried on by the resumed run
     assert last["widened"] == [{"steps": 256, "net_arch": [[32, 32], [48, 32]]}]
     assert hidden_sizes(load_policy(out)[0]) == (48, 32)
+    assert last["runs"][-1]["env"] == {"push_probability": 0.0, "push_force_n": [0.0, 100.0]}
+    assert all(n["pushed"] == 0 for n in last["checkpoints"][-1]["training"]["episodes"].values())
 
 
 class _FirstInputs(gym.ObservationWrapper):
@@ -342,6 +345,8 @@ def test_the_universal_params_reject_unknown_keys():
         UniversalParams.from_dict({"bodies": {"range": 0.1}})
     with pytest.raises(KeyError, match="universal: missing key 'adaptive_share'"):
         UniversalParams.from_dict({"subjects": ["camargo"]})
+    with pytest.raises(KeyError, match="universal.env: 'push_probabilty' is not a train.env key"):
+        UniversalParams.from_dict({"env": {"push_probabilty": 0.25}})
 
 
 def test_throughput_is_measured_against_the_physics(universal, camargo):
