@@ -41,12 +41,13 @@ def progress_curves(progress: dict, adoption: dict | None, window: int = PROGRES
     env steps (M) of each checkpoint, its quick-gate checks passed in all and per subject's own body,
     their running means over the last `window` checkpoints, the run's stretches on one kind of machine
     (start step, machine; resumes on the same kind continue a stretch), where its observation or its
-    hidden layers were widened, it was taken back to an earlier checkpoint or its training envs' values
-    changed (`changes`: step, label), the stretches trained with teachers (`taught`: start and end step), the checkpoints of the
-    branches given up (`discarded`: steps, passed, per branch), evaluate-policy's checks passed
-    over every body at each adoption evaluation (`adoption`, adoption.json: steps, passed, of how many),
-    and each body's share of falls in training's episodes without random pushes at the checkpoints
-    that recorded it (`calm_falls`: body -> steps, share; `training` in the progress record)."""
+    hidden layers were widened, it was taken back to an earlier checkpoint, or its training envs'
+    values or its action std's floor changed (`changes`: step, label), the stretches trained with
+    teachers (`taught`: start and end step), the checkpoints of the branches given up (`discarded`:
+    steps, passed, per branch), evaluate-policy's checks passed over every body at each adoption
+    evaluation (`adoption`, adoption.json: steps, passed, of how many), and each body's share of
+    falls in training's episodes without random pushes at the checkpoints that recorded it
+    (`calm_falls`: body -> steps, share; `training` in the progress record)."""
     points = progress.get("checkpoints", [])
     steps = [c["steps"] / 1e6 for c in points]
     passed = pd.Series([c["passed"] for c in points], dtype=float)
@@ -61,11 +62,13 @@ def progress_curves(progress: dict, adoption: dict | None, window: int = PROGRES
                 x, y = calm_falls.setdefault(body, ([], []))
                 x.append(c["steps"] / 1e6)
                 y.append((n["falls"] - n["pushed_falls"]) / calm)
-    segments, taught, retrained, env, done = [], [], [], {}, 0
+    segments, taught, retrained, before, done = [], [], [], {}, 0
     for run in progress.get("runs", []):
-        if run.get("env", {}) != env:  # the training envs' values changed from this run on
-            env = run.get("env", {})
-            retrained.append((done / 1e6, "env " + (", ".join(f"{k} {v}" for k, v in env.items()) or "as train")))
+        settings = {**run.get("env", {}), **{k: run[k] for k in ("min_action_std",) if k in run}}
+        if settings != before:  # the training envs' values or the action std's floor changed from this run on
+            before = settings
+            shown = ", ".join(f"{k} {v}" for k, v in settings.items()) or "train's env"
+            retrained.append((done / 1e6, f"trained with {shown}"))
         where = f"{run.get('cpu_count', '?')} cores" + (", cuda" if run.get("device") == "cuda" else "")
         if not segments or segments[-1][1] != where:  # a resume on the same kind of machine: one stretch
             segments.append((done / 1e6, where))

@@ -53,6 +53,7 @@ class UniversalParams:
     teacher_batch: int                   # teacher states per PPO optimizer step
     net_arch: tuple[int, ...] | None = None  # the run's hidden layers: narrower ones are widened (None: kept)
     env: dict = field(default_factory=dict)  # the training envs' values that differ from `train.env`'s
+    min_action_std: float | None = None  # the policy's action std kept at or above this (None: free)
 
     @classmethod
     def from_dict(cls, d: dict) -> UniversalParams:
@@ -70,6 +71,8 @@ class UniversalParams:
                 out[k] = BodyDraw(**{a: float(b) for a, b in v.items()})
             elif k == "net_arch":
                 out[k] = None if v is None else tuple(int(x) for x in v)
+            elif k == "min_action_std":
+                out[k] = None if v is None else float(v)
             elif k == "env":
                 env_keys = {f.name for f in fields(WalkEnvParams)}
                 bad = sorted(set(v or {}) - env_keys)
@@ -84,7 +87,7 @@ class UniversalParams:
                 out[k] = int(v)
             else:
                 out[k] = float(v)
-        missing = sorted(set(known) - set(out) - {"env"})
+        missing = sorted(set(known) - set(out) - {"env", "min_action_std"})
         if missing:
             raise KeyError(f"universal: missing key {missing[0]!r}")
         return cls(**out)

@@ -221,6 +221,24 @@ class CriticWarmup(BaseCallback):
         return True
 
 
+class StdFloor(BaseCallback):
+    """Keeps the policy's action standard deviation (state-independent, per action) at or above
+    `min_std` (normalised action units), raised before each rollout. Why: PPO's updates stop at a KL
+    budget, and between Gaussians of std s the mean moves only ~s sqrt(2 KL / actions) per update, so a
+    shrinking std also shrinks how far each update can move the policy."""
+
+    def __init__(self, min_std: float) -> None:
+        super().__init__()
+        self.floor = math.log(min_std)
+
+    def _on_rollout_start(self) -> None:
+        with torch.no_grad():
+            self.model.policy.log_std.clamp_(min=self.floor)
+
+    def _on_step(self) -> bool:
+        return True
+
+
 class TrainingRecord(BaseCallback):
     """What training itself saw between two checkpoints, for the progress record (`take`): each
     body's episodes and falls, in all and in the episodes with random pushes, and the command phase
@@ -530,6 +548,7 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
                                 **({"teachers": list(up.teachers)} if taught else {}),
                                 **({"env": {k: list(v) if isinstance(v, tuple) else v
                                             for k, v in up.env.items()}} if up.env else {}),
+                                **({"min_action_std": up.min_action_std} if up.min_action_std else {}),
                                 "workers": workers,
                                 "device": device, "threads": threads, "cpu_count": os.cpu_count(),
                                 "steps": run_steps,
@@ -546,6 +565,8 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
     record = TrainingRecord(log)
     callbacks = [UpdateThreads(threads), AMPCallback(amp, p.env.w_style, 6, log), record,
                  Budget(total, p.checkpoint_steps, save, max_wall_s, False)]
+    if up.min_action_std is not None:
+        callbacks.insert(0, StdFloor(up.min_action_std))
     if not prior and init_from is not None and up.critic_warmup_steps > 0:
         callbacks.append(CriticWarmup(up.critic_warmup_steps))
     if taught:

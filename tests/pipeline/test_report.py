@@ -524,7 +524,7 @@ def test_progress_curves_average_the_one_walk_checks_and_count_evaluations():
     assert c["segments"] == [(0.0, "16 cores, cuda"), (1.0, "2 cores")] and c["taught"] == [(1.5, 2.0)]
     assert c["evaluations"] == [(2.0, 12, 58)]
     assert c["changes"] == [(1.5, "inputs 79 -> 81"), (1.8, "layers [256, 256] -> [512, 512]"),
-                            (1.0, "taken back from 2.00 M"), (1.5, "env push_probability 0.25")]
+                            (1.0, "taken back from 2.00 M"), (1.5, "trained with push_probability 0.25")]
     assert c["discarded"] == [([2.0], [1])]
     assert c["calm_falls"] == {"camargo": ([2.0], [0.2])}  # falls per episode without random pushes
     assert progress_curves({}, None)["steps"] == [] and progress_curves({}, None)["changes"] == []
