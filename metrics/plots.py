@@ -406,10 +406,15 @@ def training_progress_figure(curves: dict, title: str = "Universal walking polic
     ax2.set_ylabel(f"own body, mean of the last {w}")
     ax2.legend(fontsize=7, ncol=2)
     if curves["evaluations"]:
-        x, passed, of = zip(*curves["evaluations"], strict=True)
-        ax3.plot(x, passed, "o-", color="tab:red")
-        ax3.set_ylim(0, max(of))
-        ax3.set_ylabel(f"evaluate-policy: checks passed (of {max(of)})")
+        of = max(e[2] for e in curves["evaluations"])
+        for gone, style, label in ((False, "o-", "the run's checkpoints"), (True, "x", "a branch given up")):
+            kept = [(x, passed) for x, passed, _, g in curves["evaluations"] if g == gone]
+            if kept:
+                ax3.plot(*zip(*kept, strict=True), style, color="tab:red", label=label)
+        if any(e[3] for e in curves["evaluations"]):
+            ax3.legend(fontsize=7, loc="lower right")
+        ax3.set_ylim(0, of)
+        ax3.set_ylabel(f"evaluate-policy: checks passed (of {of})")
     else:
         ax3.text(0.5, 0.5, "no adoption evaluation yet", ha="center", va="center", transform=ax3.transAxes)
     for body, (x, share) in sorted(curves.get("calm_falls", {}).items()):

@@ -28,11 +28,15 @@ UNIVERSAL_FIGURE = "universal_progress.png"  # in reports/: the universal policy
 PROGRESS_WINDOW = 10  # checkpoints in the quick gate's running mean (each check is one walk: it swings)
 
 
-def evaluation_totals(adoption: dict | None) -> list[tuple[float, int, int]]:
+def evaluation_totals(adoption: dict | None,
+                      progress: dict | None = None) -> list[tuple[float, int, int, bool]]:
     """Each adoption evaluation (adoption.json) with a checkpoint: (env steps in M, evaluate-policy's
-    checks passed over every body, of how many)."""
+    checks passed over every body, of how many, whether its checkpoint is on a branch the run gave up:
+    its steps are a checkpoint of a `discarded` branch in `progress` and none of the run's own)."""
+    own = {c["steps"] for c in (progress or {}).get("checkpoints", [])}
+    given_up = {c["steps"] for d in (progress or {}).get("discarded", []) for c in d["checkpoints"]} - own
     return [(e["universal_steps"] / 1e6, sum(r["checks_passed"] for r in e["subjects"].values()),
-             sum(r["checks"] for r in e["subjects"].values()))
+             sum(r["checks"] for r in e["subjects"].values()), e["universal_steps"] in given_up)
             for e in (adoption or {}).get("evaluations", []) if "universal_steps" in e]
 
 
@@ -45,7 +49,7 @@ def progress_curves(progress: dict, adoption: dict | None, window: int = PROGRES
     values or its action std's floor changed (`changes`: step, label), the stretches trained with
     teachers (`taught`: start and end step), the checkpoints of the branches given up (`discarded`:
     steps, passed, per branch), evaluate-policy's checks passed over every body at each adoption
-    evaluation (`adoption`, adoption.json: steps, passed, of how many), and each body's share of
+    evaluation (`adoption`, adoption.json: `evaluation_totals`), and each body's share of
     falls in training's episodes without random pushes at the checkpoints that recorded it
     (`calm_falls`: body -> steps, share; `training` in the progress record)."""
     points = progress.get("checkpoints", [])
@@ -79,7 +83,7 @@ def progress_curves(progress: dict, adoption: dict | None, window: int = PROGRES
             "passed_mean": passed.rolling(window, min_periods=1).mean().tolist(),
             "own_mean": {s: v.rolling(window, min_periods=1).mean().tolist() for s, v in own.items()},
             "window": window, "segments": segments, "taught": taught,
-            "evaluations": evaluation_totals(adoption), "calm_falls": calm_falls,
+            "evaluations": evaluation_totals(adoption, progress), "calm_falls": calm_falls,
             "changes": [(w["steps"] / 1e6, f"inputs {w['obs_size'][0]} -> {w['obs_size'][1]}"
                          if "obs_size" in w else f"layers {w['net_arch'][0]} -> {w['net_arch'][1]}")
                         for w in progress.get("widened", [])] +

@@ -67,9 +67,10 @@ def universal_lines(progress: dict, adoption: dict | None = None) -> list[str]:
     start = progress.get("initialised_from", "scratch")
     lines = [f"One run of {steps_m:.2f} M env steps in {hours:.1f} h of training ({', '.join(machines)}), "
              f"from {start}."]
-    evaluations = evaluation_totals(adoption)
+    evaluations = evaluation_totals(adoption, progress)
     if evaluations:
-        each = ", ".join(f"{passed} of {of} at {steps_m:.2f} M" for steps_m, passed, of in evaluations)
+        each = ", ".join(f"{passed} of {of} at {steps_m:.2f} M" + (" (a branch given up)" if gone else "")
+                         for steps_m, passed, of, gone in evaluations)
         lines.append(f"evaluate-policy by the adoption rule, every body: {each} checks passed; adopted: "
                      f"{', '.join(adoption.get('adopted') or []) or 'none'}.")
     if points:

@@ -522,7 +522,11 @@ def test_progress_curves_average_the_one_walk_checks_and_count_evaluations():
     assert c["steps"] == [0.0, 1.0, 2.0] and c["passed"] == [2.0, 0.0, 1.0] and c["checks"] == 2
     assert c["passed_mean"] == [2.0, 1.0, 0.5] and c["own_mean"]["camargo"] == [2.0, 1.0, 0.5]
     assert c["segments"] == [(0.0, "16 cores, cuda"), (1.0, "2 cores")] and c["taught"] == [(1.5, 2.0)]
-    assert c["evaluations"] == [(2.0, 12, 58)]
+    assert c["evaluations"] == [(2.0, 12, 58, False)]  # 2.0 M is a checkpoint of the run itself
+    gone = {**adoption, "evaluations": [{**adoption["evaluations"][1], "universal_steps": 25 * 10 ** 5}]}
+    given_up = [{"steps": 25 * 10 ** 5, "passed": 1}]
+    branch = {**progress, "discarded": [{**progress["discarded"][0], "checkpoints": given_up}]}
+    assert progress_curves(branch, gone)["evaluations"] == [(2.5, 12, 58, True)]  # on the branch given up
     assert c["changes"] == [(1.5, "inputs 79 -> 81"), (1.8, "layers [256, 256] -> [512, 512]"),
                             (1.0, "taken back from 2.00 M"), (1.5, "trained with push_probability 0.25")]
     assert c["discarded"] == [([2.0], [1])]
