@@ -8,12 +8,12 @@ drawn body is replaced by a new draw. No torch here: `pipeline.params` checks `U
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import MISSING, dataclass, field, fields
 
 import gymnasium as gym
 import mujoco
 import numpy as np
-from pydantic import with_config
+from pydantic import TypeAdapter, with_config
 
 from sim.learn.bodies import (
     BODY_OBS_SIZE,
@@ -73,12 +73,12 @@ class UniversalParams:
                 out[k] = None if v is None else tuple(int(x) for x in v)
             elif k == "min_action_std":
                 out[k] = None if v is None else float(v)
-            elif k == "env":
-                env_keys = {f.name for f in fields(WalkEnvParams)}
-                bad = sorted(set(v or {}) - env_keys)
+            elif k == "env":  # checked and typed as `train.env` is; only the values named are kept
+                bad = sorted(set(v or {}) - {f.name for f in fields(WalkEnvParams)})
                 if bad:
                     raise KeyError(f"universal.env: {bad[0]!r} is not a train.env key")
-                out[k] = {a: tuple(b) if isinstance(b, list) else b for a, b in (v or {}).items()}
+                typed = TypeAdapter(WalkEnvParams).validate_python(dict(v or {}))
+                out[k] = {a: getattr(typed, a) for a in (v or {})}
             elif k in ("subjects", "gate_scenarios", "teachers"):
                 out[k] = tuple(str(x) for x in v)
             elif k == "init_from":
@@ -87,7 +87,8 @@ class UniversalParams:
                 out[k] = int(v)
             else:
                 out[k] = float(v)
-        missing = sorted(set(known) - set(out) - {"env", "min_action_std"})
+        required = {f.name for f in fields(cls) if f.default is MISSING and f.default_factory is MISSING}
+        missing = sorted(required - set(out))
         if missing:
             raise KeyError(f"universal: missing key {missing[0]!r}")
         return cls(**out)

@@ -349,6 +349,8 @@ def test_the_universal_params_reject_unknown_keys():
         UniversalParams.from_dict({"subjects": ["camargo"]})
     with pytest.raises(KeyError, match="universal.env: 'push_probabilty' is not a train.env key"):
         UniversalParams.from_dict({"env": {"push_probabilty": 0.25}})
+    with pytest.raises(ValueError, match="push_force_n"):  # typed as train.env is
+        UniversalParams.from_dict({"env": {"push_force_n": "strong"}})
 
 
 def test_throughput_is_measured_against_the_physics(universal, camargo):
