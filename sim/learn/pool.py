@@ -74,11 +74,12 @@ class UniversalParams:
             elif k == "min_action_std":
                 out[k] = None if v is None else float(v)
             elif k == "env":  # checked and typed as `train.env` is; only the values named are kept
-                bad = sorted(set(v or {}) - {f.name for f in fields(WalkEnvParams)})
+                named = dict(v or {})
+                bad = sorted(set(named) - {f.name for f in fields(WalkEnvParams)})
                 if bad:
                     raise KeyError(f"universal.env: {bad[0]!r} is not a train.env key")
-                typed = TypeAdapter(WalkEnvParams).validate_python(dict(v or {}))
-                out[k] = {a: getattr(typed, a) for a in (v or {})}
+                typed = TypeAdapter(WalkEnvParams).validate_python(named)
+                out[k] = {a: getattr(typed, a) for a in named}
             elif k in ("subjects", "gate_scenarios", "teachers"):
                 out[k] = tuple(str(x) for x in v)
             elif k == "init_from":

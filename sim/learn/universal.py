@@ -548,7 +548,8 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
                                 **({"teachers": list(up.teachers)} if taught else {}),
                                 **({"env": {k: list(v) if isinstance(v, tuple) else v
                                             for k, v in up.env.items()}} if up.env else {}),
-                                **({"min_action_std": up.min_action_std} if up.min_action_std else {}),
+                                **({} if up.min_action_std is None else
+                                   {"min_action_std": up.min_action_std}),
                                 "workers": workers,
                                 "device": device, "threads": threads, "cpu_count": os.cpu_count(),
                                 "steps": run_steps,
