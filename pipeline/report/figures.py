@@ -46,7 +46,8 @@ def progress_curves(progress: dict, adoption: dict | None, window: int = PROGRES
     their running means over the last `window` checkpoints, the run's stretches on one kind of machine
     (start step, machine; resumes on the same kind continue a stretch), where its observation or its
     hidden layers were widened, it was taken back to an earlier checkpoint, or its training envs'
-    values or its action std's floor changed (`changes`: step, label), the stretches trained with
+    values, its action std's floor or the side of its first step from standing changed (`changes`:
+    step, label), the stretches trained with
     teachers (`taught`: start and end step), the checkpoints of the branches given up (`discarded`:
     steps, passed, per branch), evaluate-policy's checks passed over every body at each adoption
     evaluation (`adoption`, adoption.json: `evaluation_totals`), and each body's share of
@@ -68,8 +69,8 @@ def progress_curves(progress: dict, adoption: dict | None, window: int = PROGRES
                 y.append((n["falls"] - n["pushed_falls"]) / calm)
     segments, taught, retrained, before, done = [], [], [], {}, 0
     for run in progress.get("runs", []):
-        settings = {**run.get("env", {}), **{k: run[k] for k in ("min_action_std",) if k in run}}
-        if settings != before:  # the training envs' values or the action std's floor changed from this run on
+        settings = {**run.get("env", {}), **{k: run[k] for k in ("min_action_std", "first_step") if k in run}}
+        if settings != before:  # the training envs' values, the std's floor or the first step's side changed
             before = settings
             shown = ", ".join(f"{k} {v}" for k, v in settings.items()) or "train's env"
             retrained.append((done / 1e6, f"trained with {shown}"))

@@ -34,7 +34,7 @@ only its cycle.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import Annotated
+from typing import Annotated, Literal
 
 import mujoco
 import numpy as np
@@ -82,6 +82,10 @@ class CommandSampling:
     # of where its pelvis faces (`lead_heading`), so a turn commanded faster than the body turns is
     # followed at the body's own rate (a pursuit "carrot") instead of asking for a sidestep.
     heading_lead_deg: Annotated[float, Field(gt=0.0, le=180.0)] | None = 20.0
+    # The leg of the first step from standing (and the last of a stop): "left", the cycle's legs
+    # passing while the left foot swings; "either", the closer of its two crossings, the side then
+    # differing between cycles and bodies (policies that recorded none; `sim.learn.walk_env.start_phase`).
+    first_step: Literal["left", "either"] = "left"
 
 
 def sample_commands(rng: np.random.Generator, speed_mps: float, duration_s: float, rate_hz: float,

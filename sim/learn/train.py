@@ -393,6 +393,8 @@ def save_steering(out_dir: str | Path, c: CommandSampling) -> None:
         law |= {"turn_lean": c.turn_lean, **{k: getattr(c, k) for k in LEAN_LAW}}
     if c.heading_lead_deg is not None:
         law["heading_lead_deg"] = c.heading_lead_deg
+    if c.first_step != "either":
+        law["first_step"] = c.first_step
     (Path(out_dir) / STEERING_FILE).write_text(json.dumps(law) + "\n")
 
 
@@ -420,15 +422,18 @@ def policy_env(out_dir: str | Path, env: WalkEnvParams) -> WalkEnvParams:
     before `full_gait_fraction` was recorded keeps the params' value; one without `min_cadence` was
     trained without a cadence floor, one without `turn_lean` without leaning into turns. The steering
     lead (`heading_lead_deg`) is how the simulated person follows a turn: a policy that recorded one
-    keeps it, any other walks with the params' lead."""
+    keeps it, any other walks with the params' lead. One without `first_step` starts from the closer
+    of the cycle's leg crossings ("either")."""
     f = Path(out_dir) / STEERING_FILE
     law = json.loads(f.read_text()) if f.exists() else {}
     fraction = law.get("full_gait_fraction") or env.commands.full_gait_fraction
     lead = law.get("heading_lead_deg", env.commands.heading_lead_deg)
+    first = law.get("first_step", "either")
     return replace(env, commands=replace(env.commands, stride_speed_exponent=law.get("stride_speed_exponent"),
                                          full_gait_fraction=fraction, min_cadence=law.get("min_cadence"),
                                          **{k: law.get(k, getattr(env.commands, k)) for k in LEAN_LAW},
-                                         turn_lean=law.get("turn_lean"), heading_lead_deg=lead))
+                                         turn_lean=law.get("turn_lean"), heading_lead_deg=lead,
+                                         first_step=first))
 
 
 def save_for_rollouts(src: str | Path, dest: str | Path) -> None:

@@ -550,6 +550,8 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
                                             for k, v in up.env.items()}} if up.env else {}),
                                 **({} if up.min_action_std is None else
                                    {"min_action_std": up.min_action_std}),
+                                **({} if env.commands.first_step == "either" else
+                                   {"first_step": env.commands.first_step}),
                                 "workers": workers,
                                 "device": device, "threads": threads, "cpu_count": os.cpu_count(),
                                 "steps": run_steps,

@@ -190,10 +190,7 @@ class ReferenceTable:
         self.height = cycle.qpos[:, 2].copy()
         self.root_vel = cycle.qvel[:, :3].copy()
         self.joint_vel = cycle.qvel[:, 6:].copy()
-        # gait starts from (and a stop ends at) the legs passing each other (feet closest fore-aft,
-        # mid-swing): from standing, the blend then lifts one foot forward, a first step; a pose with
-        # the feet apart would need them to slide apart on the floor
-        self.start_phase = float(np.argmin(np.abs(self.feet[:, 0] - self.feet[:, 3]))) / n
+        self.start_phase = start_phase(self.feet, commands.first_step)
         self.steered = SteeredReference(self, self.stand_ctrl, self.stand_feet, self.stand_height)
 
     def index(self, phase: float) -> tuple[int, int, float]:
@@ -567,6 +564,22 @@ class GaitState:
         return target
 
 
+def start_phase(feet: np.ndarray, first_step: str = "left") -> float:
+    """The phase a gait starts from and a stop ends at, from the cycle's feet relative to the pelvis
+    (N, 6: left xyz, right xyz): the legs passing each other (feet closest fore-aft), mid-swing. From
+    standing the blend then lifts the swinging foot forward, a first step; a pose with the feet apart
+    would need them to slide apart on the floor. `first_step` "left": the crossing while the left
+    foot swings (it is the higher); "either": the closer of the two crossings, which are often within
+    millimetres of each other, so the side flips between cycles and bodies and one policy for every
+    body would have to learn both starts (docs/policies.md)."""
+    gap = np.abs(feet[:, 0] - feet[:, 3])
+    if first_step == "left":
+        gap[feet[:, 2] <= feet[:, 5]] = np.inf  # the right foot swings (or neither)
+    elif first_step != "either":
+        raise ValueError(f"first_step: 'left' or 'either', not {first_step!r}")
+    return float(np.argmin(gap)) / len(feet)
+
+
 def start_pose(ref: ReferenceTable, k: int, a: float, qpos: np.ndarray, qvel: np.ndarray,
                ctrl: np.ndarray, rate: float = 1.0) -> None:
     """Initial human state (in place, the human's own slices): quiet standing when the gait
@@ -623,4 +636,4 @@ __all__ = ["AMP_LEVELS", "AMP_SIZE", "HUMAN_ACTUATORS", "LEGACY_OBS_SIZE", "OBS_
            "GaitState",
            "ReferenceTable", "WalkEnv", "WalkEnvParams", "amp_features", "feet_in_heading", "make_walk_env",
            "motion_amp_features", "motion_amp_pairs",
-           "observe", "pd_servo_spec", "pelvis_yaw", "servo_ranges", "start_pose"]
+           "observe", "pd_servo_spec", "pelvis_yaw", "servo_ranges", "start_phase", "start_pose"]

@@ -24,9 +24,10 @@ from sim.learn.train import (
     make_vec_env,
     new_ppo,
     policy_env,
+    save_steering,
     widen_policy,
 )
-from sim.learn.walk_env import LEGACY_OBS_SIZE, OBS_SIZE, GaitState, make_walk_env
+from sim.learn.walk_env import LEGACY_OBS_SIZE, OBS_SIZE, GaitState, make_walk_env, start_phase
 from sim.motion.reference import blend_qpos, load_reference
 from sim.rollout.scenarios import PHASES, command_profile
 
@@ -108,6 +109,30 @@ def test_a_policy_keeps_the_speed_law_it_was_trained_under(tmp_path, train_param
                       ).commands.min_cadence is None  # trained without a floor: none, whatever params say
     (tmp_path / STEERING_FILE).write_text('{"stride_speed_exponent": 0.42, "min_cadence": 0.74}')
     assert policy_env(tmp_path, env).commands.min_cadence == 0.74
+
+
+def test_the_first_step_from_standing_is_the_left_legs(env, tmp_path, train_params):
+    """`first_step` "left": the legs' crossing while the left foot swings, the closest of those
+    phases; with the feet's sides swapped the other crossing, half a cycle away. "either": the closer
+    of the two crossings, as before (a policy that recorded no side keeps it)."""
+    feet = env.ref.feet
+    gap = np.abs(feet[:, 0] - feet[:, 3])
+    left = start_phase(feet, "left")
+    k = int(round(left * len(feet)))
+    assert env.ref.start_phase == left and feet[k, 2] > feet[k, 5]
+    assert gap[k] == gap[feet[:, 2] > feet[:, 5]].min()
+    assert gap[int(round(start_phase(feet, "either") * len(feet)))] == gap.min() <= gap[k]
+    swapped = start_phase(feet[:, [3, 4, 5, 0, 1, 2]], "left")
+    assert abs((swapped - left) % 1.0 - 0.5) < 0.1
+    with pytest.raises(ValueError, match="first_step"):
+        start_phase(feet, "right")
+    base = train_params().env
+    assert base.commands.first_step == "left"
+    (tmp_path / STEERING_FILE).write_text('{"stride_speed_exponent": 0.42}')
+    assert policy_env(tmp_path, base).commands.first_step == "either"  # trained before it was recorded
+    save_steering(tmp_path, base.commands)
+    assert policy_env(tmp_path, replace(base, commands=replace(base.commands, first_step="either"))
+                      ).commands.first_step == "left"
 
 
 def test_gait_follows_the_commanded_speed(env):
