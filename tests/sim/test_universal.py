@@ -224,6 +224,7 @@ def test_one_run_resumes_and_records_its_gate(universal, camargo, tmp_path):
     assert hidden_sizes(load_policy(out)[0]) == (48, 32)
     assert last["runs"][-1]["env"] == {"push_probability": 0.0, "push_force_n": [0.0, 100.0]}
     assert last["runs"][-1]["min_action_std"] == 0.5 and "min_action_std" not in last["runs"][0]
+    assert last["runs"][-1]["first_step"] == p.env.commands.first_step == "left"  # the side it starts with
     assert torch.exp(load_policy(out)[0].policy.log_std).min() >= 0.5 - 1e-6  # raised from exp(-1) = 0.37
     assert all(n["pushed"] == 0 for n in last["checkpoints"][-1]["training"]["episodes"].values())
 
