@@ -46,8 +46,8 @@ def progress_curves(progress: dict, adoption: dict | None, window: int = PROGRES
     their running means over the last `window` checkpoints, the run's stretches on one kind of machine
     (start step, machine; resumes on the same kind continue a stretch), where its observation or its
     hidden layers were widened, it was taken back to an earlier checkpoint, or its training envs'
-    values, its action std's floor or the side of its first step from standing changed (`changes`:
-    step, label), the stretches trained with
+    values, its action std's floor or the side of its first step from standing changed, or its
+    observation statistics were re-estimated (`changes`: step, label), the stretches trained with
     teachers (`taught`: start and end step), the checkpoints of the branches given up (`discarded`:
     steps, passed, per branch), evaluate-policy's checks passed over every body at each adoption
     evaluation (`adoption`, adoption.json: `evaluation_totals`), and each body's share of
@@ -89,7 +89,9 @@ def progress_curves(progress: dict, adoption: dict | None, window: int = PROGRES
                          if "obs_size" in w else f"layers {w['net_arch'][0]} -> {w['net_arch'][1]}")
                         for w in progress.get("widened", [])] +
                        [(d["from_steps"] / 1e6, f"taken back from {d['to_steps'] / 1e6:.2f} M")
-                        for d in progress.get("discarded", [])] + retrained,
+                        for d in progress.get("discarded", [])] +
+                       [(s["steps"] / 1e6, "statistics re-estimated")
+                        for s in progress.get("statistics", [])] + retrained,
             "discarded": [([c["steps"] / 1e6 for c in d["checkpoints"]],
                            [c["passed"] for c in d["checkpoints"]]) for d in progress.get("discarded", [])]}
 

@@ -193,6 +193,49 @@ def widen_layers(old: PPO, venv, p: TrainParams, sizes: tuple[int, ...]) -> PPO:
     return model
 
 
+def pool_observations(model: PPO, venv: VecNormalize, steps: int) -> np.ndarray:
+    """Raw observations of about `steps` env steps of the pool walking under `model`'s stochastic
+    actions, as in training (steps, UNIVERSAL_OBS_SIZE); not counted as training steps."""
+    obs, out = venv.reset(), []
+    for _ in range(-(-steps // venv.num_envs)):
+        action, _ = model.predict(obs, deterministic=False)
+        obs, _, _, _ = venv.step(action)
+        out.append(venv.get_original_obs())
+    return np.concatenate(out)[:steps]
+
+
+def restat(model: PPO, norm: VecNormalize, obs: np.ndarray) -> dict:
+    """In place: `norm`'s observation statistics re-estimated from `obs` (raw observations of the
+    pool, `pool_observations`), and the first layers of the policy and value networks carried over so
+    that an input inside both clip ranges gives the same pre-activations as before (w' = w s_new /
+    s_old, b' = b + w (mu_new - mu_old) / s_old; Adam's moments of w as the gradient scales, m / r and
+    v / r^2). An input the old statistics put past the clip (`clip_obs`) reaches the network unclipped
+    now. Why: a run started from one body's policy keeps that body's statistics, and a body whose
+    joints sit far from its (another subject's arms, say) feeds the network clipped, constant inputs
+    (docs/results.md). Returns the samples and the shares of them with an input past the clip
+    before and after."""
+    rms, clip = norm.obs_rms, norm.clip_obs
+    mean_old, scale_old = rms.mean.copy(), np.sqrt(rms.var + norm.epsilon)
+    mean_new, var_new = obs.mean(0), obs.var(0)
+    scale_new = np.sqrt(var_new + norm.epsilon)
+    before = float((np.abs(obs - mean_old) > clip * scale_old).any(1).mean())
+    after = float((np.abs(obs - mean_new) > clip * scale_new).any(1).mean())
+    state = model.policy.optimizer.state
+    with torch.no_grad():
+        for net in (model.policy.mlp_extractor.policy_net, model.policy.mlp_extractor.value_net):
+            w, b = net[0].weight, net[0].bias
+            as_w = partial(torch.as_tensor, dtype=w.dtype, device=w.device)
+            b += w @ as_w((mean_new - mean_old) / scale_old)
+            ratio = as_w(scale_new / scale_old)
+            w *= ratio
+            moments = state.get(w, {})
+            if "exp_avg" in moments:
+                moments["exp_avg"] /= ratio
+                moments["exp_avg_sq"] /= ratio ** 2
+    rms.mean, rms.var, rms.count = mean_new, var_new, float(len(obs))
+    return {"samples": len(obs), "clipped_before": round(before, 4), "clipped_after": round(after, 4)}
+
+
 def _pad_columns(w: torch.Tensor) -> torch.Tensor:
     out = torch.zeros((w.shape[0], UNIVERSAL_OBS_SIZE), dtype=w.dtype)
     out[:, :w.shape[1]] = w
@@ -462,11 +505,14 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
                     resume: bool = False, total_steps: int | None = None, n_envs: int | None = None,
                     subprocess: bool = False, max_wall_s: float | None = None, device: str = "auto",
                     threads: int = 1, command: str = "", progress: bool = False, gate: bool = True,
-                    workers: int | None = None, teacher_root: str | Path = "data/policies") -> dict:
+                    workers: int | None = None, teacher_root: str | Path = "data/policies",
+                    restat_steps: int = 0) -> dict:
     """Train (or resume) the universal policy into `out_dir` (module docstring); returns the
     progress record. `subprocess`: the envs in `workers` processes (default one per env,
     `sim.learn.vec.GroupedSubprocVecEnv`); `gate`: False skips `quick_gate` at the checkpoints;
-    `teacher_root`: where `up.teachers`' committed policies are (`Teachers`)."""
+    `teacher_root`: where `up.teachers`' committed policies are (`Teachers`); `restat_steps`: a
+    resumed run's observation statistics first re-estimated from this many steps of the pool
+    (`restat`, recorded in `statistics`)."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     device = device_of(device)
@@ -509,6 +555,14 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
         widened.append({"steps": int(model.num_timesteps), "net_arch": [list(before), list(up.net_arch)]})
         if device != "cpu":
             model = _to_device(model, venv, p, device)
+    statistics = list(prior.get("statistics", []))
+    if restat_steps:
+        if not prior:
+            raise ValueError("restat_steps: only a resumed run's observation statistics are re-estimated")
+        learning, venv.training = venv.training, False
+        statistics.append({"steps": int(model.num_timesteps),
+                           **restat(model, venv, pool_observations(model, venv, restat_steps))})
+        venv.training = learning
     sampler = amp_reference_sampler(pool, up, pool.bodies[0].env.dt, p.seed)
     amp = AMP(2 * AMP_SIZE, p.amp, sampler, seed=p.seed, device=device)
     start_amp = out if prior else (Path(init_from) if init_from is not None else None)
@@ -543,6 +597,7 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
         rec = {"steps": int(model.num_timesteps), "wall_s": wall, **origin,
                "subjects": [s.name for s in sources], "obs_size": UNIVERSAL_OBS_SIZE,
                "obs_stats_frozen": frozen, **({"widened": widened} if widened else {}),
+               **({"statistics": statistics} if statistics else {}),
                **({"discarded": discarded} if discarded else {}),
                "runs": runs + [{"command": command, "n_envs": n_envs, "subprocess": subprocess,
                                 **({"teachers": list(up.teachers)} if taught else {}),
@@ -732,6 +787,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--device", default="auto", help="auto | cpu | cuda (the PPO and AMP updates)")
     ap.add_argument("--threads", type=int, default=1, help="torch threads of the update")
     ap.add_argument("--checkpoint-steps", type=int, default=None)
+    ap.add_argument("--restat-steps", type=int, default=0, help="with --resume: first re-estimate the "
+                    "observation statistics from this many env steps of the pool, the networks carried over")
     ap.add_argument("--export-to", type=Path, default=None, help="write every subject's policy folder from "
                     "the policy in --out into this root (<root>/<subject>/) and stop")
     ap.add_argument("--rewind-from", type=Path, default=None, help="take the run in --out back to "
@@ -757,7 +814,8 @@ def main(argv: list[str] | None = None) -> int:
     rec = train_universal(sources_of(up.subjects, args.processed), p, up, args.out, scenarios, init_from=init,
                           resume=resume, total_steps=args.steps, n_envs=args.n_envs,
                           subprocess=args.subprocess, workers=args.workers, max_wall_s=args.max_wall_s,
-                          device=args.device, threads=args.threads, command=command, progress=True)
+                          device=args.device, threads=args.threads, command=command, progress=True,
+                          restat_steps=args.restat_steps)
     last = rec["checkpoints"][-1]
     print(f"{rec['steps']} steps in {rec['wall_s']} s; gate {last['passed']}/{last['checks']}")
     return 0

@@ -34,6 +34,8 @@ from sim.learn.universal import (
     hidden_sizes,
     load_teachers,
     params_from_yaml,
+    pool_observations,
+    restat,
     rewind,
     rewound,
     train_universal,
@@ -178,6 +180,53 @@ def test_widened_layers_act_and_value_as_before(universal, camargo):
         widen_layers(old, venv, p, (16, 32))
 
 
+def test_re_estimated_statistics_keep_what_the_networks_do(universal, camargo):
+    """`restat`: the statistics become the sample's, and the policy and value networks give the same
+    outputs for observations inside both clip ranges; Adam's moments follow the weights' scale; an
+    input the old statistics clipped is reported and now reaches the network."""
+    p, up, _ = universal
+    p = replace(p, net_arch=(32, 32))
+    venv = VecNormalize(DummyVecEnv([lambda: MultiBodyEnv((camargo[0],), up, p.env, seed=0)]), norm_obs=True,
+                        norm_reward=False, clip_obs=10.0)
+    venv.training = False
+    model = new_ppo(venv, p)
+    raw = pool_observations(model, venv, 24)
+    assert raw.shape == (24, UNIVERSAL_OBS_SIZE) and np.isfinite(raw).all()
+    rng = np.random.default_rng(4)
+    venv.obs_rms.mean = rng.normal(size=UNIVERSAL_OBS_SIZE)
+    venv.obs_rms.var = rng.uniform(0.5, 2.0, UNIVERSAL_OBS_SIZE)
+    x = torch.as_tensor(rng.normal(size=(64, UNIVERSAL_OBS_SIZE)), dtype=torch.float32)
+    model.policy.optimizer.zero_grad()
+    values, log_prob, _ = model.policy.evaluate_actions(x, torch.zeros((64, 21)))
+    (values.mean() + log_prob.mean()).backward()
+    model.policy.optimizer.step()  # Adam's moments to carry over
+    i = [n for n, _ in model.policy.named_parameters()].index("mlp_extractor.policy_net.0.weight")
+    v_before = model.policy.optimizer.state_dict()["state"][i]["exp_avg_sq"].clone()
+    scale = rng.uniform(0.5, 3.0, UNIVERSAL_OBS_SIZE)
+    sample = rng.normal(size=(4000, UNIVERSAL_OBS_SIZE)) * scale + rng.normal(size=UNIVERSAL_OBS_SIZE)
+    sample[0, 3] = venv.obs_rms.mean[3] + 30.0 * np.sqrt(venv.obs_rms.var[3])  # past the old clip
+    z_old = np.abs(sample - venv.obs_rms.mean) / np.sqrt(venv.obs_rms.var + venv.epsilon)
+    z_new = np.abs(sample - sample.mean(0)) / np.sqrt(sample.var(0) + venv.epsilon)
+    probe = sample[(z_old <= 10).all(1) & (z_new <= 10).all(1)][:200]  # inside both clip ranges
+    assert len(probe) == 200
+    old_x = torch.as_tensor(venv.normalize_obs(probe), dtype=torch.float32)
+    with torch.no_grad():
+        before = (model.policy.get_distribution(old_x).distribution.mean, model.policy.predict_values(old_x))
+    var_old = venv.obs_rms.var.copy()
+    info = restat(model, venv, sample)
+    np.testing.assert_allclose(venv.obs_rms.mean, sample.mean(0))
+    np.testing.assert_allclose(venv.obs_rms.var, sample.var(0))
+    assert info["samples"] == 4000 and info["clipped_before"] >= 1 / 4000
+    new_x = torch.as_tensor(venv.normalize_obs(probe), dtype=torch.float32)
+    with torch.no_grad():
+        after = (model.policy.get_distribution(new_x).distribution.mean, model.policy.predict_values(new_x))
+    for a, b in zip(before, after, strict=True):
+        np.testing.assert_allclose(b.numpy(), a.numpy(), atol=1e-4)
+    ratio = np.sqrt(sample.var(0) + venv.epsilon) / np.sqrt(var_old + venv.epsilon)  # per input
+    v_after = model.policy.optimizer.state_dict()["state"][i]["exp_avg_sq"].numpy()
+    np.testing.assert_allclose(v_after, v_before.numpy() / ratio ** 2, rtol=1e-5)
+
+
 def test_one_run_resumes_and_records_its_gate(universal, camargo, tmp_path):
     p, up, scenarios = universal
     p = replace(p, n_steps=64, batch_size=128, n_epochs=1, checkpoint_steps=256, net_arch=(32, 32))
@@ -217,10 +266,12 @@ def test_one_run_resumes_and_records_its_gate(universal, camargo, tmp_path):
         rewound(rec, again, "a later record is no earlier checkpoint")
     calmer = {"push_probability": 0.0, "push_force_n": (0.0, 100.0)}  # the training envs' own values
     last = train_universal((camargo[0],), p, replace(up, net_arch=(48, 32), env=calmer, min_action_std=0.5),
-                           out, scenarios, total_steps=512, n_envs=2, resume=True)  # wider, no pushes
+                           out, scenarios, total_steps=512, n_envs=2, resume=True,
+                           restat_steps=32)  # wider, no pushes, statistics re-estimated first
     assert [c["steps"] for c in last["checkpoints"]] == [0, 256, 512]
     assert last["discarded"] == back["discarded"]  # carried on by the resumed run
     assert last["widened"] == [{"steps": 256, "net_arch": [[32, 32], [48, 32]]}]
+    assert [(s["steps"], s["samples"]) for s in last["statistics"]] == [(256, 32)]
     assert hidden_sizes(load_policy(out)[0]) == (48, 32)
     assert last["runs"][-1]["env"] == {"push_probability": 0.0, "push_force_n": [0.0, 100.0]}
     assert last["runs"][-1]["min_action_std"] == 0.5 and "min_action_std" not in last["runs"][0]
