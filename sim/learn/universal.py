@@ -211,9 +211,9 @@ def restat(model: PPO, norm: VecNormalize, obs: np.ndarray) -> dict:
     s_old, b' = b + w (mu_new - mu_old) / s_old; Adam's moments of w as the gradient scales, m / r and
     v / r^2). An input the old statistics put past the clip (`clip_obs`) reaches the network unclipped
     now. Why: a run started from one body's policy keeps that body's statistics, and a body whose
-    joints sit far from its (another subject's arms, say) feeds the network clipped, constant inputs
-    (docs/results.md). Returns the samples and the shares of them with an input past the clip
-    before and after."""
+    joints sit far outside them (another subject's arms, say) feeds the network clipped, constant
+    inputs (docs/policies.md). Returns the samples and the shares of them with an input past the
+    clip before and after."""
     rms, clip = norm.obs_rms, norm.clip_obs
     mean_old, scale_old = rms.mean.copy(), np.sqrt(rms.var + norm.epsilon)
     mean_new, var_new = obs.mean(0), obs.var(0)
