@@ -111,7 +111,7 @@ def test_a_policy_keeps_the_speed_law_it_was_trained_under(tmp_path, train_param
     assert policy_env(tmp_path, env).commands.min_cadence == 0.74
 
 
-def test_the_first_step_from_standing_is_the_left_legs(env, tmp_path, train_params):
+def test_the_first_step_from_standing_can_be_the_left_legs(env, tmp_path, train_params):
     """`first_step` "left": the legs' crossing while the left foot swings, the closest of those
     phases; with the feet's sides swapped the other crossing, half a cycle away. "either": the closer
     of the two crossings, as before (a policy that recorded no side keeps it)."""
@@ -119,7 +119,7 @@ def test_the_first_step_from_standing_is_the_left_legs(env, tmp_path, train_para
     gap = np.abs(feet[:, 0] - feet[:, 3])
     left = start_phase(feet, "left")
     k = int(round(left * len(feet)))
-    assert env.ref.start_phase == left and feet[k, 2] > feet[k, 5]
+    assert env.ref.start_phase == start_phase(feet, env.p.commands.first_step) and feet[k, 2] > feet[k, 5]
     assert gap[k] == gap[feet[:, 2] > feet[:, 5]].min()
     assert gap[int(round(start_phase(feet, "either") * len(feet)))] == gap.min() <= gap[k]
     swapped = start_phase(feet[:, [3, 4, 5, 0, 1, 2]], "left")
@@ -127,10 +127,10 @@ def test_the_first_step_from_standing_is_the_left_legs(env, tmp_path, train_para
     with pytest.raises(ValueError, match="first_step"):
         start_phase(feet, "right")
     base = train_params().env
-    assert base.commands.first_step == "left"
+    left_env = replace(base, commands=replace(base.commands, first_step="left"))
     (tmp_path / STEERING_FILE).write_text('{"stride_speed_exponent": 0.42}')
-    assert policy_env(tmp_path, base).commands.first_step == "either"  # trained before it was recorded
-    save_steering(tmp_path, base.commands)
+    assert policy_env(tmp_path, left_env).commands.first_step == "either"  # trained before it was recorded
+    save_steering(tmp_path, left_env.commands)
     assert policy_env(tmp_path, replace(base, commands=replace(base.commands, first_step="either"))
                       ).commands.first_step == "left"
 

@@ -265,8 +265,9 @@ def test_one_run_resumes_and_records_its_gate(universal, camargo, tmp_path):
     with pytest.raises(ValueError, match="not an earlier checkpoint of this run"):
         rewound(rec, again, "a later record is no earlier checkpoint")
     calmer = {"push_probability": 0.0, "push_force_n": (0.0, 100.0)}  # the training envs' own values
-    last = train_universal((camargo[0],), p, replace(up, net_arch=(48, 32), env=calmer, min_action_std=0.5),
-                           out, scenarios, total_steps=512, n_envs=2, resume=True,
+    left = replace(p, env=replace(p.env, commands=replace(p.env.commands, first_step="left")))
+    wider = replace(up, net_arch=(48, 32), env=calmer, min_action_std=0.5)
+    last = train_universal((camargo[0],), left, wider, out, scenarios, total_steps=512, n_envs=2, resume=True,
                            restat_steps=32)  # wider, no pushes, statistics re-estimated first
     assert [c["steps"] for c in last["checkpoints"]] == [0, 256, 512]
     assert last["discarded"] == back["discarded"]  # carried on by the resumed run
@@ -275,7 +276,7 @@ def test_one_run_resumes_and_records_its_gate(universal, camargo, tmp_path):
     assert hidden_sizes(load_policy(out)[0]) == (48, 32)
     assert last["runs"][-1]["env"] == {"push_probability": 0.0, "push_force_n": [0.0, 100.0]}
     assert last["runs"][-1]["min_action_std"] == 0.5 and "min_action_std" not in last["runs"][0]
-    assert last["runs"][-1]["first_step"] == p.env.commands.first_step == "left"  # the side it starts with
+    assert last["runs"][-1]["first_step"] == "left" and "first_step" not in last["runs"][0]  # params': either
     assert torch.exp(load_policy(out)[0].policy.log_std).min() >= 0.5 - 1e-6  # raised from exp(-1) = 0.37
     assert all(n["pushed"] == 0 for n in last["checkpoints"][-1]["training"]["episodes"].values())
 
