@@ -183,7 +183,7 @@ def test_widened_layers_act_and_value_as_before(universal, camargo):
 def test_re_estimated_statistics_keep_what_the_networks_do(universal, camargo):
     """`restat`: the statistics become the sample's, and the policy and value networks give the same
     outputs for observations inside both clip ranges; Adam's moments follow the weights' scale; an
-    input the old statistics clipped is reported and now reaches the network."""
+    observation with an input past the old clip is counted."""
     p, up, _ = universal
     p = replace(p, net_arch=(32, 32))
     venv = VecNormalize(DummyVecEnv([lambda: MultiBodyEnv((camargo[0],), up, p.env, seed=0)]), norm_obs=True,
