@@ -195,12 +195,15 @@ def widen_layers(old: PPO, venv, p: TrainParams, sizes: tuple[int, ...]) -> PPO:
 
 def pool_observations(model: PPO, venv: VecNormalize, steps: int) -> np.ndarray:
     """Raw observations of about `steps` env steps of the pool walking under `model`'s stochastic
-    actions, as in training (steps, UNIVERSAL_OBS_SIZE); not counted as training steps."""
+    actions, as in training (steps, UNIVERSAL_OBS_SIZE); not counted as training steps, and `venv`'s
+    statistics left as they are."""
+    learning, venv.training = venv.training, False
     obs, out = venv.reset(), []
     for _ in range(-(-steps // venv.num_envs)):
         action, _ = model.predict(obs, deterministic=False)
         obs, _, _, _ = venv.step(action)
         out.append(venv.get_original_obs())
+    venv.training = learning
     return np.concatenate(out)[:steps]
 
 
@@ -559,10 +562,8 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
     if restat_steps:
         if not prior:
             raise ValueError("restat_steps: only a resumed run's observation statistics are re-estimated")
-        learning, venv.training = venv.training, False
         statistics.append({"steps": int(model.num_timesteps),
                            **restat(model, venv, pool_observations(model, venv, restat_steps))})
-        venv.training = learning
     sampler = amp_reference_sampler(pool, up, pool.bodies[0].env.dt, p.seed)
     amp = AMP(2 * AMP_SIZE, p.amp, sampler, seed=p.seed, device=device)
     start_amp = out if prior else (Path(init_from) if init_from is not None else None)
