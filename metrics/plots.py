@@ -380,7 +380,8 @@ def training_progress_figure(curves: dict, title: str = "Universal walking polic
     each body's share of falls in training's episodes without random pushes (right, from where the
     record has it); dotted lines where a run segment began (its machine in the label, where it
     changed), dashed red ones where the observation or the layers were widened or the run taken back
-    (in the legend), crosses for the checkpoints of a branch given up, shading where teachers taught."""
+    (in the legend, below the panels: it grows with the run's history and would hide the curve),
+    crosses for the checkpoints of a branch given up, shading where teachers taught."""
     fig, (ax, ax2, ax3, ax4) = plt.subplots(1, 4, figsize=(18, 3.8))
     panels = (ax, ax2, ax3, ax4)
     if not curves["steps"]:
@@ -400,7 +401,12 @@ def training_progress_figure(curves: dict, title: str = "Universal walking polic
     for at, label in curves.get("changes", []):
         for a in panels:
             a.axvline(at, color="tab:red", linestyle="--", linewidth=0.8, label=label if a is ax else None)
-    ax.legend(fontsize=7, loc="upper right")
+    handles, labels = ax.get_legend_handles_labels()
+    rows = -(-len(handles) // 3)  # in 3 columns under the figure, 0.17 inch a row
+    below = 0.17 * rows + 0.15
+    fig.set_size_inches(18, 3.8 + below)
+    fig.legend(handles, labels, fontsize=7, ncol=3, loc="lower left", bbox_to_anchor=(0.01, 0.0),
+               frameon=False)
     for s, mean in curves["own_mean"].items():
         ax2.plot(steps, mean, "-", label=s)
     ax2.set_ylabel(f"own body, mean of the last {w}")
@@ -441,7 +447,7 @@ def training_progress_figure(curves: dict, title: str = "Universal walking polic
     if recorded:  # the record is recent: its own stretch
         ax4.set_xlim(min(recorded) - 0.5, max(recorded) + 0.5)
     fig.suptitle(title)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, below / (3.8 + below), 1, 1))
     return fig
 
 
