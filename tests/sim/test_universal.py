@@ -230,7 +230,9 @@ def test_re_estimated_statistics_keep_what_the_networks_do(universal, camargo):
 def test_one_run_resumes_and_records_its_gate(universal, camargo, tmp_path):
     p, up, scenarios = universal
     p = replace(p, n_steps=64, batch_size=128, n_epochs=1, checkpoint_steps=256, net_arch=(32, 32))
-    up = replace(up, min_action_std=None)  # the first runs without a floor, whatever params.yaml says
+    # the first runs without a floor and with either leg's start, whatever params.yaml says
+    p = replace(p, env=replace(p.env, commands=replace(p.env.commands, first_step="either")))
+    up = replace(up, min_action_std=None)
     out = tmp_path / "universal"
     rec = train_universal((camargo[0],), p, up, out, scenarios, total_steps=256, n_envs=2)
     assert rec["steps"] == 256 and rec["obs_size"] == UNIVERSAL_OBS_SIZE
@@ -277,7 +279,7 @@ def test_one_run_resumes_and_records_its_gate(universal, camargo, tmp_path):
     assert hidden_sizes(load_policy(out)[0]) == (48, 32)
     assert last["runs"][-1]["env"] == {"push_probability": 0.0, "push_force_n": [0.0, 100.0]}
     assert last["runs"][-1]["min_action_std"] == 0.5 and "min_action_std" not in last["runs"][0]
-    assert last["runs"][-1]["first_step"] == "left" and "first_step" not in last["runs"][0]  # params': either
+    assert last["runs"][-1]["first_step"] == "left" and "first_step" not in last["runs"][0]
     assert torch.exp(load_policy(out)[0].policy.log_std).min() >= 0.5 - 1e-6  # raised from exp(-1) = 0.37
     assert all(n["pushed"] == 0 for n in last["checkpoints"][-1]["training"]["episodes"].values())
 
