@@ -12,8 +12,9 @@ Joint centres: hip by the Harrington et al. (2007) regression (`ingest.kinematic
 ankle at the midpoint of the lateral and medial markers, or the lateral marker shifted medially
 by half a knee / ankle width (a fraction of stature, params) when the set has no medial marker;
 elbow and wrist at the midpoint of their two markers; shoulder below the acromion marker by a
-fraction of the acromion-elbow distance (Rab et al. 2002, Gait Posture 15:113); lumbar joint at
-the navel level (de Leva's OMPH, by his trunk subsegment lengths). Landmarks a marker set lacks
+fraction of the acromion-elbow distance (Rab et al. 2002, Gait Posture 15:113); neck (C7/T1)
+joint in front of the C7 marker, placed from it and the sternum markers (`cervical_joint_centre`),
+else over the mid-hip at the C7 marker's height; lumbar joint at the navel level (de Leva's OMPH, by his trunk subsegment lengths). Landmarks a marker set lacks
 come from stature ratios (de Leva 1996 lengths, Winter 2009 Fig. 4.1 heights and widths) with the
 trunk upright and the arms hanging.
 
@@ -78,6 +79,10 @@ ROLE_BODIES = {
     "upper_arm": ("elbow", "elbow_medial"),
     "forearm": ("wrist", "wrist_medial"),
 }
+# C7/T1 joint centre from C7 and the jugular notch (`cervical_joint_centre`): Reed et al. 1999's
+# men's values (Dumas et al. 2007 give 14 deg and 0.53 for women; subject files carry no sex).
+CJC_ANGLE_DEG = 8.0
+CJC_FRACTION = 0.55
 BODIES = ("pelvis", "torso", "head", "thigh_l", "thigh_r", "shank_l", "shank_r", "foot_l", "foot_r",
           "upper_arm_l", "upper_arm_r", "forearm_l", "forearm_r")
 
@@ -86,7 +91,7 @@ BODIES = ("pelvis", "torso", "head", "thigh_l", "thigh_r", "shank_l", "shank_r",
 class ScaledBody:
     """A subject's body in the static pose, in the canonical static frame (metres, kg).
 
-    joint_centres: hip_l/r, knee_l/r, ankle_l/r, mid_hip, lumbar, neck (C7), vertex, shoulder_l/r,
+    joint_centres: hip_l/r, knee_l/r, ankle_l/r, mid_hip, lumbar, neck (C7/T1), vertex, shoulder_l/r,
     elbow_l/r, wrist_l/r, hand_l/r (third metacarpal end of the hand).
     frames: body -> 3x3 rotation whose columns are the body's axes in the static frame.
     contact_points: foot_l/r -> (4, 3) contact sphere centres (heel medial/lateral, toe
@@ -144,6 +149,29 @@ def frame_from_zy(z: np.ndarray, y_ref: np.ndarray) -> np.ndarray:
     z = _unit(z)
     x = _unit(np.cross(y_ref, z))
     return np.column_stack([x, np.cross(z, x), z])
+
+
+def _sternal_notch(lm) -> np.ndarray | None:
+    """The jugular notch: the `sternum` marker, or the midpoint of `sternum_left` and
+    `sternum_right` (markers on the sternal ends of the clavicles); None without them."""
+    single, pair = lm("sternum"), [lm("sternum_left"), lm("sternum_right")]
+    if single is not None:
+        return single
+    return (pair[0] + pair[1]) / 2 if all(m is not None for m in pair) else None
+
+
+def cervical_joint_centre(c7: np.ndarray, notch: np.ndarray, below: np.ndarray) -> np.ndarray:
+    """The C7/T1 joint centre (m) from the C7 spinous process and jugular notch markers, in the
+    sagittal plane they span with `below` (a point down the trunk, e.g. the mid-hip): from C7,
+    `CJC_FRACTION` of the C7-notch distance along the C7->notch line turned `CJC_ANGLE_DEG` upward.
+    Why: the C7 marker sits on the skin of the back, ~7 cm behind the spine's axis; taking it as
+    the joint leans the trunk segment (and its mass) backward. Source: Reed, Manary & Schneider
+    1999 (SAE 1999-01-0959), as used by Dumas, Cheze & Verriest 2007 (J Biomech 40:543)."""
+    x = _unit(notch - c7)
+    up = c7 - below
+    y = _unit(up - (up @ x) * x)
+    a = np.radians(CJC_ANGLE_DEG)
+    return c7 + CJC_FRACTION * np.linalg.norm(notch - c7) * (np.cos(a) * x + np.sin(a) * y)
 
 
 def _segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
@@ -306,14 +334,19 @@ def scale_subject(subject: Subject, static: StaticTrial, p: HumanParams) -> Scal
         foot = shank @ Rotation.from_euler("y", -angles[f"ankle_{s}"]).as_matrix()
         frames.update({f"thigh_{s}": thigh, f"shank_{s}": shank, f"foot_{s}": foot})
 
-    # Trunk and head: C7 from the marker or from the head length; vertex at the subject's height.
-    c7 = lm("c7")
-    if c7 is None:
-        c7 = np.array([*jc["mid_hip"][:2], H - table.length_ratio("head") * H])
-    jc["neck"], sources["neck"] = c7, "markers" if lm("c7") is not None else "height ratio"
-    jc["vertex"] = np.array([c7[0], c7[1], H])
+    # Trunk and head: the neck (C7/T1) joint centre from the C7 and sternum markers, else at the
+    # C7 marker's or the head length's height over the mid-hip; vertex at the subject's height.
+    c7, notch = lm("c7"), _sternal_notch(lm)
+    if c7 is not None and notch is not None:
+        neck, sources["neck"] = cervical_joint_centre(c7, notch, jc["mid_hip"]), "Reed 1999 (C7, sternum)"
+    else:
+        neck_z = c7[2] if c7 is not None else H - table.length_ratio("head") * H
+        neck = np.array([*jc["mid_hip"][:2], neck_z])
+        sources["neck"] = "C7 height over the mid-hip" if c7 is not None else "height ratio"
+    jc["neck"] = neck
+    jc["vertex"] = np.array([neck[0], neck[1], H])
     trunk_parts = [table.segments[n].length_mm for n in ("upper_trunk", "mid_trunk", "lower_trunk")]
-    jc["lumbar"] = jc["mid_hip"] + (c7 - jc["mid_hip"]) * trunk_parts[2] / sum(trunk_parts)
+    jc["lumbar"] = jc["mid_hip"] + (neck - jc["mid_hip"]) * trunk_parts[2] / sum(trunk_parts)
 
     for s, side in SIDE_NAME_OF_SUFFIX.items():
         sign = 1.0 if s == "l" else -1.0

@@ -198,12 +198,14 @@ def pool_observations(model: PPO, venv: VecNormalize, steps: int) -> np.ndarray:
     actions, as in training (steps, UNIVERSAL_OBS_SIZE); not counted as training steps, and `venv`'s
     statistics left as they are."""
     learning, venv.training = venv.training, False
-    obs, out = venv.reset(), []
-    for _ in range(-(-steps // venv.num_envs)):
-        action, _ = model.predict(obs, deterministic=False)
-        obs, _, _, _ = venv.step(action)
-        out.append(venv.get_original_obs())
-    venv.training = learning
+    try:
+        obs, out = venv.reset(), []
+        for _ in range(-(-steps // venv.num_envs)):
+            action, _ = model.predict(obs, deterministic=False)
+            obs, _, _, _ = venv.step(action)
+            out.append(venv.get_original_obs())
+    finally:
+        venv.training = learning
     return np.concatenate(out)[:steps]
 
 

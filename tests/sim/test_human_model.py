@@ -29,7 +29,7 @@ from sim.body.human import (
 )
 from sim.body.human_params import BALL_JOINTS, HINGE_JOINTS
 from sim.body.markers import marker_positions, marker_sites, trial_from_qpos
-from sim.body.scaling import scale_subject
+from sim.body.scaling import cervical_joint_centre, scale_subject
 from sim.errors import ScalingError, SimulationError
 from sim.motion.retarget import retarget
 
@@ -344,3 +344,36 @@ def test_lower_body_marker_set_falls_back_to_ratios(hp, manifest):
     assert (model.nv, model.nu) == (27, 21)
     assert model.body_mass.sum() == pytest.approx(subject.mass_kg, rel=1e-6)
     assert standing_height(model, static_data(model)) == pytest.approx(subject.height_m, abs=0.005)
+
+
+def test_cervical_joint_centre_lies_inside_the_neck():
+    """Reed et al.'s C7/T1 centre: in the sagittal plane of C7, the jugular notch and the point
+    below, 55 % of the C7-notch distance from C7 on a line 8 deg above the C7->notch line."""
+    c7, notch, below = np.array([-0.05, 0.01, 1.46]), np.array([0.09, 0.01, 1.40]), np.array([0.03, 0.01, 0.9])
+    cjc = cervical_joint_centre(c7, notch, below)
+    d = np.linalg.norm(notch - c7)
+    assert np.linalg.norm(cjc - c7) == pytest.approx(0.55 * d)
+    assert cjc[1] == pytest.approx(0.01)
+    along, to = (notch - c7) / d, (cjc - c7) / np.linalg.norm(cjc - c7)
+    assert np.degrees(np.arccos(along @ to)) == pytest.approx(8.0)
+    assert c7[0] < cjc[0] < notch[0]
+    assert cjc[2] > c7[2] + (notch[2] - c7[2]) * (cjc[0] - c7[0]) / (notch[0] - c7[0])  # above the line
+
+
+def test_neck_joint_sits_in_front_of_the_c7_marker(hp, manifest):
+    """opencap4's static trial has C7 and sternum markers: the neck joint comes from both and lies
+    4-9 cm in front of the C7 skin marker, so the trunk (mid-hip -> neck) stands within 5 deg of
+    upright as the subject does; without the sternum markers it stands over the mid-hip at the C7
+    marker's height."""
+    subject = load_subject("opencap4")
+    static = read_static_trial(subject, manifest)
+    body = scale_subject(subject, static, hp)
+    c7, neck, mid_hip = body.markers["C7"], body.joint_centres["neck"], body.joint_centres["mid_hip"]
+    assert body.length_sources["neck"].startswith("Reed 1999")
+    assert 0.04 < neck[0] - c7[0] < 0.09
+    trunk = neck - mid_hip
+    assert abs(np.degrees(np.arctan2(trunk[0], trunk[2]))) < 5.0
+    roles = {k: v for k, v in static.roles.items() if not k.startswith("sternum")}
+    no_sternum = scale_subject(subject, dataclasses.replace(static, roles=roles), hp)
+    assert no_sternum.length_sources["neck"] == "C7 height over the mid-hip"
+    assert np.allclose(no_sternum.joint_centres["neck"], [*mid_hip[:2], c7[2]])
