@@ -375,6 +375,22 @@ GATE_LIMITS_REQUIRED = Limits(1.0, 1.0)  # value 1 = passed, 0 = failed: a faile
 GATE_LIMITS_OPTIONAL = Limits(1.0, 0.0)  # ... a failed check the gate does not require warns
 
 
+def policy_body_checks(subject: str, body: Mapping | None) -> list[QualityCheck]:
+    """One `policy` row, `policy_body_current`: 1 when the policy rollouts walked the subject's
+    current scaled model, 0 (warn) when they walked the older body the policy was trained on (a
+    policy rolls out on its own human.xml; scaling changed since), so the policy rows describe that
+    body. No rollouts (`body` None): no row."""
+    if not body:
+        return []
+    current = bool(body.get("current_model"))
+    note = (f"policy rollouts on {body.get('file')}, "
+            + ("the subject's current model" if current else
+               "the body the policy was trained on, not the subject's current model (scaling changed "
+               "since training): the policy rows describe that body; retrain or transfer to update"))
+    return [check(subject, "policy", "policy_body_current", float(current), GATE_LIMITS_OPTIONAL, note,
+                  higher_is_worse=False)]
+
+
 def transfer_checks(subject: str, gate: Mapping | None) -> list[QualityCheck]:
     """One `policy` row per scenario check of a transferred policy's gate (`pipeline.stages.transfer`:
     `checks` name -> {pass, required}): value 1 passed, 0 failed; a failed required check is `fail`,

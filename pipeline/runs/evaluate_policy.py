@@ -54,7 +54,13 @@ from metrics.scenario_checks import (
 from pipeline import paths
 from pipeline.params import Params
 from pipeline.runs.evaluation import EvalParams
-from pipeline.runs.jobs import policy_job, policy_setup, scenario_jobs, scenario_profiles
+from pipeline.runs.jobs import (
+    policy_body_is_current,
+    policy_job,
+    policy_setup,
+    scenario_jobs,
+    scenario_profiles,
+)
 from pipeline.runs.report_params import ReportParams
 from pipeline.runs.setup import variant as variant_of
 from pipeline.stages.ingest import read_ingested
@@ -128,7 +134,7 @@ def evaluate_policy(subject: str, params: Params, root: Path = paths.PROCESSED_R
     rows.append(share_row("push", recovered, len(pushed), checks.push_recovered_fraction))
     doc["push"] = {"force_n": ev.push_n, "duration_s": ev.push_duration_s, "at_s": ev.push_time_s,
                    "walk_s": push_s, "rollouts": len(pushed), "recovered": recovered, "pass": rows[-1].passed}
-    xml, npz = paths.human_xml(root, subject), paths.reference_npz(root, subject)
+    npz = paths.reference_npz(root, subject)
     in_model = reference_cycles(mujoco.MjModel.from_xml_path(str(policy_body)), load_reference(npz), subject,
                                 load_subject(subject).markerset, params.section("ingest", IngestParams))
     spm, shown = {}, {}
@@ -153,7 +159,7 @@ def evaluate_policy(subject: str, params: Params, root: Path = paths.PROCESSED_R
                                                  else f"policy_spm_{variant}.png")
     dpi = params.section("report", ReportParams).dpi
     write_figure(policy_spm_figure(shown, spm, subject), png, dpi)
-    doc["policy_body_is_current_model"] = policy_body.read_bytes() == xml.read_bytes()
+    doc["policy_body_is_current_model"] = policy_body_is_current(policy_body, root, subject)
     doc["figure"] = paths.repo_relative(png)
     doc["unstable_rollouts"] = sum(not o.stable for o in outcomes)
     doc["skipped"] = [f"{o.job.trial}: {o.skipped}" for o in outcomes if o.skipped]

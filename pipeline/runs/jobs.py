@@ -97,6 +97,14 @@ def policy_setup(subject: str, params: Params, root: Path = paths.PROCESSED_ROOT
     return batch_setup(params, subject, load_subject(subject).markerset, folder / BODY_FILE, source)
 
 
+def policy_body_is_current(policy_body: Path, root: Path, subject: str) -> bool:
+    """Whether a policy's own body (the human.xml it was trained on, which its rollouts walk) is
+    byte for byte `subject`'s current scaled model; when scaling has changed since training, the
+    policy's results describe the older body."""
+    xml = paths.human_xml(root, subject)
+    return xml.is_file() and policy_body.read_bytes() == xml.read_bytes()
+
+
 def policy_job(condition: str, seed: int, walk: PolicyWalk, tag: str = "") -> RolloutJob:
     """A policy-human job; its trial id names the condition (or `tag`) and the seed."""
     return RolloutJob(condition, seed, f"policy_{tag or condition}_seed{seed}", walk)
@@ -122,5 +130,5 @@ def scenario_profiles(params: Params, speed_mps: float, rate_hz: float) -> dict[
             for name, segs in sc.build().items()}
 
 
-__all__ = ["policy_job", "policy_setup", "replay_jobs", "replay_setup", "require_inputs", "scenario_jobs",
-           "scenario_profiles"]
+__all__ = ["policy_body_is_current", "policy_job", "policy_setup", "replay_jobs", "replay_setup",
+           "require_inputs", "scenario_jobs", "scenario_profiles"]

@@ -31,6 +31,7 @@ from metrics.quality import (
     QualityParams,
     TrialSpan,
     ingest_checks,
+    policy_body_checks,
     quality_table,
     scale_checks,
     sim_checks,
@@ -190,7 +191,8 @@ def quality_checks(subject: str, params: Params, root: Path = PROCESSED_ROOT,
                              spans if spans is not None else trial_spans(subject, root),
                              p.spm.min_cycles, q),
               *sim_checks(subject, real["strides"], sims, table_strides, q, walks, rollouts),
-              *transfer_checks(subject, policy_summary.get("transfer"))]
+              *transfer_checks(subject, policy_summary.get("transfer")),
+              *policy_body_checks(subject, policy_summary.get("policy_body"))]
     return quality_table(checks)
 
 

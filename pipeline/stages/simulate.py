@@ -26,7 +26,14 @@ from metrics.tracking import tracking_table
 from pipeline import paths
 from pipeline.params import Params
 from pipeline.runs.gate_record import gate_failed, gate_summary, read_gate
-from pipeline.runs.jobs import policy_setup, replay_jobs, replay_setup, scenario_jobs, scenario_profiles
+from pipeline.runs.jobs import (
+    policy_body_is_current,
+    policy_setup,
+    replay_jobs,
+    replay_setup,
+    scenario_jobs,
+    scenario_profiles,
+)
 from pipeline.runs.report_params import ReportParams
 from pipeline.stages.outputs import write_figure, write_outputs
 from sim.rollout.batch import RolloutJob, RolloutOutcome, batch_tables, run_batch
@@ -110,8 +117,9 @@ def run_simulate_policy(subject: str, params: Params, root: Path = paths.PROCESS
     """Policy-human rollouts of every scenario x condition x walk -> `<root>/<subject>/sim_policy/`
     (events, strides, cycles, robot tagged with scenario and phase; summary.json). A subject without
     a trained policy, or whose transferred policy failed its gate (`pipeline.runs.gate`), gets
-    empty tables and a summary that says so; a transferred policy's gate goes into the summary
-    (`transfer`), which the metrics stage turns into quality rows."""
+    empty tables and a summary that says so; a transferred policy's gate (`transfer`) and whether
+    the policy's own body is the subject's current model (`policy_body`) go into the summary, which
+    the metrics stage turns into quality rows."""
     folder = paths.policy_dir(policy_root, subject)
     out = paths.sim_policy_dir(root, subject)
     gate = read_gate(folder)
@@ -131,7 +139,7 @@ def run_simulate_policy(subject: str, params: Params, root: Path = paths.PROCESS
     sc = params.section("scenarios", ScenariosSection)
     outcomes = run_batch(setup, jobs, r.workers, f"scenario rollouts {subject}", progress)
     tables = batch_tables(outcomes)
-    _, cycle = load_body(folder)
+    body_xml, cycle = load_body(folder)
     profiles = scenario_profiles(params, cycle.speed_mps, setup.drivers.sample_rate_hz)
     tag_scenarios(tables, jobs, profiles)
     agreement = commanded_vs_measured(outcomes, profiles, params.section("ingest", IngestParams),
@@ -142,7 +150,10 @@ def run_simulate_policy(subject: str, params: Params, root: Path = paths.PROCESS
                                                          and o.job.human.scenario == name)
                                      for name in sc.commands
                                      for c in r.conditions},
-               "phase_agreement": agreement, **transfer}
+               "phase_agreement": agreement,
+               "policy_body": {"file": paths.repo_relative(body_xml),
+                               "current_model": policy_body_is_current(body_xml, root, subject)},
+               **transfer}
     write_outputs(out, tables, {"summary": summary})
     return summary
 

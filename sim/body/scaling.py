@@ -14,9 +14,9 @@ by half a knee / ankle width (a fraction of stature, params) when the set has no
 elbow and wrist at the midpoint of their two markers; shoulder below the acromion marker by a
 fraction of the acromion-elbow distance (Rab et al. 2002, Gait Posture 15:113); neck (C7/T1)
 joint in front of the C7 marker, placed from it and the sternum markers (`cervical_joint_centre`),
-else over the mid-hip at the C7 marker's height; lumbar joint at the navel level (de Leva's OMPH, by his trunk subsegment lengths). Landmarks a marker set lacks
-come from stature ratios (de Leva 1996 lengths, Winter 2009 Fig. 4.1 heights and widths) with the
-trunk upright and the arms hanging.
+else over the mid-hip at the C7 marker's height; lumbar joint at the navel level (de Leva's OMPH,
+by his trunk subsegment lengths). Landmarks a marker set lacks come from stature ratios (de Leva
+1996 lengths, Winter 2009 Fig. 4.1 heights and widths) with the trunk upright and the arms hanging.
 
 Segment frames (columns x forward, y left, z up along the segment) set the zeros of the model's
 joints, which `human.neutral` chooses:

@@ -15,7 +15,7 @@ import pandas as pd
 import pytest
 import yaml
 
-from metrics.quality import transfer_checks
+from metrics.quality import policy_body_checks, transfer_checks
 from pipeline.params import PARAMS_FILE, ParamsError, check_params
 from pipeline.report import sections
 from pipeline.report.render import section_markdown
@@ -286,6 +286,7 @@ def test_transfer_stage_writes_the_policy_and_the_gate_record(processed, policie
     with_pid = params.replaced("rollout", RolloutSection, pid_only)
     summary = run_simulate_policy(subject, with_pid, processed, policies, progress=False)
     assert summary["rollouts"] > 0 and summary["transfer"]["pass"] is True
+    assert summary["policy_body"] == {"file": str(folder / "human.xml"), "current_model": True}
     robot = pd.read_parquet(processed / subject / "sim_policy" / "robot.parquet")
     assert not robot.empty and set(robot["human_mode"]) == {"policy"}
 
@@ -368,6 +369,18 @@ def test_a_universal_gate_row_names_the_checkpoint_and_its_sample():
     (row,) = transfer_checks("kgc6", gate)
     assert row.status == "ok" and "universal policy at 60931328 steps" in row.note
     assert "2 walks per check" in row.note and "distance" not in row.note
+
+
+def test_a_policy_on_an_older_body_warns_and_says_so():
+    """The policy rolls out on the body it was trained on: when scaling has changed since, its
+    rows describe that body, and the quality row says so (warn); on the current model, ok."""
+    (stale,) = policy_body_checks("opencap4", {"file": "data/policies/opencap4/human.xml",
+                                               "current_model": False})
+    assert stale.status == "warn" and stale.value == 0.0
+    assert "not the subject's current model" in stale.note and "data/policies/opencap4" in stale.note
+    (fresh,) = policy_body_checks("camargo", {"file": "x.xml", "current_model": True})
+    assert fresh.status == "ok" and "current model" in fresh.note
+    assert policy_body_checks("kgc6", None) == []
 
 
 def test_no_gate_no_policy_rows():

@@ -349,7 +349,8 @@ def test_lower_body_marker_set_falls_back_to_ratios(hp, manifest):
 def test_cervical_joint_centre_lies_inside_the_neck():
     """Reed et al.'s C7/T1 centre: in the sagittal plane of C7, the jugular notch and the point
     below, 55 % of the C7-notch distance from C7 on a line 8 deg above the C7->notch line."""
-    c7, notch, below = np.array([-0.05, 0.01, 1.46]), np.array([0.09, 0.01, 1.40]), np.array([0.03, 0.01, 0.9])
+    c7, notch = np.array([-0.05, 0.01, 1.46]), np.array([0.09, 0.01, 1.40])
+    below = np.array([0.03, 0.01, 0.9])
     cjc = cervical_joint_centre(c7, notch, below)
     d = np.linalg.norm(notch - c7)
     assert np.linalg.norm(cjc - c7) == pytest.approx(0.55 * d)
