@@ -54,6 +54,8 @@ class UniversalParams:
     net_arch: tuple[int, ...] | None = None  # the run's hidden layers: narrower ones are widened (None: kept)
     env: dict = field(default_factory=dict)  # the training envs' values that differ from `train.env`'s
     min_action_std: float | None = None  # the policy's action std kept at or above this (None: free)
+    bound_weight: float = 0.0            # the action-bound term's weight in PPO's loss (0: none)
+    bound_batch: int = 256               # ... rollout states per PPO optimizer step
 
     @classmethod
     def from_dict(cls, d: dict) -> UniversalParams:
@@ -84,7 +86,7 @@ class UniversalParams:
                 out[k] = tuple(str(x) for x in v)
             elif k == "init_from":
                 out[k] = str(v)
-            elif k in ("drawn", "gate_seeds", "critic_warmup_steps", "teacher_batch"):
+            elif k in ("drawn", "gate_seeds", "critic_warmup_steps", "teacher_batch", "bound_batch"):
                 out[k] = int(v)
             else:
                 out[k] = float(v)

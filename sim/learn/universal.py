@@ -293,8 +293,9 @@ class TrainingRecord(BaseCallback):
     of each fall without them (`calm_fell_in`; `sim.learn.pool.MultiBodyEnv`'s `pool_episode`: a
     subject's own body by name, every drawn body as `drawn`) and PPO's updates (approximate KL, clip
     fraction, epochs run of `n_epochs` before `target_kl` stopped them, explained variance, action
-    std), each update also to `log(step, metrics)`. Why: the quick gate walks each body once per
-    check; this is every episode."""
+    std, and `beyond_bound`: the share of the rollout's mean actions past the action bounds, where
+    the env clips them, `ActionBound`), each update also to `log(step, metrics)`. Why: the quick gate
+    walks each body once per check; this is every episode."""
 
     PPO_KEYS = ("approx_kl", "clip_fraction", "explained_variance", "std")
     COUNTS = ("episodes", "falls", "pushed", "pushed_falls")
@@ -305,9 +306,13 @@ class TrainingRecord(BaseCallback):
         self.episodes: dict[str, dict] = {}
         self.updates: list[dict] = []
         self.n_updates = 0
+        self.beyond: float | None = None
 
     def _init_callback(self) -> None:
         self.n_updates = self.model._n_updates
+
+    def _on_rollout_end(self) -> None:  # before PPO's update of this rollout
+        self.beyond = float(beyond_bound(self.model, rollout_states(self.model)).mean())
 
     def _on_step(self) -> bool:
         for info in self.locals["infos"]:
@@ -326,6 +331,8 @@ class TrainingRecord(BaseCallback):
             return
         row = {k: float(seen[f"train/{k}"]) for k in self.PPO_KEYS if f"train/{k}" in seen}
         row["epochs"] = float(self.model._n_updates - self.n_updates)
+        if self.beyond is not None:
+            row["beyond_bound"] = self.beyond
         self.n_updates = self.model._n_updates
         self.updates.append(row)
         self.log_fn(self.num_timesteps, {f"ppo_{k}": v for k, v in row.items()})
@@ -341,19 +348,101 @@ class TrainingRecord(BaseCallback):
         return out
 
 
+def rollout_states(model: PPO) -> torch.Tensor:
+    """The last rollout's observations as the policy saw them (normalised), one row per state."""
+    seen = model.rollout_buffer.observations
+    return torch.as_tensor(seen.reshape(-1, seen.shape[-1]), device=model.device)
+
+
+def excess(model: PPO, x: torch.Tensor) -> torch.Tensor:
+    """Per state of `x` and action, how far the policy's mean action is past the action space's
+    bounds (0 inside them), in normalised action units."""
+    mean = model.policy.get_distribution(x).distribution.mean
+    high = torch.as_tensor(model.action_space.high, dtype=mean.dtype, device=mean.device)
+    return torch.relu(mean.abs() - high)
+
+
+def beyond_bound(model: PPO, x: torch.Tensor) -> torch.Tensor:
+    """Per state of `x`, the share of the policy's mean actions past the action space's bounds."""
+    with torch.no_grad():
+        return (excess(model, x) > 0).float().mean(-1)
+
+
+class LossTerm(BaseCallback):
+    """A term of PPO's loss on the policy's mean action, beside PPO's own: before each of PPO's
+    optimizer steps (a pre-step hook) the gradient of `loss()` on the mean action's weights is added
+    to PPO's, so one optimizer weighs both. Subclasses give `loss()` (None: nothing this step)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.hook = None
+
+    def _init_callback(self) -> None:
+        self.hook = self.model.policy.optimizer.register_step_pre_hook(self._add_term)
+
+    def loss(self) -> torch.Tensor | None:
+        raise NotImplementedError
+
+    def _add_term(self, optimizer, args, kwargs) -> None:
+        params = [q for q in mean_action_parameters(self.model.policy) if q.requires_grad]
+        if not params:  # the critic's warm-up: the mean action is not trained
+            return
+        with torch.enable_grad():
+            loss = self.loss()
+            if loss is None:
+                return
+            grads = torch.autograd.grad(loss, params)
+        for q, g in zip(params, grads, strict=True):
+            q.grad = g if q.grad is None else q.grad + g
+
+    def _on_step(self) -> bool:
+        return True
+
+    def _on_training_end(self) -> None:
+        if self.hook is not None:
+            self.hook.remove()
+            self.hook = None
+
+
+class ActionBound(LossTerm):
+    """The action-bound term of AMP's reference implementations (Peng et al. 2021, 2022; rl_games'
+    `bounds_loss`, MimicKit's `action_bound_weight`): `weight` x the squared excess of the mean action
+    past the action space's bounds, summed over actions and averaged over `batch` states of the
+    rollout drawn at each optimizer step. Why: the env clips each sampled action to the bounds, so
+    for a mean far past them every sample acts alike and PPO's gradient on that mean is noise; the
+    term brings it back to where its samples differ (it does not change the clipped action until the
+    mean is inside)."""
+
+    def __init__(self, weight: float, batch: int, seed: int = 0) -> None:
+        super().__init__()
+        self.weight, self.batch = weight, batch
+        self.rng = np.random.default_rng(seed)
+        self.x: torch.Tensor | None = None
+
+    def _on_rollout_end(self) -> None:  # before PPO's update of this rollout
+        self.x = rollout_states(self.model)
+
+    def loss(self) -> torch.Tensor | None:
+        if self.x is None:
+            return None
+        pick = self.rng.integers(0, len(self.x), min(self.batch, len(self.x)))
+        idx = torch.as_tensor(pick, device=self.x.device)
+        return self.weight * torch.square(excess(self.model, self.x[idx])).sum(-1).mean()
+
+
 Teacher = tuple[np.ndarray, PPO, VecNormalize]  # a teacher's body observation, policy, observation statistics
 
 
-class Teachers(BaseCallback):
+class Teachers(LossTerm):
     """Kickstarting (Schmitt et al. 2018, "Kickstarting deep reinforcement learning") from committed
     single-body policies, DAgger-style (Ross, Gordon & Bagnell 2011): the rollout's states on a
     teacher's own body (`teachers`: that body's observation, the teacher and its observation
     statistics), labelled with the teacher's deterministic action, add `weight` x the squared error
     of the policy's mean action, averaged over the whole rollout (other states add nothing), to
-    PPO's loss. At each of PPO's optimizer steps its gradient on `batch` of those states is added to
-    PPO's before the step: one optimizer, so PPO's own terms weigh against it (a separate Adam moved
-    every weight a learning rate per step toward one body and took every other body down).
-    `log(step, metrics)` receives the squared error before and after each update and the states."""
+    PPO's loss (`LossTerm`, on `batch` of those states at each optimizer step): one optimizer, so
+    PPO's own terms weigh against it (a separate Adam moved every weight a learning rate per step
+    toward one body and took every other body down). `log(step, metrics)` receives the squared error
+    before and after each update and the states."""
 
     def __init__(self, teachers: list[Teacher], weight: float, batch: int, log, seed: int = 0) -> None:
         super().__init__()
@@ -363,11 +452,10 @@ class Teachers(BaseCallback):
         self.x: torch.Tensor | None = None
         self.y: torch.Tensor | None = None
         self.share, self.before = 0.0, 0.0
-        self.hook = None
 
     def _init_callback(self) -> None:
+        super()._init_callback()
         self.norm = self.model.get_vec_normalize_env()  # raw observations: which body, the teacher input
-        self.hook = self.model.policy.optimizer.register_step_pre_hook(self._add_term)
 
     def labelled(self, seen: np.ndarray, raw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(the rows of `seen`, observations as the policy saw them, whose `raw` observation is on a
@@ -408,23 +496,12 @@ class Teachers(BaseCallback):
         self.x = None
         self.raw = [self.norm.get_original_obs().copy()]  # the first row's
 
-    def _add_term(self, optimizer, args, kwargs) -> None:
-        """Before each of PPO's optimizer steps: the teacher term's gradient added to PPO's."""
+    def loss(self) -> torch.Tensor | None:
         if self.x is None or not len(self.x):
-            return
-        params = [q for q in mean_action_parameters(self.model.policy) if q.requires_grad]
+            return None
         pick = self.rng.integers(0, len(self.x), min(self.batch, len(self.x)))
         idx = torch.as_tensor(pick, device=self.x.device)
-        with torch.enable_grad():
-            loss = self.weight * self.share * self._error(self.x[idx], self.y[idx])
-            grads = torch.autograd.grad(loss, params)
-        for q, g in zip(params, grads, strict=True):
-            q.grad = g if q.grad is None else q.grad + g
-
-    def _on_training_end(self) -> None:
-        if self.hook is not None:
-            self.hook.remove()
-            self.hook = None
+        return self.weight * self.share * self._error(self.x[idx], self.y[idx])
 
 
 def load_teachers(names: tuple[str, ...], pool: MultiBodyEnv, root: Path) -> list[Teacher]:
@@ -608,6 +685,7 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
                                             for k, v in up.env.items()}} if up.env else {}),
                                 **({} if up.min_action_std is None else
                                    {"min_action_std": up.min_action_std}),
+                                **({"bound_weight": up.bound_weight} if up.bound_weight > 0 else {}),
                                 **({} if env.commands.first_step == "either" else
                                    {"first_step": env.commands.first_step}),
                                 "workers": workers,
@@ -633,6 +711,8 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
     if taught:
         callbacks.append(Teachers(load_teachers(up.teachers, pool, Path(teacher_root)), up.teacher_weight,
                                   up.teacher_batch, log, p.seed))
+    if up.bound_weight > 0:
+        callbacks.append(ActionBound(up.bound_weight, up.bound_batch, p.seed))
     callbacks = CallbackList(callbacks)
     remaining = max(total - steps0, 0)
     if not prior and gate:

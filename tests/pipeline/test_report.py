@@ -509,7 +509,7 @@ def test_progress_curves_average_the_one_walk_checks_and_count_evaluations():
                 "runs": [{"steps": 10 ** 6, "cpu_count": 16, "device": "cuda"},
                          {"steps": 5 * 10 ** 5, "cpu_count": 2},
                          {"steps": 5 * 10 ** 5, "cpu_count": 2, "teachers": ["opencap4"],
-                          "env": {"push_probability": 0.25}, "first_step": "left"}],
+                          "env": {"push_probability": 0.25}, "first_step": "left", "bound_weight": 10.0}],
                 "statistics": [{"steps": 17 * 10 ** 5, "samples": 100}],
                 "widened": [{"steps": 15 * 10 ** 5, "obs_size": [79, 81]},
                             {"steps": 18 * 10 ** 5, "net_arch": [[256, 256], [512, 512]]}],
@@ -530,7 +530,7 @@ def test_progress_curves_average_the_one_walk_checks_and_count_evaluations():
     assert progress_curves(branch, gone)["evaluations"] == [(2.5, 12, 58, True)]  # on the branch given up
     assert c["changes"] == [(1.5, "inputs 79 -> 81"), (1.8, "layers [256, 256] -> [512, 512]"),
                             (1.0, "taken back from 2.00 M"), (1.7, "statistics re-estimated"),
-                            (1.5, "trained with push_probability 0.25, first_step left")]
+                            (1.5, "trained with push_probability 0.25, first_step left, bound_weight 10.0")]
     assert c["discarded"] == [([2.0], [1])]
     assert c["calm_falls"] == {"camargo": ([2.0], [0.2])}  # falls per episode without random pushes
     assert progress_curves({}, None)["steps"] == [] and progress_curves({}, None)["changes"] == []

@@ -31,6 +31,7 @@ from sim.learn.pool import UNIVERSAL_OBS_SIZE, MultiBodyEnv, Source, UniversalPa
 from sim.learn.steering import geom_bottom, subtree
 from sim.learn.train import load_norm, load_policy, new_ppo
 from sim.learn.universal import (
+    beyond_bound,
     hidden_sizes,
     load_teachers,
     params_from_yaml,
@@ -232,7 +233,7 @@ def test_one_run_resumes_and_records_its_gate(universal, camargo, tmp_path):
     p = replace(p, n_steps=64, batch_size=128, n_epochs=1, checkpoint_steps=256, net_arch=(32, 32))
     # the first runs without a floor and with either leg's start, whatever params.yaml says
     p = replace(p, env=replace(p.env, commands=replace(p.env.commands, first_step="either")))
-    up = replace(up, min_action_std=None)
+    up = replace(up, min_action_std=None, bound_weight=0.0)
     out = tmp_path / "universal"
     rec = train_universal((camargo[0],), p, up, out, scenarios, total_steps=256, n_envs=2)
     assert rec["steps"] == 256 and rec["obs_size"] == UNIVERSAL_OBS_SIZE
@@ -269,7 +270,7 @@ def test_one_run_resumes_and_records_its_gate(universal, camargo, tmp_path):
         rewound(rec, again, "a later record is no earlier checkpoint")
     calmer = {"push_probability": 0.0, "push_force_n": (0.0, 100.0)}  # the training envs' own values
     left = replace(p, env=replace(p.env, commands=replace(p.env.commands, first_step="left")))
-    wider = replace(up, net_arch=(48, 32), env=calmer, min_action_std=0.5)
+    wider = replace(up, net_arch=(48, 32), env=calmer, min_action_std=0.5, bound_weight=10.0)
     last = train_universal((camargo[0],), left, wider, out, scenarios, total_steps=512, n_envs=2, resume=True,
                            restat_steps=32)  # wider, no pushes, statistics re-estimated first
     assert [c["steps"] for c in last["checkpoints"]] == [0, 256, 512]
@@ -280,6 +281,8 @@ def test_one_run_resumes_and_records_its_gate(universal, camargo, tmp_path):
     assert last["runs"][-1]["env"] == {"push_probability": 0.0, "push_force_n": [0.0, 100.0]}
     assert last["runs"][-1]["min_action_std"] == 0.5 and "min_action_std" not in last["runs"][0]
     assert last["runs"][-1]["first_step"] == "left" and "first_step" not in last["runs"][0]
+    assert last["runs"][-1]["bound_weight"] == 10.0 and "bound_weight" not in last["runs"][0]
+    assert 0 <= last["checkpoints"][-1]["training"]["ppo"]["beyond_bound"] <= 1
     assert torch.exp(load_policy(out)[0].policy.log_std).min() >= 0.5 - 1e-6  # raised from exp(-1) = 0.37
     assert all(n["pushed"] == 0 for n in last["checkpoints"][-1]["training"]["episodes"].values())
 
@@ -382,6 +385,44 @@ def test_teachers_pull_the_policy_toward_their_actions_on_their_own_bodies(unive
     pool = MultiBodyEnv((src,), up, p.env, seed=0)
     with pytest.raises(ValueError, match="'opencap4' is not one of universal.subjects"):
         load_teachers(("opencap4",), pool, policies_root)
+
+
+def test_the_action_bound_brings_means_past_the_bounds_back(universal, camargo, tmp_path):
+    """`ActionBound`: a run whose policy means for three actions sit past the bound (+2, where the env
+    clips to +1) resumed the same way with and without the term. With it, the share of mean actions
+    past the bound on the pool's states falls to under half of the share without it; the record names
+    the term's weight; the term's hook leaves with the run."""
+    p, up, scenarios = universal
+    p = replace(p, n_steps=128, batch_size=128, n_epochs=20, learning_rate=3e-3, checkpoint_steps=256,
+                net_arch=(32, 32), target_kl=1e9)  # every epoch runs
+    up = replace(up, min_action_std=None, bound_weight=0.0, bound_batch=64)
+    src, base = camargo[0], tmp_path / "base"
+    train_universal((src,), p, up, base, scenarios, total_steps=256, n_envs=2, gate=False)
+    model, norm = load_policy(base)
+    with torch.no_grad():
+        model.policy.action_net.bias[:3] += 2.0
+    model.save(str(base / "policy.zip"))
+    env, rng, raw = MultiBodyEnv((src,), up, p.env, seed=1), np.random.default_rng(1), []
+    obs, _ = env.reset(seed=1)
+    for i in range(256):  # the pool's states, random actions
+        raw.append(obs)
+        obs, _, fell, cut, _ = env.step(rng.uniform(-1, 1, env.action_space.shape).astype(np.float32))
+        if fell or cut:
+            obs, _ = env.reset(seed=2 + i)
+    states = torch.as_tensor(norm.normalize_obs(np.array(raw)), dtype=torch.float32)
+    share0 = float(beyond_bound(model, states).mean())
+    assert share0 >= 2.0 / model.action_space.shape[0]
+    share = {}
+    for weight in (0.0, 10.0):
+        out = tmp_path / f"bound_{weight}"
+        shutil.copytree(base, out)
+        rec = train_universal((src,), p, replace(up, bound_weight=weight), out, scenarios, total_steps=1024,
+                              n_envs=2, resume=True, gate=False)
+        assert rec["runs"][-1].get("bound_weight") == (weight or None)
+        trained, _ = load_policy(out)
+        share[weight] = float(beyond_bound(trained, states).mean())
+        assert not trained.policy.optimizer._optimizer_step_pre_hooks  # the term's hook left with the run
+    assert share[10.0] < 0.5 * share[0.0], (share0, share)
 
 
 def test_the_body_observation_keeps_its_first_values(camargo):
