@@ -382,7 +382,8 @@ def training_progress_figure(curves: dict, title: str = "Universal walking polic
     changed), dashed red ones where the observation or the layers were widened or the run taken back
     (in the legend, below the panels: it grows with the run's history and would hide the curve),
     crosses for the checkpoints of a branch given up, shading where teachers taught."""
-    fig, (ax, ax2, ax3, ax4) = plt.subplots(1, 4, figsize=(18, 3.8))
+    height = 3.8  # the panels' (inches); the legend below adds to it
+    fig, (ax, ax2, ax3, ax4) = plt.subplots(1, 4, figsize=(18, height))
     panels = (ax, ax2, ax3, ax4)
     if not curves["steps"]:
         ax.text(0.5, 0.5, "no checkpoint yet", ha="center", va="center", transform=ax.transAxes)
@@ -404,7 +405,7 @@ def training_progress_figure(curves: dict, title: str = "Universal walking polic
     handles, labels = ax.get_legend_handles_labels()
     rows = -(-len(handles) // 3)  # in 3 columns under the figure, 0.17 inch a row
     below = 0.17 * rows + 0.15
-    fig.set_size_inches(18, 3.8 + below)
+    fig.set_size_inches(18, height + below)
     fig.legend(handles, labels, fontsize=7, ncol=3, loc="lower left", bbox_to_anchor=(0.01, 0.0),
                frameon=False)
     for s, mean in curves["own_mean"].items():
@@ -447,7 +448,7 @@ def training_progress_figure(curves: dict, title: str = "Universal walking polic
     if recorded:  # the record is recent: its own stretch
         ax4.set_xlim(min(recorded) - 0.5, max(recorded) + 0.5)
     fig.suptitle(title)
-    fig.tight_layout(rect=(0, below / (3.8 + below), 1, 1))
+    fig.tight_layout(rect=(0, below / (height + below), 1, 1))
     return fig
 
 

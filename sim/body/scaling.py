@@ -51,7 +51,7 @@ out of the model (`ScaledBody.markers_left_out`, with its distance).
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -151,7 +151,7 @@ def frame_from_zy(z: np.ndarray, y_ref: np.ndarray) -> np.ndarray:
     return np.column_stack([x, np.cross(z, x), z])
 
 
-def _sternal_notch(lm) -> np.ndarray | None:
+def _sternal_notch(lm: Callable[[str], np.ndarray | None]) -> np.ndarray | None:
     """The jugular notch: the `sternum` marker, or the midpoint of `sternum_left` and
     `sternum_right` (markers on the sternal ends of the clavicles); None without them."""
     single, pair = lm("sternum"), [lm("sternum_left"), lm("sternum_right")]
