@@ -371,7 +371,10 @@ def beyond_bound(model: PPO, x: torch.Tensor) -> torch.Tensor:
 class LossTerm(BaseCallback):
     """A term of PPO's loss on the policy's mean action, beside PPO's own: before each of PPO's
     optimizer steps (a pre-step hook) the gradient of `loss()` on the mean action's weights is added
-    to PPO's, so one optimizer weighs both. Subclasses give `loss()` (None: nothing this step)."""
+    to PPO's and the sum clipped to PPO's `max_grad_norm`, as PPO clips its own, so one optimizer
+    weighs both at the gradient scale its moments know (added unclipped, a large term inflated Adam's
+    second moments and wrecked the policy in one update). Subclasses give `loss()` (None: nothing
+    this step)."""
 
     def __init__(self) -> None:
         super().__init__()
@@ -394,6 +397,7 @@ class LossTerm(BaseCallback):
             grads = torch.autograd.grad(loss, params)
         for q, g in zip(params, grads, strict=True):
             q.grad = g if q.grad is None else q.grad + g
+        torch.nn.utils.clip_grad_norm_(self.model.policy.parameters(), self.model.max_grad_norm)
 
     def _on_step(self) -> bool:
         return True

@@ -31,6 +31,7 @@ from sim.learn.pool import UNIVERSAL_OBS_SIZE, MultiBodyEnv, Source, UniversalPa
 from sim.learn.steering import geom_bottom, subtree
 from sim.learn.train import load_norm, load_policy, new_ppo
 from sim.learn.universal import (
+    ActionBound,
     beyond_bound,
     hidden_sizes,
     load_teachers,
@@ -412,6 +413,14 @@ def test_the_action_bound_brings_means_past_the_bounds_back(universal, camargo, 
     states = torch.as_tensor(norm.normalize_obs(np.array(raw)), dtype=torch.float32)
     share0 = float(beyond_bound(model, states).mean())
     assert share0 >= 2.0 / model.action_space.shape[0]
+    term = ActionBound(1e6, 64)  # however large, the term's gradient is clipped with PPO's
+    term.model, term.x = model, states
+    term._init_callback()
+    term._add_term(model.policy.optimizer, (), {})
+    grads = [q.grad.norm() for q in model.policy.parameters() if q.grad is not None]
+    assert grads and 0 < float(torch.norm(torch.stack(grads))) <= model.max_grad_norm + 1e-6
+    term._on_training_end()
+    assert not model.policy.optimizer._optimizer_step_pre_hooks
     share = {}
     for weight in (0.0, 10.0):
         out = tmp_path / f"bound_{weight}"
