@@ -392,7 +392,8 @@ def test_the_action_bound_brings_means_past_the_bounds_back(universal, camargo, 
     """`ActionBound`: a run whose policy means for three actions sit past the bound (+2, where the env
     clips to +1) resumed the same way with and without the term. With it, the share of mean actions
     past the bound on the pool's states falls to under half of the share without it; the record names
-    the term's weight; the term's hook leaves with the run."""
+    the term's weight; the term's hook leaves with the run; however large its weight, the term's
+    gradient is clipped with PPO's."""
     p, up, scenarios = universal
     p = replace(p, n_steps=128, batch_size=128, n_epochs=20, learning_rate=3e-3, checkpoint_steps=256,
                 net_arch=(32, 32), target_kl=1e9)  # every epoch runs
