@@ -374,10 +374,12 @@ class LossTerm(BaseCallback):
     to PPO's and the sum clipped to PPO's `max_grad_norm`, as PPO clips its own, so one optimizer
     weighs both at the gradient scale its moments know (added unclipped, a large term inflated Adam's
     second moments and wrecked the policy in one update). Subclasses give `loss()` (None: nothing
-    this step)."""
+    this step), each on `batch` states drawn at each step (`pick`)."""
 
-    def __init__(self) -> None:
+    def __init__(self, batch: int, seed: int = 0) -> None:
         super().__init__()
+        self.batch = batch
+        self.rng = np.random.default_rng(seed)
         self.hook = None
 
     def _init_callback(self) -> None:
@@ -385,6 +387,10 @@ class LossTerm(BaseCallback):
 
     def loss(self) -> torch.Tensor | None:
         raise NotImplementedError
+
+    def pick(self, n: int, device) -> torch.Tensor:
+        """`batch` random indices below `n`, drawn with replacement (`n` of them where `n` is smaller)."""
+        return torch.as_tensor(self.rng.integers(0, n, min(self.batch, n)), device=device)
 
     def _add_term(self, optimizer, args, kwargs) -> None:
         params = [q for q in mean_action_parameters(self.model.policy) if q.requires_grad]
@@ -418,9 +424,8 @@ class ActionBound(LossTerm):
     mean is inside)."""
 
     def __init__(self, weight: float, batch: int, seed: int = 0) -> None:
-        super().__init__()
-        self.weight, self.batch = weight, batch
-        self.rng = np.random.default_rng(seed)
+        super().__init__(batch, seed)
+        self.weight = weight
         self.x: torch.Tensor | None = None
 
     def _on_rollout_end(self) -> None:  # before PPO's update of this rollout
@@ -429,9 +434,8 @@ class ActionBound(LossTerm):
     def loss(self) -> torch.Tensor | None:
         if self.x is None:
             return None
-        pick = self.rng.integers(0, len(self.x), min(self.batch, len(self.x)))
-        idx = torch.as_tensor(pick, device=self.x.device)
-        return self.weight * torch.square(excess(self.model, self.x[idx])).sum(-1).mean()
+        x = self.x[self.pick(len(self.x), self.x.device)]
+        return self.weight * torch.square(excess(self.model, x)).sum(-1).mean()
 
 
 Teacher = tuple[np.ndarray, PPO, VecNormalize]  # a teacher's body observation, policy, observation statistics
@@ -449,9 +453,8 @@ class Teachers(LossTerm):
     before and after each update and the states."""
 
     def __init__(self, teachers: list[Teacher], weight: float, batch: int, log, seed: int = 0) -> None:
-        super().__init__()
-        self.teachers, self.weight, self.batch, self.log_fn = teachers, weight, batch, log
-        self.rng = np.random.default_rng(seed)
+        super().__init__(batch, seed)
+        self.teachers, self.weight, self.log_fn = teachers, weight, log
         self.raw: list[np.ndarray] = []
         self.x: torch.Tensor | None = None
         self.y: torch.Tensor | None = None
@@ -503,8 +506,7 @@ class Teachers(LossTerm):
     def loss(self) -> torch.Tensor | None:
         if self.x is None or not len(self.x):
             return None
-        pick = self.rng.integers(0, len(self.x), min(self.batch, len(self.x)))
-        idx = torch.as_tensor(pick, device=self.x.device)
+        idx = self.pick(len(self.x), self.x.device)
         return self.weight * self.share * self._error(self.x[idx], self.y[idx])
 
 
