@@ -20,9 +20,9 @@ policy, the observation statistics, the discriminator and `progress.json`: steps
 `quick_gate` (each subject's body, its cycle: walk_10m and turn_90, no fall, standing at the end,
 steady speed within the bound) against steps.
 
-Run it with `python -m sim.learn.universal` (flags: `--help`); it needs numpy, torch, mujoco,
-gymnasium, stable-baselines3, pyyaml, and pandas and scipy for the scenarios' commands: no Ray,
-DuckDB or DVC.
+Run it with `python -m sim.learn.universal` (flags: `--help`; Ctrl-C or SIGTERM stops it with a
+checkpoint, `StopOnSignal`); it needs numpy, torch, mujoco, gymnasium, stable-baselines3, pyyaml,
+and pandas and scipy for the scenarios' commands: no Ray, DuckDB or DVC.
 """
 
 from __future__ import annotations
@@ -32,6 +32,7 @@ import json
 import math
 import os
 import shutil
+import signal
 import sys
 import time
 from dataclasses import replace
@@ -285,6 +286,34 @@ class StdFloor(BaseCallback):
 
     def _on_step(self) -> bool:
         return True
+
+
+class StopOnSignal(BaseCallback):
+    """Ends training at the next env step on SIGINT or SIGTERM (Ctrl-C, `kill PID`), so the run saves
+    its checkpoint and progress record as at its wall-time limit instead of losing the steps trained
+    since its last checkpoint. `caught` names the signal; the earlier handlers return when training
+    ends. The env processes ignore SIGINT (`sim.learn.vec`): a terminal's Ctrl-C reaches them too."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.caught: str | None = None
+        self.before: dict = {}
+
+    def _on_training_start(self) -> None:
+        self.before = {s: signal.signal(s, self._catch) for s in self.SIGNALS}
+
+    def _catch(self, signum, frame) -> None:
+        self.caught = signal.Signals(signum).name
+
+    def _on_step(self) -> bool:
+        return self.caught is None
+
+    def _on_training_end(self) -> None:
+        for s, handler in self.before.items():
+            signal.signal(s, handler)
+        self.before = {}
 
 
 class TrainingRecord(BaseCallback):
@@ -707,9 +736,9 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
             print(f"{rec['steps']} steps, {wall:.0f} s: gate {g['passed']}/{g['checks']}", flush=True)
         return rec
 
-    record = TrainingRecord(log)
+    record, stop = TrainingRecord(log), StopOnSignal()
     callbacks = [UpdateThreads(threads), AMPCallback(amp, p.env.w_style, 6, log), record,
-                 Budget(total, p.checkpoint_steps, save, max_wall_s, False)]
+                 Budget(total, p.checkpoint_steps, save, max_wall_s, False), stop]
     if up.min_action_std is not None:
         callbacks.insert(0, StdFloor(up.min_action_std))
     if not prior and init_from is not None and up.critic_warmup_steps > 0:
@@ -728,6 +757,8 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
                     progress_bar=False)
     rec = save() if not checkpoints or checkpoints[-1]["steps"] != model.num_timesteps else \
         json.loads((out / PROGRESS_FILE).read_text())
+    if stop.caught and progress:
+        print(f"stopped by {stop.caught} at {model.num_timesteps} steps, saved", flush=True)
     log.close()
     venv.close()
     return rec

@@ -12,6 +12,7 @@ without more round trips. Envs auto-reset as in `SubprocVecEnv` (`terminal_obser
 from __future__ import annotations
 
 import multiprocessing as mp
+import signal
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -21,6 +22,7 @@ from stable_baselines3.common.vec_env.base_vec_env import CloudpickleWrapper, Ve
 
 
 def _group_worker(remote, parent_remote, fns_wrapper: CloudpickleWrapper) -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # a terminal's Ctrl-C: the main process ends the run
     parent_remote.close()
     envs = [fn() for fn in fns_wrapper.var]
     try:

@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import shutil
+import signal
 from dataclasses import replace
 
 import gymnasium as gym
@@ -16,6 +18,7 @@ import torch
 from gymnasium.utils.env_checker import check_env
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
+import sim.learn.universal as universal_module
 from sim.learn.bodies import (
     BODY_OBS_SIZE,
     BODY_OBS_SIZES,
@@ -288,6 +291,30 @@ def test_one_run_resumes_and_records_its_gate(universal, camargo, tmp_path):
     assert all(n["pushed"] == 0 for n in last["checkpoints"][-1]["training"]["episodes"].values())
 
 
+def test_a_signal_stops_the_run_at_the_next_step_and_saves_it(universal, camargo, tmp_path, monkeypatch):
+    """SIGTERM during training (here sent by the run's own wall-time callback at 300 steps, so the
+    step is known): the run stops at that step (the callbacks after it see the signal), saves its
+    checkpoint and record there, and the earlier handler is back."""
+    p, up, scenarios = universal
+    p = replace(p, n_steps=64, batch_size=128, n_epochs=1, checkpoint_steps=256, net_arch=(32, 32))
+    up = replace(up, min_action_std=None, bound_weight=0.0)
+
+    class SignalAt300(universal_module.Budget):
+        def _on_step(self) -> bool:
+            if self.num_timesteps == 300:
+                os.kill(os.getpid(), signal.SIGTERM)
+            return super()._on_step()
+
+    monkeypatch.setattr(universal_module, "Budget", SignalAt300)
+    before = signal.getsignal(signal.SIGTERM)
+    out = tmp_path / "universal"
+    rec = train_universal((camargo[0],), p, up, out, scenarios, total_steps=1024, n_envs=2)
+    assert rec["steps"] == 300
+    assert [c["steps"] for c in rec["checkpoints"]] == [0, 256, 300]
+    assert load_policy(out)[0].num_timesteps == 300 and rec["runs"][-1]["steps"] == 300
+    assert signal.getsignal(signal.SIGTERM) is before
+
+
 class _FirstInputs(gym.ObservationWrapper):
     """A pool whose observation stops after the first `n` values (a run from before values were appended)."""
 
@@ -509,6 +536,10 @@ def test_grouped_workers_step_as_one_process_does(universal, camargo):
         assert grouped.get_attr("current", [3])[0].source == "camargo"
         grouped.set_attr("marker", 7, [1, 4])
         assert grouped.get_attr("marker", [1, 4]) == [7, 7]
+        for proc in grouped.processes:  # a terminal's Ctrl-C reaches the env processes too
+            os.kill(proc.pid, signal.SIGINT)
+        grouped.step(act)  # they ignore it: the main process ends the run (StopOnSignal)
+        assert all(proc.is_alive() for proc in grouped.processes)
     finally:
         one.close()
         grouped.close()
