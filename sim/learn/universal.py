@@ -291,8 +291,10 @@ class StdFloor(BaseCallback):
 class StopOnSignal(BaseCallback):
     """Ends training at the next env step on SIGINT or SIGTERM (Ctrl-C, `kill PID`), so the run saves
     its checkpoint and progress record as at its wall-time limit instead of losing the steps trained
-    since its last checkpoint. `caught` names the signal; the earlier handlers return when training
-    ends. The env processes ignore SIGINT (`sim.learn.vec`): a terminal's Ctrl-C reaches them too."""
+    since its last checkpoint; then `carry_on` gives the signal its own effect, so a caller (the
+    transfer stage under `dvc repro`) stops as well. `caught` names the signal; the earlier handlers
+    return when training ends. The env processes ignore SIGINT (`sim.learn.vec`): a terminal's
+    Ctrl-C reaches them too."""
 
     SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
@@ -314,6 +316,14 @@ class StopOnSignal(BaseCallback):
         for s, handler in self.before.items():
             signal.signal(s, handler)
         self.before = {}
+
+    def carry_on(self) -> None:
+        """The caught signal's effect, deferred until the run was saved: KeyboardInterrupt for SIGINT,
+        exit status 128 + its number for SIGTERM (as the default handler's)."""
+        if self.caught == "SIGINT":
+            raise KeyboardInterrupt
+        if self.caught is not None:
+            raise SystemExit(128 + signal.Signals[self.caught])
 
 
 class TrainingRecord(BaseCallback):
@@ -761,6 +771,7 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
         print(f"stopped by {stop.caught} at {model.num_timesteps} steps, saved", flush=True)
     log.close()
     venv.close()
+    stop.carry_on()
     return rec
 
 
@@ -931,11 +942,14 @@ def main(argv: list[str] | None = None) -> int:
     init = None if resume else (args.init_from or Path("data/policies") / up.init_from)
     shown = map(shown_path, sys.argv[1:] if argv is None else argv)
     command = "python -m sim.learn.universal " + " ".join(shown)
-    rec = train_universal(sources_of(up.subjects, args.processed), p, up, args.out, scenarios, init_from=init,
-                          resume=resume, total_steps=args.steps, n_envs=args.n_envs,
-                          subprocess=args.subprocess, workers=args.workers, max_wall_s=args.max_wall_s,
-                          device=args.device, threads=args.threads, command=command, progress=True,
-                          restat_steps=args.restat_steps)
+    try:
+        rec = train_universal(sources_of(up.subjects, args.processed), p, up, args.out, scenarios,
+                              init_from=init, resume=resume, total_steps=args.steps, n_envs=args.n_envs,
+                              subprocess=args.subprocess, workers=args.workers, max_wall_s=args.max_wall_s,
+                              device=args.device, threads=args.threads, command=command, progress=True,
+                              restat_steps=args.restat_steps)
+    except KeyboardInterrupt:  # Ctrl-C: a run in training saved first (StopOnSignal); no traceback
+        return 128 + signal.SIGINT
     last = rec["checkpoints"][-1]
     print(f"{rec['steps']} steps in {rec['wall_s']} s; gate {last['passed']}/{last['checks']}")
     return 0

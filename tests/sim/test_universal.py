@@ -294,7 +294,8 @@ def test_one_run_resumes_and_records_its_gate(universal, camargo, tmp_path):
 def test_a_signal_stops_the_run_at_the_next_step_and_saves_it(universal, camargo, tmp_path, monkeypatch):
     """SIGTERM during training (here sent by the run's own wall-time callback at 300 steps, so the
     step is known): the run stops at that step (the callbacks after it see the signal), saves its
-    checkpoint and record there, and the earlier handler is back."""
+    checkpoint and record there, and then exits as SIGTERM would (status 143), the earlier handler
+    back."""
     p, up, scenarios = universal
     p = replace(p, n_steps=64, batch_size=128, n_epochs=1, checkpoint_steps=256, net_arch=(32, 32))
     up = replace(up, min_action_std=None, bound_weight=0.0)
@@ -308,7 +309,10 @@ def test_a_signal_stops_the_run_at_the_next_step_and_saves_it(universal, camargo
     monkeypatch.setattr(universal_module, "Budget", SignalAt300)
     before = signal.getsignal(signal.SIGTERM)
     out = tmp_path / "universal"
-    rec = train_universal((camargo[0],), p, up, out, scenarios, total_steps=1024, n_envs=2)
+    with pytest.raises(SystemExit) as stopped:
+        train_universal((camargo[0],), p, up, out, scenarios, total_steps=1024, n_envs=2)
+    assert stopped.value.code == 128 + signal.SIGTERM
+    rec = json.loads((out / "progress.json").read_text())
     assert rec["steps"] == 300
     assert [c["steps"] for c in rec["checkpoints"]] == [0, 256, 300]
     assert load_policy(out)[0].num_timesteps == 300 and rec["runs"][-1]["steps"] == 300
