@@ -291,7 +291,7 @@ def test_one_run_resumes_and_records_its_gate(universal, camargo, tmp_path):
     assert all(n["pushed"] == 0 for n in last["checkpoints"][-1]["training"]["episodes"].values())
 
 
-def test_a_signal_stops_the_run_at_the_next_step_and_saves_it(universal, camargo, tmp_path, monkeypatch):
+def test_a_signal_stops_the_run_with_a_checkpoint_then_acts(universal, camargo, tmp_path, monkeypatch):
     """SIGTERM during training (here sent by the run's own wall-time callback at 300 steps, so the
     step is known): the run stops at that step (the callbacks after it see the signal), saves its
     checkpoint and record there, and then exits as SIGTERM would (status 143), the earlier handler
