@@ -292,7 +292,7 @@ class StopOnSignal(BaseCallback):
     """Ends training at the next env step on SIGINT or SIGTERM (Ctrl-C, `kill PID`), so the run saves
     its checkpoint and progress record as at its wall-time limit instead of losing the steps trained
     since its last checkpoint; then `carry_on` gives the signal its own effect, so a caller (the
-    transfer stage under `dvc repro`) stops as well. `caught` names the signal; the earlier handlers
+    transfer stage under `dvc repro`) stops as well. `caught` is the signal; the earlier handlers
     return when training ends. The env processes ignore SIGINT (`sim.learn.vec`): a terminal's
     Ctrl-C reaches them too."""
 
@@ -300,14 +300,14 @@ class StopOnSignal(BaseCallback):
 
     def __init__(self) -> None:
         super().__init__()
-        self.caught: str | None = None
+        self.caught: signal.Signals | None = None
         self.before: dict = {}
 
     def _on_training_start(self) -> None:
         self.before = {s: signal.signal(s, self._catch) for s in self.SIGNALS}
 
     def _catch(self, signum, frame) -> None:
-        self.caught = signal.Signals(signum).name
+        self.caught = signal.Signals(signum)
 
     def _on_step(self) -> bool:
         return self.caught is None
@@ -320,10 +320,10 @@ class StopOnSignal(BaseCallback):
     def carry_on(self) -> None:
         """The caught signal's effect, deferred until the run was saved: KeyboardInterrupt for SIGINT,
         exit status 128 + its number for SIGTERM (as the default handler's)."""
-        if self.caught == "SIGINT":
+        if self.caught == signal.SIGINT:
             raise KeyboardInterrupt
         if self.caught is not None:
-            raise SystemExit(128 + signal.Signals[self.caught])
+            raise SystemExit(128 + self.caught)
 
 
 class TrainingRecord(BaseCallback):
@@ -768,7 +768,7 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
     rec = save() if not checkpoints or checkpoints[-1]["steps"] != model.num_timesteps else \
         json.loads((out / PROGRESS_FILE).read_text())
     if stop.caught and progress:
-        print(f"stopped by {stop.caught} at {model.num_timesteps} steps, saved", flush=True)
+        print(f"stopped by {stop.caught.name} at {model.num_timesteps} steps, saved", flush=True)
     log.close()
     venv.close()
     stop.carry_on()
