@@ -71,7 +71,7 @@ def progress_curves(progress: dict, adoption: dict | None, window: int = PROGRES
     for run in progress.get("runs", []):
         # marked where the training envs' values, the std's floor, the first step's side or the bound changed
         settings = {**run.get("env", {}),
-                    **{k: run[k] for k in ("min_action_std", "first_step", "bound_weight") if k in run}}
+                    **{k: run[k] for k in ("min_action_std", "first_step", "bound_weight", "learning_rate") if k in run}}
         if settings != before:
             before = settings
             shown = ", ".join(f"{k} {v}" for k, v in settings.items()) or "train's env"

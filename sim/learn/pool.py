@@ -56,6 +56,7 @@ class UniversalParams:
     min_action_std: float | None = None  # the policy's action std kept at or above this (None: free)
     bound_weight: float = 0.0            # the action-bound term's weight in PPO's loss (0: none)
     bound_batch: int = 256               # ... rollout states per PPO optimizer step
+    learning_rate: float | None = None   # the run's PPO learning rate (None: `train.learning_rate`)
 
     @classmethod
     def from_dict(cls, d: dict) -> UniversalParams:
@@ -73,7 +74,7 @@ class UniversalParams:
                 out[k] = BodyDraw(**{a: float(b) for a, b in v.items()})
             elif k == "net_arch":
                 out[k] = None if v is None else tuple(int(x) for x in v)
-            elif k == "min_action_std":
+            elif k in ("min_action_std", "learning_rate"):
                 out[k] = None if v is None else float(v)
             elif k == "env":  # checked and typed as `train.env` is; only the values named are kept
                 named = dict(v or {})

@@ -646,6 +646,8 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
     torch.set_num_threads(threads)
     n_envs = n_envs or p.n_envs
     env = replace(p.env, **up.env)  # the training envs; the gate walks `p.env`'s (pushes off either way)
+    if up.learning_rate is not None:  # PPO's own (the loads below take it through `ppo_settings`)
+        p = replace(p, learning_rate=up.learning_rate)
     fns = [partial(make_pool_env, sources, up, env, p.seed * 1000 + 37 * i) for i in range(n_envs)]
     vec = GroupedSubprocVecEnv(fns, workers or n_envs) if subprocess and n_envs > 1 else DummyVecEnv(fns)
     venv = VecMonitor(vec)
@@ -731,6 +733,7 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
                                 **({} if up.min_action_std is None else
                                    {"min_action_std": up.min_action_std}),
                                 **({"bound_weight": up.bound_weight} if up.bound_weight > 0 else {}),
+                                **({} if up.learning_rate is None else {"learning_rate": up.learning_rate}),
                                 **({} if env.commands.first_step == "either" else
                                    {"first_step": env.commands.first_step}),
                                 "workers": workers,

@@ -274,7 +274,7 @@ def test_one_run_resumes_and_records_its_gate(universal, camargo, tmp_path):
         rewound(rec, again, "a later record is no earlier checkpoint")
     calmer = {"push_probability": 0.0, "push_force_n": (0.0, 100.0)}  # the training envs' own values
     left = replace(p, env=replace(p.env, commands=replace(p.env.commands, first_step="left")))
-    wider = replace(up, net_arch=(48, 32), env=calmer, min_action_std=0.5, bound_weight=10.0)
+    wider = replace(up, net_arch=(48, 32), env=calmer, min_action_std=0.5, bound_weight=10.0, learning_rate=1e-5)
     last = train_universal((camargo[0],), left, wider, out, scenarios, total_steps=512, n_envs=2, resume=True,
                            restat_steps=32)  # wider, no pushes, statistics re-estimated first
     assert [c["steps"] for c in last["checkpoints"]] == [0, 256, 512]
@@ -286,6 +286,8 @@ def test_one_run_resumes_and_records_its_gate(universal, camargo, tmp_path):
     assert last["runs"][-1]["min_action_std"] == 0.5 and "min_action_std" not in last["runs"][0]
     assert last["runs"][-1]["first_step"] == "left" and "first_step" not in last["runs"][0]
     assert last["runs"][-1]["bound_weight"] == 10.0 and "bound_weight" not in last["runs"][0]
+    assert last["runs"][-1]["learning_rate"] == 1e-5 and "learning_rate" not in last["runs"][0]
+    assert load_policy(out)[0].learning_rate == 1e-5  # the run's own, not the saved policy's
     assert 0 <= last["checkpoints"][-1]["training"]["ppo"]["beyond_bound"] <= 1
     assert torch.exp(load_policy(out)[0].policy.log_std).min() >= 0.5 - 1e-6  # raised from exp(-1) = 0.37
     assert all(n["pushed"] == 0 for n in last["checkpoints"][-1]["training"]["episodes"].values())
