@@ -21,6 +21,7 @@ from __future__ import annotations
 import csv
 import hashlib
 import json
+import signal
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, fields, replace
@@ -180,6 +181,44 @@ class Budget(BaseCallback):
             self.bar.close()
 
 
+class StopOnSignal(BaseCallback):
+    """Ends training at the next env step on SIGINT or SIGTERM (Ctrl-C, `kill PID`), so the run saves
+    its checkpoint and progress record as at its wall-time limit instead of losing the steps trained
+    since its last checkpoint; then `carry_on` gives the signal its own effect, so a caller (a
+    stage under `dvc repro`) stops as well. `caught` is the signal; the earlier handlers
+    return when training ends. The universal run's env processes ignore SIGINT
+    (`sim.learn.vec`): a terminal's Ctrl-C reaches them too."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.caught: signal.Signals | None = None
+        self.before: dict = {}
+
+    def _on_training_start(self) -> None:
+        self.before = {s: signal.signal(s, self._catch) for s in self.SIGNALS}
+
+    def _catch(self, signum, frame) -> None:
+        self.caught = signal.Signals(signum)
+
+    def _on_step(self) -> bool:
+        return self.caught is None
+
+    def _on_training_end(self) -> None:
+        for s, handler in self.before.items():
+            signal.signal(s, handler)
+        self.before = {}
+
+    def carry_on(self) -> None:
+        """The caught signal's effect, deferred until the run was saved: KeyboardInterrupt for SIGINT,
+        exit status 128 + its number for SIGTERM (as the default handler's)."""
+        if self.caught == signal.SIGINT:
+            raise KeyboardInterrupt
+        if self.caught is not None:
+            raise SystemExit(128 + self.caught)
+
+
 class MetricsLog:
     """Per-rollout metrics to dvclive (`Live(dir)`) when installed, else to `metrics.csv` (rows of
     step, metric, value). Each call appends its rows and rewrites the summary only: dvclive's
@@ -303,8 +342,9 @@ def train(model_path: str | Path, cycle: ReferenceCycle, p: TrainParams, out_dir
         (out / PROGRESS_FILE).write_text(json.dumps(rec, indent=2) + "\n")
         return rec
 
+    stop = StopOnSignal()
     callbacks = [UpdateThreads(threads or p.threads), AMPCallback(amp, p.env.w_style, 6, log),
-                 Budget(total, p.checkpoint_steps, save, max_wall_s, progress)]
+                 Budget(total, p.checkpoint_steps, save, max_wall_s, progress), stop]
     if curriculum_steps > 0:
         callbacks.append(_Curriculum(curriculum_steps))
     callbacks = CallbackList(callbacks)
@@ -315,6 +355,7 @@ def train(model_path: str | Path, cycle: ReferenceCycle, p: TrainParams, out_dir
     rec = save()
     log.close()
     venv.close()
+    stop.carry_on()
     return rec
 
 

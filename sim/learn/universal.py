@@ -55,6 +55,7 @@ from sim.learn.train import (
     PROGRESS_FILE,
     Budget,
     MetricsLog,
+    StopOnSignal,
     TrainParams,
     UpdateThreads,
     load_norm,
@@ -286,44 +287,6 @@ class StdFloor(BaseCallback):
 
     def _on_step(self) -> bool:
         return True
-
-
-class StopOnSignal(BaseCallback):
-    """Ends training at the next env step on SIGINT or SIGTERM (Ctrl-C, `kill PID`), so the run saves
-    its checkpoint and progress record as at its wall-time limit instead of losing the steps trained
-    since its last checkpoint; then `carry_on` gives the signal its own effect, so a caller (the
-    transfer stage under `dvc repro`) stops as well. `caught` is the signal; the earlier handlers
-    return when training ends. The env processes ignore SIGINT (`sim.learn.vec`): a terminal's
-    Ctrl-C reaches them too."""
-
-    SIGNALS = (signal.SIGINT, signal.SIGTERM)
-
-    def __init__(self) -> None:
-        super().__init__()
-        self.caught: signal.Signals | None = None
-        self.before: dict = {}
-
-    def _on_training_start(self) -> None:
-        self.before = {s: signal.signal(s, self._catch) for s in self.SIGNALS}
-
-    def _catch(self, signum, frame) -> None:
-        self.caught = signal.Signals(signum)
-
-    def _on_step(self) -> bool:
-        return self.caught is None
-
-    def _on_training_end(self) -> None:
-        for s, handler in self.before.items():
-            signal.signal(s, handler)
-        self.before = {}
-
-    def carry_on(self) -> None:
-        """The caught signal's effect, deferred until the run was saved: KeyboardInterrupt for SIGINT,
-        exit status 128 + its number for SIGTERM (as the default handler's)."""
-        if self.caught == signal.SIGINT:
-            raise KeyboardInterrupt
-        if self.caught is not None:
-            raise SystemExit(128 + self.caught)
 
 
 class TrainingRecord(BaseCallback):

@@ -4,6 +4,8 @@ and reference cycle (the `scale` and `reference` stages' outputs)."""
 from __future__ import annotations
 
 import json
+import os
+import signal
 from dataclasses import replace
 from pathlib import Path
 
@@ -13,6 +15,7 @@ import pytest
 import torch
 from gymnasium.utils.env_checker import check_env
 
+import sim.learn.train as train_module
 from sim.body.human_params import joint_kind
 from sim.learn.amp import AMP, style_reward
 from sim.learn.harness_twist import HarnessTwist, TwistParams
@@ -220,6 +223,30 @@ def test_short_training_run_checkpoints_and_resumes(tmp_path, setup, camargo_mod
         assert (tmp_path / "metrics.csv").read_text().count("\n") >= 2
     else:
         assert {"disc_acc_reference", "style_reward", "r_pose"} <= set(metrics)
+
+
+def test_ctrl_c_stops_single_body_training_with_a_checkpoint(tmp_path, setup, camargo_model, monkeypatch):
+    """SIGINT mid-run (sent by the run's own budget callback at 300 steps, so the step is known):
+    the single-body trainer saves its policy and record at that step, then raises KeyboardInterrupt
+    as Ctrl-C would, its earlier handler back."""
+    _, tp, _, cycle = setup
+    p = replace(tp, n_steps=128, batch_size=256, n_epochs=1, net_arch=(32, 32), checkpoint_steps=256,
+                amp=replace(tp.amp, hidden=(32, 32)))
+
+    class SignalAt300(train_module.Budget):
+        def _on_step(self) -> bool:
+            if self.num_timesteps == 300:
+                os.kill(os.getpid(), signal.SIGINT)
+            return super()._on_step()
+
+    monkeypatch.setattr(train_module, "Budget", SignalAt300)
+    before = signal.getsignal(signal.SIGINT)
+    with pytest.raises(KeyboardInterrupt):
+        train(camargo_model / "human.xml", cycle, p, tmp_path, n_envs=2, threads=1, total_steps=1024,
+              progress=False)
+    rec = json.loads((tmp_path / "progress.json").read_text())
+    assert rec["steps"] == 300 and load_policy(tmp_path)[0].num_timesteps == 300
+    assert signal.getsignal(signal.SIGINT) is before
 
 
 def test_metrics_without_dvclive_keep_each_callers_names(tmp_path):
