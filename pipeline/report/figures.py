@@ -69,9 +69,10 @@ def progress_curves(progress: dict, adoption: dict | None, window: int = PROGRES
                 y.append((n["falls"] - n["pushed_falls"]) / calm)
     segments, taught, retrained, before, done = [], [], [], {}, 0
     for run in progress.get("runs", []):
-        # marked where the training envs' values, the std's floor, the first step's side or the bound changed
+        # marked where the training envs' values, the std's floor, the first step, the bound or rate changed
         settings = {**run.get("env", {}),
-                    **{k: run[k] for k in ("min_action_std", "first_step", "bound_weight", "learning_rate") if k in run}}
+                    **{k: run[k] for k in ("min_action_std", "first_step", "bound_weight", "learning_rate")
+                       if k in run}}
         if settings != before:
             before = settings
             shown = ", ".join(f"{k} {v}" for k, v in settings.items()) or "train's env"

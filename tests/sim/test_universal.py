@@ -274,7 +274,8 @@ def test_one_run_resumes_and_records_its_gate(universal, camargo, tmp_path):
         rewound(rec, again, "a later record is no earlier checkpoint")
     calmer = {"push_probability": 0.0, "push_force_n": (0.0, 100.0)}  # the training envs' own values
     left = replace(p, env=replace(p.env, commands=replace(p.env.commands, first_step="left")))
-    wider = replace(up, net_arch=(48, 32), env=calmer, min_action_std=0.5, bound_weight=10.0, learning_rate=1e-5)
+    wider = replace(up, net_arch=(48, 32), env=calmer, min_action_std=0.5, bound_weight=10.0,
+                    learning_rate=1e-5)
     last = train_universal((camargo[0],), left, wider, out, scenarios, total_steps=512, n_envs=2, resume=True,
                            restat_steps=32)  # wider, no pushes, statistics re-estimated first
     assert [c["steps"] for c in last["checkpoints"]] == [0, 256, 512]
