@@ -43,10 +43,12 @@ def _mj_steps(xml: str, seconds: float) -> float:
 
 
 def raw_step_rate(xml: str, processes: int, seconds: float = 2.0) -> float:
-    """`mj_step` per second of the human in `xml`, summed over `processes` processes side by side."""
+    """`mj_step` per second of the human in `xml`, summed over `processes` processes side by side.
+    Spawned, not forked: a forked worker inherits the parent's signal handlers (Ray's, a trainer's),
+    and one that catches SIGTERM without exiting hangs the pool's terminate."""
     if processes == 1:
         return _mj_steps(xml, seconds)
-    with get_context("fork").Pool(processes) as pool:
+    with get_context("spawn").Pool(processes) as pool:
         return float(sum(pool.starmap(_mj_steps, [(xml, seconds)] * processes)))
 
 
