@@ -185,9 +185,10 @@ class StopOnSignal(BaseCallback):
     """Ends training at the next env step on SIGINT or SIGTERM (Ctrl-C, `kill PID`), so the run saves
     its checkpoint and progress record as at its wall-time limit instead of losing the steps trained
     since its last checkpoint; then `carry_on` gives the signal its own effect, so a caller (a
-    stage under `dvc repro`) stops as well. `caught` is the signal; the earlier handlers
-    return when training ends. The universal run's env processes ignore SIGINT
-    (`sim.learn.vec`): a terminal's Ctrl-C reaches them too."""
+    stage under `dvc repro`) stops as well. `caught` is the signal; `restore` puts the earlier
+    handlers back: at training's end, and by the trainer's `finally` when training raises (SB3 calls
+    no end hook then, and Ctrl-C would stay swallowed). The universal run's env processes ignore
+    SIGINT (`sim.learn.vec`): a terminal's Ctrl-C reaches them too."""
 
     SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
@@ -206,6 +207,10 @@ class StopOnSignal(BaseCallback):
         return self.caught is None
 
     def _on_training_end(self) -> None:
+        self.restore()
+
+    def restore(self) -> None:
+        """The handlers from before training; nothing when they are back already."""
         for s, handler in self.before.items():
             signal.signal(s, handler)
         self.before = {}
@@ -350,8 +355,11 @@ def train(model_path: str | Path, cycle: ReferenceCycle, p: TrainParams, out_dir
     callbacks = CallbackList(callbacks)
     remaining = max(total - steps0, 0)
     if remaining:
-        model.learn(total_timesteps=remaining, callback=callbacks, reset_num_timesteps=not prior,
-                    progress_bar=False)
+        try:
+            model.learn(total_timesteps=remaining, callback=callbacks, reset_num_timesteps=not prior,
+                        progress_bar=False)
+        finally:
+            stop.restore()
     rec = save()
     log.close()
     venv.close()

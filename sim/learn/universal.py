@@ -729,8 +729,11 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
     if not prior and gate:
         save()  # the curve's origin: the start policy's gate
     if remaining:
-        model.learn(total_timesteps=remaining, callback=callbacks, reset_num_timesteps=not prior,
-                    progress_bar=False)
+        try:
+            model.learn(total_timesteps=remaining, callback=callbacks, reset_num_timesteps=not prior,
+                        progress_bar=False)
+        finally:
+            stop.restore()
     rec = save() if not checkpoints or checkpoints[-1]["steps"] != model.num_timesteps else \
         json.loads((out / PROGRESS_FILE).read_text())
     if stop.caught and progress:

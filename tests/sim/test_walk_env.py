@@ -249,6 +249,28 @@ def test_ctrl_c_stops_single_body_training_with_a_checkpoint(tmp_path, setup, ca
     assert signal.getsignal(signal.SIGINT) is before
 
 
+def test_a_training_that_raises_gives_ctrl_c_back(tmp_path, setup, camargo_model, monkeypatch):
+    """An error mid-run (raised by the run's budget callback at 300 steps) reaches the caller, and the
+    SIGINT and SIGTERM handlers from before training are back: SB3 calls no end hook on an error,
+    and a notebook's Ctrl-C would otherwise only set a flag no one reads."""
+    _, tp, _, cycle = setup
+    p = replace(tp, n_steps=128, batch_size=256, n_epochs=1, net_arch=(32, 32), checkpoint_steps=256,
+                amp=replace(tp.amp, hidden=(32, 32)))
+
+    class FailAt300(train_module.Budget):
+        def _on_step(self) -> bool:
+            if self.num_timesteps == 300:
+                raise RuntimeError("a failing callback")
+            return super()._on_step()
+
+    monkeypatch.setattr(train_module, "Budget", FailAt300)
+    before = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    with pytest.raises(RuntimeError, match="a failing callback"):
+        train(camargo_model / "human.xml", cycle, p, tmp_path, n_envs=2, threads=1, total_steps=1024,
+              progress=False)
+    assert {s: signal.getsignal(s) for s in before} == before
+
+
 def test_metrics_without_dvclive_keep_each_callers_names(tmp_path):
     log = MetricsLog(tmp_path, resume=False)
     log.live = None  # as on a machine without dvclive
