@@ -5,7 +5,7 @@ markers) and kgc6 (an older man with a knee replacement: no static, knee and ank
 knee and ankle from the thigh and shank clusters), each ingested from its real files into a temporary
 root and checked against what the recordings say: heel strikes against the force plates, strides and
 speeds for the person's height, a standing pose to scale from (static: none, nothing refused;
-falisse2019 its static trial), replay-only (no policy)."""
+falisse2019 its static trial); their policies are not tested here."""
 
 from __future__ import annotations
 
