@@ -5,6 +5,7 @@ rollout machinery as a single-body policy (sim.learn.universal.export_subject, P
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import torch
 
 from pipeline.paths import UNIVERSAL_DIR
@@ -49,11 +50,16 @@ def test_an_exported_subject_policy_walks_its_own_body(params, train_params, cam
 
 
 def test_an_export_from_before_body_values_were_appended_reads_the_first_ones(params, policies_root):
-    """kgc6's adopted policy was exported when the body observation had five values: the policy
-    source gives it those five (`BODY_OBS_SIZES`), and it walks."""
-    model, _ = load_policy(policies_root / "kgc6")
+    """A committed export from when the body observation had five values: the policy source gives
+    it those five (`BODY_OBS_SIZES`), and it walks. kgc6's 60.93 M export was one until it was
+    replaced by its 160.80 M export (2026-11-29); none is committed now, so the test skips."""
+    old = [s for s in params.transfer.adopted if (policies_root / s / POLICY_FILE).exists()
+           and load_policy(policies_root / s)[0].observation_space.shape[0] - OBS_SIZE < BODY_OBS_SIZE]
+    if not old:
+        pytest.skip("no committed export from before the body values were appended")
+    model, _ = load_policy(policies_root / old[0])
     n_body = model.observation_space.shape[0] - OBS_SIZE
     assert n_body in BODY_OBS_SIZES and n_body < BODY_OBS_SIZE
-    setup = policy_setup("kgc6", params, policy_root=policies_root)
+    setup = policy_setup(old[0], params, policy_root=policies_root)
     outcomes = run_batch(setup, scenario_jobs(params, ("free",), 1, ("steady",)), 1, "", False)
     assert len(outcomes) == 1 and outcomes[0].stable and len(outcomes[0].pelvis_xy) > 100
