@@ -28,6 +28,7 @@ and pandas and scipy for the scenarios' commands: no Ray, DuckDB or DVC.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import os
@@ -613,135 +614,144 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
         p = replace(p, learning_rate=up.learning_rate)
     fns = [partial(make_pool_env, sources, up, env, p.seed * 1000 + 37 * i) for i in range(n_envs)]
     vec = GroupedSubprocVecEnv(fns, workers or n_envs) if subprocess and n_envs > 1 else DummyVecEnv(fns)
-    venv = VecMonitor(vec)
-    prior = json.loads((out / PROGRESS_FILE).read_text()) if resume and (out / PROGRESS_FILE).exists() else {}
-    pool = MultiBodyEnv(sources, replace(up, refresh_probability=0.0), env, p.seed)  # AMP references, stats
-    body_obs = np.array([b.obs for b in pool.bodies])
-    frozen = bool(prior.get("obs_stats_frozen")) if prior else init_from is not None
-    widened, discarded = list(prior.get("widened", [])), list(prior.get("discarded", []))
-    if prior and int(prior.get("obs_size", UNIVERSAL_OBS_SIZE)) < UNIVERSAL_OBS_SIZE:  # body values appended
-        old = PPO.load(str(out / POLICY_FILE), device="cpu", custom_objects=ppo_settings(p))
-        n_old = old.observation_space.shape[0] - OBS_SIZE
-        venv, model = widen_for_body(old, load_norm(out), venv, p, body_obs[:, n_old:].mean(0),
-                                     np.maximum(body_obs[:, n_old:].std(0), 0.02), optimizer=True)
-        model.num_timesteps = old.num_timesteps
-        widened.append({"steps": int(old.num_timesteps), "obs_size": [OBS_SIZE + n_old, UNIVERSAL_OBS_SIZE]})
-        if device != "cpu":
-            model = _to_device(model, venv, p, device)
-    elif prior:
-        venv = VecNormalize.load(str(out / NORM_FILE), venv)
-        venv.training = not frozen
-        model = PPO.load(str(out / POLICY_FILE), env=venv, device=device, custom_objects=ppo_settings(p))
-    elif init_from is not None:
-        old = PPO.load(str(Path(init_from) / POLICY_FILE), device="cpu")
-        venv, model = widen_for_body(old, load_norm(Path(init_from)), venv, p, body_obs.mean(0),
-                                     np.maximum(body_obs.std(0), 0.02))
-        if device != "cpu":
-            model = _to_device(model, venv, p, device)
-    else:
-        venv = VecNormalize(venv, norm_obs=True, norm_reward=False, clip_obs=10.0, gamma=p.gamma)
-        model = new_ppo(venv, p) if device == "cpu" else _to_device(new_ppo(venv, p), venv, p, device)
-    before = hidden_sizes(model)
-    if up.net_arch and before != up.net_arch:
-        model = widen_layers(model, venv, p, up.net_arch)
-        widened.append({"steps": int(model.num_timesteps), "net_arch": [list(before), list(up.net_arch)]})
-        if device != "cpu":
-            model = _to_device(model, venv, p, device)
-    statistics = list(prior.get("statistics", []))
-    if restat_steps:
+    try:  # the env processes end with the run, also when it raises
+        venv = VecMonitor(vec)
+        resumed = resume and (out / PROGRESS_FILE).exists()
+        prior = json.loads((out / PROGRESS_FILE).read_text()) if resumed else {}
+        # the AMP references and the body statistics
+        pool = MultiBodyEnv(sources, replace(up, refresh_probability=0.0), env, p.seed)
+        body_obs = np.array([b.obs for b in pool.bodies])
+        frozen = bool(prior.get("obs_stats_frozen")) if prior else init_from is not None
+        widened, discarded = list(prior.get("widened", [])), list(prior.get("discarded", []))
+        if prior and int(prior.get("obs_size", UNIVERSAL_OBS_SIZE)) < UNIVERSAL_OBS_SIZE:  # values appended
+            old = PPO.load(str(out / POLICY_FILE), device="cpu", custom_objects=ppo_settings(p))
+            n_old = old.observation_space.shape[0] - OBS_SIZE
+            venv, model = widen_for_body(old, load_norm(out), venv, p, body_obs[:, n_old:].mean(0),
+                                         np.maximum(body_obs[:, n_old:].std(0), 0.02), optimizer=True)
+            model.num_timesteps = old.num_timesteps
+            widened.append({"steps": int(old.num_timesteps),
+                            "obs_size": [OBS_SIZE + n_old, UNIVERSAL_OBS_SIZE]})
+            if device != "cpu":
+                model = _to_device(model, venv, p, device)
+        elif prior:
+            venv = VecNormalize.load(str(out / NORM_FILE), venv)
+            venv.training = not frozen
+            model = PPO.load(str(out / POLICY_FILE), env=venv, device=device, custom_objects=ppo_settings(p))
+        elif init_from is not None:
+            old = PPO.load(str(Path(init_from) / POLICY_FILE), device="cpu")
+            venv, model = widen_for_body(old, load_norm(Path(init_from)), venv, p, body_obs.mean(0),
+                                         np.maximum(body_obs.std(0), 0.02))
+            if device != "cpu":
+                model = _to_device(model, venv, p, device)
+        else:
+            venv = VecNormalize(venv, norm_obs=True, norm_reward=False, clip_obs=10.0, gamma=p.gamma)
+            model = new_ppo(venv, p) if device == "cpu" else _to_device(new_ppo(venv, p), venv, p, device)
+        before = hidden_sizes(model)
+        if up.net_arch and before != up.net_arch:
+            model = widen_layers(model, venv, p, up.net_arch)
+            widened.append({"steps": int(model.num_timesteps), "net_arch": [list(before), list(up.net_arch)]})
+            if device != "cpu":
+                model = _to_device(model, venv, p, device)
+        statistics = list(prior.get("statistics", []))
+        if restat_steps:
+            if not prior:
+                raise ValueError("restat_steps: only a resumed run's observation statistics are re-estimated")
+            statistics.append({"steps": int(model.num_timesteps),
+                               **restat(model, venv, pool_observations(model, venv, restat_steps))})
+        sampler = amp_reference_sampler(pool, up, pool.bodies[0].env.dt, p.seed)
+        amp = AMP(2 * AMP_SIZE, p.amp, sampler, seed=p.seed, device=device)
+        start_amp = out if prior else (Path(init_from) if init_from is not None else None)
+        if start_amp is not None and (start_amp / AMP_FILE).exists():
+            amp.load_state_dict(torch.load(start_amp / AMP_FILE, weights_only=False, map_location=device))
+        log = MetricsLog(out, resume=bool(prior))
+        start = time.perf_counter()
+        steps0, wall0 = int(prior.get("steps", 0)), float(prior.get("wall_s", 0.0))
+        runs, checkpoints = list(prior.get("runs", [])), list(prior.get("checkpoints", []))
+        origin = {k: v for k, v in prior.items() if k.startswith("initial")} or (
+            {"initialised_from": str(init_from)} if init_from is not None else {})
         if not prior:
-            raise ValueError("restat_steps: only a resumed run's observation statistics are re-estimated")
-        statistics.append({"steps": int(model.num_timesteps),
-                           **restat(model, venv, pool_observations(model, venv, restat_steps))})
-    sampler = amp_reference_sampler(pool, up, pool.bodies[0].env.dt, p.seed)
-    amp = AMP(2 * AMP_SIZE, p.amp, sampler, seed=p.seed, device=device)
-    start_amp = out if prior else (Path(init_from) if init_from is not None else None)
-    if start_amp is not None and (start_amp / AMP_FILE).exists():
-        amp.load_state_dict(torch.load(start_amp / AMP_FILE, weights_only=False, map_location=device))
-    log = MetricsLog(out, resume=bool(prior))
-    start = time.perf_counter()
-    steps0, wall0 = int(prior.get("steps", 0)), float(prior.get("wall_s", 0.0))
-    runs, checkpoints = list(prior.get("runs", [])), list(prior.get("checkpoints", []))
-    origin = {k: v for k, v in prior.items() if k.startswith("initial")} or (
-        {"initialised_from": str(init_from)} if init_from is not None else {})
-    if not prior:
-        model.num_timesteps = 0
-    total = total_steps or p.total_steps
-    gate_wall = [0.0]
-    taught = bool(up.teachers) and up.teacher_weight > 0
+            model.num_timesteps = 0
+        total = total_steps or p.total_steps
+        gate_wall = [0.0]
+        taught = bool(up.teachers) and up.teacher_weight > 0
 
-    def save() -> dict:
-        model.save(str(out / POLICY_FILE))
-        venv.save(str(out / NORM_FILE))
-        torch.save(amp.state_dict(), out / AMP_FILE)
-        wall = round(wall0 + time.perf_counter() - start, 1)
-        if gate:
-            t0 = time.perf_counter()
-            g = quick_gate(model, venv, sources, up, p.env, scenarios)
-            gate_wall[0] += time.perf_counter() - t0
-            checkpoints.append({"steps": int(model.num_timesteps), "wall_s": wall, "passed": g["passed"],
-                                "checks": g["checks"], "gate": g["subjects"],
-                                **({"training": record.take()} if record.num_timesteps else {})})
-        run_steps = int(model.num_timesteps) - steps0
-        run_wall = time.perf_counter() - start
-        rec = {"steps": int(model.num_timesteps), "wall_s": wall, **origin,
-               "subjects": [s.name for s in sources], "obs_size": UNIVERSAL_OBS_SIZE,
-               "obs_stats_frozen": frozen, **({"widened": widened} if widened else {}),
-               **({"statistics": statistics} if statistics else {}),
-               **({"discarded": discarded} if discarded else {}),
-               "runs": runs + [{"command": command, "n_envs": n_envs, "subprocess": subprocess,
-                                **({"teachers": list(up.teachers)} if taught else {}),
-                                **({"env": {k: list(v) if isinstance(v, tuple) else v
-                                            for k, v in up.env.items()}} if up.env else {}),
-                                **({} if up.min_action_std is None else
-                                   {"min_action_std": up.min_action_std}),
-                                **({"bound_weight": up.bound_weight} if up.bound_weight > 0 else {}),
-                                **({} if up.learning_rate is None else {"learning_rate": up.learning_rate}),
-                                **({} if env.commands.first_step == "either" else
-                                   {"first_step": env.commands.first_step}),
-                                "workers": workers,
-                                "device": device, "threads": threads, "cpu_count": os.cpu_count(),
-                                "steps": run_steps,
-                                "wall_s": round(run_wall, 1), "gate_wall_s": round(gate_wall[0], 1),
-                                "steps_per_s": round(run_steps / max(run_wall - gate_wall[0], 1e-9), 1)}],
-               "checkpoints": checkpoints}
-        tmp = out / f".{PROGRESS_FILE}.tmp"
-        tmp.write_text(json.dumps(rec, indent=1) + "\n")
-        os.replace(tmp, out / PROGRESS_FILE)
-        if progress and gate:
-            print(f"{rec['steps']} steps, {wall:.0f} s: gate {g['passed']}/{g['checks']}", flush=True)
+        def save() -> dict:
+            model.save(str(out / POLICY_FILE))
+            venv.save(str(out / NORM_FILE))
+            torch.save(amp.state_dict(), out / AMP_FILE)
+            wall = round(wall0 + time.perf_counter() - start, 1)
+            if gate:
+                t0 = time.perf_counter()
+                g = quick_gate(model, venv, sources, up, p.env, scenarios)
+                gate_wall[0] += time.perf_counter() - t0
+                checkpoints.append({"steps": int(model.num_timesteps), "wall_s": wall, "passed": g["passed"],
+                                    "checks": g["checks"], "gate": g["subjects"],
+                                    **({"training": record.take()} if record.num_timesteps else {})})
+            run_steps = int(model.num_timesteps) - steps0
+            run_wall = time.perf_counter() - start
+            rec = {"steps": int(model.num_timesteps), "wall_s": wall, **origin,
+                   "subjects": [s.name for s in sources], "obs_size": UNIVERSAL_OBS_SIZE,
+                   "obs_stats_frozen": frozen, **({"widened": widened} if widened else {}),
+                   **({"statistics": statistics} if statistics else {}),
+                   **({"discarded": discarded} if discarded else {}),
+                   "runs": runs + [{"command": command, "n_envs": n_envs, "subprocess": subprocess,
+                                    **({"teachers": list(up.teachers)} if taught else {}),
+                                    **({"env": {k: list(v) if isinstance(v, tuple) else v
+                                                for k, v in up.env.items()}} if up.env else {}),
+                                    **({} if up.min_action_std is None else
+                                       {"min_action_std": up.min_action_std}),
+                                    **({"bound_weight": up.bound_weight} if up.bound_weight > 0 else {}),
+                                    **({} if up.learning_rate is None else
+                                       {"learning_rate": up.learning_rate}),
+                                    **({} if env.commands.first_step == "either" else
+                                       {"first_step": env.commands.first_step}),
+                                    "workers": workers,
+                                    "device": device, "threads": threads, "cpu_count": os.cpu_count(),
+                                    "steps": run_steps,
+                                    "wall_s": round(run_wall, 1), "gate_wall_s": round(gate_wall[0], 1),
+                                    "steps_per_s": round(run_steps / max(run_wall - gate_wall[0], 1e-9), 1)}],
+                   "checkpoints": checkpoints}
+            tmp = out / f".{PROGRESS_FILE}.tmp"
+            tmp.write_text(json.dumps(rec, indent=1) + "\n")
+            os.replace(tmp, out / PROGRESS_FILE)
+            if progress and gate:
+                print(f"{rec['steps']} steps, {wall:.0f} s: gate {g['passed']}/{g['checks']}", flush=True)
+            return rec
+
+        record, stop = TrainingRecord(log), StopOnSignal()
+        callbacks = [UpdateThreads(threads), AMPCallback(amp, p.env.w_style, 6, log), record,
+                     Budget(total, p.checkpoint_steps, save, max_wall_s, False), stop]
+        if up.min_action_std is not None:
+            callbacks.insert(0, StdFloor(up.min_action_std))
+        if not prior and init_from is not None and up.critic_warmup_steps > 0:
+            callbacks.append(CriticWarmup(up.critic_warmup_steps))
+        if taught:
+            callbacks.append(Teachers(load_teachers(up.teachers, pool, Path(teacher_root)), up.teacher_weight,
+                                      up.teacher_batch, log, p.seed))
+        if up.bound_weight > 0:
+            callbacks.append(ActionBound(up.bound_weight, up.bound_batch, p.seed))
+        callbacks = CallbackList(callbacks)
+        remaining = max(total - steps0, 0)
+        if not prior and gate:
+            save()  # the curve's origin: the start policy's gate
+        if remaining:
+            try:
+                model.learn(total_timesteps=remaining, callback=callbacks, reset_num_timesteps=not prior,
+                            progress_bar=False)
+            finally:
+                stop.restore()
+        rec = save() if not checkpoints or checkpoints[-1]["steps"] != model.num_timesteps else \
+            json.loads((out / PROGRESS_FILE).read_text())
+        if stop.caught and progress:
+            print(f"stopped by {stop.caught.name} at {model.num_timesteps} steps, saved", flush=True)
+        log.close()
+        venv.close()
+        stop.carry_on()
         return rec
-
-    record, stop = TrainingRecord(log), StopOnSignal()
-    callbacks = [UpdateThreads(threads), AMPCallback(amp, p.env.w_style, 6, log), record,
-                 Budget(total, p.checkpoint_steps, save, max_wall_s, False), stop]
-    if up.min_action_std is not None:
-        callbacks.insert(0, StdFloor(up.min_action_std))
-    if not prior and init_from is not None and up.critic_warmup_steps > 0:
-        callbacks.append(CriticWarmup(up.critic_warmup_steps))
-    if taught:
-        callbacks.append(Teachers(load_teachers(up.teachers, pool, Path(teacher_root)), up.teacher_weight,
-                                  up.teacher_batch, log, p.seed))
-    if up.bound_weight > 0:
-        callbacks.append(ActionBound(up.bound_weight, up.bound_batch, p.seed))
-    callbacks = CallbackList(callbacks)
-    remaining = max(total - steps0, 0)
-    if not prior and gate:
-        save()  # the curve's origin: the start policy's gate
-    if remaining:
-        try:
-            model.learn(total_timesteps=remaining, callback=callbacks, reset_num_timesteps=not prior,
-                        progress_bar=False)
-        finally:
-            stop.restore()
-    rec = save() if not checkpoints or checkpoints[-1]["steps"] != model.num_timesteps else \
-        json.loads((out / PROGRESS_FILE).read_text())
-    if stop.caught and progress:
-        print(f"stopped by {stop.caught.name} at {model.num_timesteps} steps, saved", flush=True)
-    log.close()
-    venv.close()
-    stop.carry_on()
-    return rec
+    except BaseException:
+        with contextlib.suppress(OSError, EOFError):  # a dead worker's pipe; the run's error goes on
+            vec.close()
+        raise
 
 
 def _to_device(model: PPO, venv: VecNormalize, p: TrainParams, device: str) -> PPO:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import multiprocessing
 import os
 import shutil
 import signal
@@ -323,9 +324,9 @@ def test_a_signal_stops_the_run_with_a_checkpoint_then_acts(universal, camargo, 
     assert signal.getsignal(signal.SIGTERM) is before
 
 
-def test_a_run_that_raises_gives_the_signals_back(universal, camargo, tmp_path, monkeypatch):
+def test_a_raising_run_gives_the_signals_back_and_ends_its_envs(universal, camargo, tmp_path, monkeypatch):
     """An error mid-run reaches the caller with the SIGINT and SIGTERM handlers from before the run
-    back (SB3 calls no end hook on an error)."""
+    back (SB3 calls no end hook on an error) and its env processes ended."""
     p, up, scenarios = universal
     p = replace(p, n_steps=64, batch_size=128, n_epochs=1, checkpoint_steps=256, net_arch=(32, 32))
     up = replace(up, min_action_std=None, bound_weight=0.0)
@@ -338,10 +339,12 @@ def test_a_run_that_raises_gives_the_signals_back(universal, camargo, tmp_path, 
 
     monkeypatch.setattr(universal_module, "Budget", FailAt300)
     before = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    children = set(multiprocessing.active_children())
     with pytest.raises(RuntimeError, match="a failing callback"):
         train_universal((camargo[0],), p, up, tmp_path / "universal", scenarios, total_steps=1024,
-                        n_envs=2, gate=False)
+                        n_envs=2, gate=False, subprocess=True, workers=2)
     assert {s: signal.getsignal(s) for s in before} == before
+    assert set(multiprocessing.active_children()) == children
 
 
 class _FirstInputs(gym.ObservationWrapper):
