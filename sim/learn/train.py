@@ -18,12 +18,13 @@ SB3's Adam; network sizes are params.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import hashlib
 import json
 import signal
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, fields, replace
 from functools import partial
 from pathlib import Path
@@ -34,7 +35,7 @@ import torch
 from pydantic import with_config
 from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList
-from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor, VecNormalize
+from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv, VecMonitor, VecNormalize
 
 from sim.body.variant import Variant
 from sim.learn.amp import AMP, AMPCallback, AMPParams
@@ -186,9 +187,9 @@ class StopOnSignal(BaseCallback):
     its checkpoint and progress record as at its wall-time limit instead of losing the steps trained
     since its last checkpoint; then `carry_on` gives the signal its own effect, so a caller (a
     stage under `dvc repro`) stops as well. `caught` is the signal; `restore` puts the earlier
-    handlers back: at training's end, and by the trainer's `finally` when training raises (SB3 calls
-    no end hook then, and Ctrl-C would stay swallowed). The universal run's env processes ignore
-    SIGINT (`sim.learn.vec`): a terminal's Ctrl-C reaches them too."""
+    handlers back: at training's end, and by `learn_for` when training raises (SB3 calls no end hook
+    then, and Ctrl-C would stay swallowed). The universal run's env processes ignore SIGINT
+    (`sim.learn.vec`): a terminal's Ctrl-C reaches them too."""
 
     SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
@@ -222,6 +223,31 @@ class StopOnSignal(BaseCallback):
             raise KeyboardInterrupt
         if self.caught is not None:
             raise SystemExit(128 + self.caught)
+
+
+def learn_for(model: PPO, steps: int, callbacks: CallbackList, stop: StopOnSignal, *, fresh: bool) -> None:
+    """`model.learn` for `steps` more env steps (0: none), with the signal handlers from before it
+    back afterwards also when it raises (`StopOnSignal.restore`: SB3 calls no end hook on an error);
+    `fresh`: the step count starts at 0 (a run that resumes goes on from its own)."""
+    if steps:
+        try:
+            model.learn(total_timesteps=steps, callback=callbacks, reset_num_timesteps=fresh,
+                        progress_bar=False)
+        finally:
+            stop.restore()
+
+
+@contextlib.contextmanager
+def closed_on_error(vec: VecEnv) -> Iterator[None]:
+    """Closes `vec` (ends its env processes) when the block raises, and lets the error go on: a dead
+    worker's pipe error while closing is dropped so the block's own is the one seen. A run that
+    ends normally closes its envs itself."""
+    try:
+        yield
+    except BaseException:
+        with contextlib.suppress(OSError, EOFError):
+            vec.close()
+        raise
 
 
 class MetricsLog:
@@ -282,89 +308,86 @@ def train(model_path: str | Path, cycle: ReferenceCycle, p: TrainParams, out_dir
     n_envs = n_envs or p.n_envs
     torch.set_num_threads(threads or p.threads)
     total = total_steps or p.total_steps
-    venv = make_vec_env(model_path, cycle, p, n_envs, p.subprocess if subprocess is None else subprocess)
-    prior = json.loads((out / PROGRESS_FILE).read_text()) if resume and (out / PROGRESS_FILE).exists() else {}
-    start_dir = out if prior else (Path(init_from) if init_from is not None else None)
-    if start_dir is not None:
-        for f in (POLICY_FILE, NORM_FILE):
-            if not (start_dir / f).exists():
-                raise FileNotFoundError(f"{start_dir / f}: no policy to start from")
-        old = PPO.load(str(start_dir / POLICY_FILE), device="cpu")
-        if old.observation_space.shape[0] == LEGACY_OBS_SIZE:  # a straight walker: widen to steering
-            venv, model = widen_policy(old, load_norm(start_dir), venv, p, cycle.speed_mps)
+    in_processes = p.subprocess if subprocess is None else subprocess
+    vec = venv = make_vec_env(model_path, cycle, p, n_envs, in_processes)
+    with closed_on_error(vec):  # the env processes end with the run, also when it raises
+        resumed = resume and (out / PROGRESS_FILE).exists()
+        prior = json.loads((out / PROGRESS_FILE).read_text()) if resumed else {}
+        start_dir = out if prior else (Path(init_from) if init_from is not None else None)
+        if start_dir is not None:
+            for f in (POLICY_FILE, NORM_FILE):
+                if not (start_dir / f).exists():
+                    raise FileNotFoundError(f"{start_dir / f}: no policy to start from")
+            old = PPO.load(str(start_dir / POLICY_FILE), device="cpu")
+            if old.observation_space.shape[0] == LEGACY_OBS_SIZE:  # a straight walker: widen to steering
+                venv, model = widen_policy(old, load_norm(start_dir), venv, p, cycle.speed_mps)
+            else:
+                venv = VecNormalize.load(str(start_dir / NORM_FILE), venv)
+                venv.training = True
+                # the run's own PPO settings, not the saved ones (PPO.load restores those)
+                model = PPO.load(str(start_dir / POLICY_FILE), env=venv, device="cpu",
+                                 custom_objects=ppo_settings(p))
+            if not prior:
+                model.num_timesteps = 0
         else:
-            venv = VecNormalize.load(str(start_dir / NORM_FILE), venv)
-            venv.training = True
-            # the run's own PPO settings, not the saved ones (PPO.load restores those)
-            model = PPO.load(str(start_dir / POLICY_FILE), env=venv, device="cpu",
-                             custom_objects=ppo_settings(p))
-        if not prior:
-            model.num_timesteps = 0
-    else:
-        venv = VecNormalize(venv, norm_obs=True, norm_reward=False, clip_obs=10.0, gamma=p.gamma)
-        model = new_ppo(venv, p)
-    ref_env = make_walk_env(model_path, cycle, p.env)
-    rng = np.random.default_rng(p.seed)
-    recorded = None
-    if motion is not None and p.amp.motion_share > 0.0:
-        # the recording and its mirror image: Camargo's circuits turn one way only
-        recorded = np.vstack([motion_amp_pairs(ref_env.model, motion.time_s, q, v, motion.trial, ref_env.dt,
-                                               cycle.floor_shift_m)
-                              for q, v in ((motion.qpos, motion.qvel),
-                                           mirrored_motion(ref_env.model, motion.qpos, motion.qvel))])
-    amp = AMP(2 * AMP_SIZE, p.amp, lambda n: ref_env.ref.amp_pairs(rng, n, ref_env.step_phase, recorded,
-                                                                   p.amp.motion_share), seed=p.seed)
-    if start_dir is not None and (start_dir / AMP_FILE).exists():
-        amp.load_state_dict(torch.load(start_dir / AMP_FILE, weights_only=False))
-    log = MetricsLog(out, resume=bool(prior))
-    start = time.perf_counter()
-    steps0 = int(prior.get("steps", 0))
-    wall0 = float(prior.get("wall_s", 0.0))
-    runs = list(prior.get("runs", []))
-    origin = {}
-    if not prior and init_from is not None:
-        src_file = Path(init_from) / PROGRESS_FILE
-        src = json.loads(src_file.read_text()) if src_file.exists() else {}
-        shown = Path(init_from).resolve()
-        shown = shown.relative_to(Path.cwd()) if shown.is_relative_to(Path.cwd()) else shown
-        origin = {"initialised_from": str(shown), "initial_policy_steps": int(src.get("steps", 0))}
-    model_sha = hashlib.sha256(Path(model_path).read_bytes()).hexdigest()[:16]
+            venv = VecNormalize(venv, norm_obs=True, norm_reward=False, clip_obs=10.0, gamma=p.gamma)
+            model = new_ppo(venv, p)
+        ref_env = make_walk_env(model_path, cycle, p.env)
+        rng = np.random.default_rng(p.seed)
+        recorded = None
+        if motion is not None and p.amp.motion_share > 0.0:
+            # the recording and its mirror image: Camargo's circuits turn one way only
+            recorded = np.vstack([motion_amp_pairs(ref_env.model, motion.time_s, q, v, motion.trial,
+                                                   ref_env.dt, cycle.floor_shift_m)
+                                  for q, v in ((motion.qpos, motion.qvel),
+                                               mirrored_motion(ref_env.model, motion.qpos, motion.qvel))])
+        amp = AMP(2 * AMP_SIZE, p.amp, lambda n: ref_env.ref.amp_pairs(rng, n, ref_env.step_phase, recorded,
+                                                                       p.amp.motion_share), seed=p.seed)
+        if start_dir is not None and (start_dir / AMP_FILE).exists():
+            amp.load_state_dict(torch.load(start_dir / AMP_FILE, weights_only=False))
+        log = MetricsLog(out, resume=bool(prior))
+        start = time.perf_counter()
+        steps0 = int(prior.get("steps", 0))
+        wall0 = float(prior.get("wall_s", 0.0))
+        runs = list(prior.get("runs", []))
+        origin = {}
+        if not prior and init_from is not None:
+            src_file = Path(init_from) / PROGRESS_FILE
+            src = json.loads(src_file.read_text()) if src_file.exists() else {}
+            shown = Path(init_from).resolve()
+            shown = shown.relative_to(Path.cwd()) if shown.is_relative_to(Path.cwd()) else shown
+            origin = {"initialised_from": str(shown), "initial_policy_steps": int(src.get("steps", 0))}
+        model_sha = hashlib.sha256(Path(model_path).read_bytes()).hexdigest()[:16]
 
-    def save() -> dict:
-        save_body(out, model_path, cycle)
-        save_steering(out, p.env.commands)
-        model.save(str(out / POLICY_FILE))
-        venv.save(str(out / NORM_FILE))
-        torch.save(amp.state_dict(), out / AMP_FILE)
-        rec = {"steps": int(model.num_timesteps), "wall_s": round(wall0 + time.perf_counter() - start, 1),
-               **{k: v for k, v in prior.items() if k.startswith("initial")}, **origin,
-               "runs": runs + [{"command": command, "human_xml_sha256_16": model_sha,
-                                "n_envs": n_envs, "threads": threads or p.threads,
-                                "steps": int(model.num_timesteps) - steps0,
-                                "wall_s": round(time.perf_counter() - start, 1)}]}
-        last = rec["runs"][-1]
-        rec["steps_per_s_last_run"] = round(last["steps"] / max(last["wall_s"], 1e-9), 1)
-        (out / PROGRESS_FILE).write_text(json.dumps(rec, indent=2) + "\n")
+        def save() -> dict:
+            save_body(out, model_path, cycle)
+            save_steering(out, p.env.commands)
+            model.save(str(out / POLICY_FILE))
+            venv.save(str(out / NORM_FILE))
+            torch.save(amp.state_dict(), out / AMP_FILE)
+            rec = {"steps": int(model.num_timesteps), "wall_s": round(wall0 + time.perf_counter() - start, 1),
+                   **{k: v for k, v in prior.items() if k.startswith("initial")}, **origin,
+                   "runs": runs + [{"command": command, "human_xml_sha256_16": model_sha,
+                                    "n_envs": n_envs, "threads": threads or p.threads,
+                                    "steps": int(model.num_timesteps) - steps0,
+                                    "wall_s": round(time.perf_counter() - start, 1)}]}
+            last = rec["runs"][-1]
+            rec["steps_per_s_last_run"] = round(last["steps"] / max(last["wall_s"], 1e-9), 1)
+            (out / PROGRESS_FILE).write_text(json.dumps(rec, indent=2) + "\n")
+            return rec
+
+        stop = StopOnSignal()
+        callbacks = [UpdateThreads(threads or p.threads), AMPCallback(amp, p.env.w_style, 6, log),
+                     Budget(total, p.checkpoint_steps, save, max_wall_s, progress), stop]
+        if curriculum_steps > 0:
+            callbacks.append(_Curriculum(curriculum_steps))
+        callbacks = CallbackList(callbacks)
+        learn_for(model, max(total - steps0, 0), callbacks, stop, fresh=not prior)
+        rec = save()
+        log.close()
+        venv.close()
+        stop.carry_on()
         return rec
-
-    stop = StopOnSignal()
-    callbacks = [UpdateThreads(threads or p.threads), AMPCallback(amp, p.env.w_style, 6, log),
-                 Budget(total, p.checkpoint_steps, save, max_wall_s, progress), stop]
-    if curriculum_steps > 0:
-        callbacks.append(_Curriculum(curriculum_steps))
-    callbacks = CallbackList(callbacks)
-    remaining = max(total - steps0, 0)
-    if remaining:
-        try:
-            model.learn(total_timesteps=remaining, callback=callbacks, reset_num_timesteps=not prior,
-                        progress_bar=False)
-        finally:
-            stop.restore()
-    rec = save()
-    log.close()
-    venv.close()
-    stop.carry_on()
-    return rec
 
 
 def ppo_settings(p: TrainParams) -> dict[str, float | int]:
@@ -503,6 +526,7 @@ def load_policy(out_dir: str | Path) -> tuple[PPO, VecNormalize | None]:
 
 
 __all__ = ["AMP_FILE", "BODY_FILE", "CYCLE_FILE", "NORM_FILE", "POLICY_FILE", "PROGRESS_FILE",
-           "STEERING_FILE", "Budget", "MetricsLog", "TrainParams", "UpdateThreads", "load_body", "load_norm",
-           "load_policy", "make_vec_env", "new_ppo", "policy_env", "save_body", "save_for_rollouts",
-           "save_steering", "train", "variant_cycle", "widen_policy"]
+           "STEERING_FILE", "Budget", "MetricsLog", "StopOnSignal", "TrainParams", "UpdateThreads",
+           "closed_on_error", "learn_for", "load_body", "load_norm", "load_policy", "make_vec_env", "new_ppo",
+           "policy_env", "save_body", "save_for_rollouts", "save_steering", "train", "variant_cycle",
+           "widen_policy"]

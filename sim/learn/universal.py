@@ -28,7 +28,6 @@ and pandas and scipy for the scenarios' commands: no Ray, DuckDB or DVC.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
 import math
 import os
@@ -59,6 +58,8 @@ from sim.learn.train import (
     StopOnSignal,
     TrainParams,
     UpdateThreads,
+    closed_on_error,
+    learn_for,
     load_norm,
     load_policy,
     new_ppo,
@@ -614,7 +615,7 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
         p = replace(p, learning_rate=up.learning_rate)
     fns = [partial(make_pool_env, sources, up, env, p.seed * 1000 + 37 * i) for i in range(n_envs)]
     vec = GroupedSubprocVecEnv(fns, workers or n_envs) if subprocess and n_envs > 1 else DummyVecEnv(fns)
-    try:  # the env processes end with the run, also when it raises
+    with closed_on_error(vec):  # the env processes end with the run, also when it raises
         venv = VecMonitor(vec)
         resumed = resume and (out / PROGRESS_FILE).exists()
         prior = json.loads((out / PROGRESS_FILE).read_text()) if resumed else {}
@@ -731,15 +732,9 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
         if up.bound_weight > 0:
             callbacks.append(ActionBound(up.bound_weight, up.bound_batch, p.seed))
         callbacks = CallbackList(callbacks)
-        remaining = max(total - steps0, 0)
         if not prior and gate:
             save()  # the curve's origin: the start policy's gate
-        if remaining:
-            try:
-                model.learn(total_timesteps=remaining, callback=callbacks, reset_num_timesteps=not prior,
-                            progress_bar=False)
-            finally:
-                stop.restore()
+        learn_for(model, max(total - steps0, 0), callbacks, stop, fresh=not prior)
         rec = save() if not checkpoints or checkpoints[-1]["steps"] != model.num_timesteps else \
             json.loads((out / PROGRESS_FILE).read_text())
         if stop.caught and progress:
@@ -748,10 +743,6 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
         venv.close()
         stop.carry_on()
         return rec
-    except BaseException:
-        with contextlib.suppress(OSError, EOFError):  # a dead worker's pipe; the run's error goes on
-            vec.close()
-        raise
 
 
 def _to_device(model: PPO, venv: VecNormalize, p: TrainParams, device: str) -> PPO:

@@ -4,6 +4,7 @@ and reference cycle (the `scale` and `reference` stages' outputs)."""
 from __future__ import annotations
 
 import json
+import multiprocessing
 import os
 import signal
 from dataclasses import replace
@@ -249,10 +250,10 @@ def test_ctrl_c_stops_single_body_training_with_a_checkpoint(tmp_path, setup, ca
     assert signal.getsignal(signal.SIGINT) is before
 
 
-def test_a_training_that_raises_gives_ctrl_c_back(tmp_path, setup, camargo_model, monkeypatch):
-    """An error mid-run (raised by the run's budget callback at 300 steps) reaches the caller, and the
-    SIGINT and SIGTERM handlers from before training are back: SB3 calls no end hook on an error,
-    and a notebook's Ctrl-C would otherwise only set a flag no one reads."""
+def test_a_raising_training_gives_ctrl_c_back_and_ends_its_envs(tmp_path, setup, camargo_model, monkeypatch):
+    """An error mid-run (raised by the run's budget callback at 300 steps) reaches the caller, the
+    SIGINT and SIGTERM handlers from before training are back (SB3 calls no end hook on an error,
+    and a notebook's Ctrl-C would otherwise only set a flag no one reads) and the env processes ended."""
     _, tp, _, cycle = setup
     p = replace(tp, n_steps=128, batch_size=256, n_epochs=1, net_arch=(32, 32), checkpoint_steps=256,
                 amp=replace(tp.amp, hidden=(32, 32)))
@@ -265,10 +266,12 @@ def test_a_training_that_raises_gives_ctrl_c_back(tmp_path, setup, camargo_model
 
     monkeypatch.setattr(train_module, "Budget", FailAt300)
     before = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    children = set(multiprocessing.active_children())
     with pytest.raises(RuntimeError, match="a failing callback"):
         train(camargo_model / "human.xml", cycle, p, tmp_path, n_envs=2, threads=1, total_steps=1024,
-              progress=False)
+              progress=False, subprocess=True)
     assert {s: signal.getsignal(s) for s in before} == before
+    assert set(multiprocessing.active_children()) == children
 
 
 def test_metrics_without_dvclive_keep_each_callers_names(tmp_path):
