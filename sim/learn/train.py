@@ -386,8 +386,8 @@ def train(model_path: str | Path, cycle: ReferenceCycle, p: TrainParams, out_dir
         rec = save()
         log.close()
         venv.close()
-        stop.carry_on()
-        return rec
+    stop.carry_on()  # after the with: a caught signal's error is not the block's, its envs closed
+    return rec
 
 
 def ppo_settings(p: TrainParams) -> dict[str, float | int]:

@@ -741,8 +741,8 @@ def train_universal(sources: tuple[Source, ...], p: TrainParams, up: UniversalPa
             print(f"stopped by {stop.caught.name} at {model.num_timesteps} steps, saved", flush=True)
         log.close()
         venv.close()
-        stop.carry_on()
-        return rec
+    stop.carry_on()  # after the with: a caught signal's error is not the block's, its envs closed
+    return rec
 
 
 def _to_device(model: PPO, venv: VecNormalize, p: TrainParams, device: str) -> PPO:
