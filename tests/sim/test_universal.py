@@ -324,20 +324,15 @@ def test_a_signal_stops_the_run_with_a_checkpoint_then_acts(universal, camargo, 
     assert signal.getsignal(signal.SIGTERM) is before
 
 
-def test_a_raising_run_gives_the_signals_back_and_ends_its_envs(universal, camargo, tmp_path, monkeypatch):
+def test_a_raising_run_gives_the_signals_back_and_ends_its_envs(universal, camargo, tmp_path, monkeypatch,
+                                                               failing_budget):
     """An error mid-run reaches the caller with the SIGINT and SIGTERM handlers from before the run
     back (SB3 calls no end hook on an error) and its env processes ended."""
     p, up, scenarios = universal
     p = replace(p, n_steps=64, batch_size=128, n_epochs=1, checkpoint_steps=256, net_arch=(32, 32))
     up = replace(up, min_action_std=None, bound_weight=0.0)
 
-    class FailAt300(universal_module.Budget):
-        def _on_step(self) -> bool:
-            if self.num_timesteps == 300:
-                raise RuntimeError("a failing callback")
-            return super()._on_step()
-
-    monkeypatch.setattr(universal_module, "Budget", FailAt300)
+    monkeypatch.setattr(universal_module, "Budget", failing_budget)
     before = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
     children = set(multiprocessing.active_children())
     with pytest.raises(RuntimeError, match="a failing callback"):

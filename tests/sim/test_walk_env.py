@@ -250,7 +250,8 @@ def test_ctrl_c_stops_single_body_training_with_a_checkpoint(tmp_path, setup, ca
     assert signal.getsignal(signal.SIGINT) is before
 
 
-def test_a_raising_training_gives_ctrl_c_back_and_ends_its_envs(tmp_path, setup, camargo_model, monkeypatch):
+def test_a_raising_training_gives_ctrl_c_back_and_ends_its_envs(tmp_path, setup, camargo_model, monkeypatch,
+                                                             failing_budget):
     """An error mid-run (raised by the run's budget callback at 300 steps) reaches the caller, the
     SIGINT and SIGTERM handlers from before training are back (SB3 calls no end hook on an error,
     and a notebook's Ctrl-C would otherwise only set a flag no one reads) and the env processes ended."""
@@ -258,13 +259,7 @@ def test_a_raising_training_gives_ctrl_c_back_and_ends_its_envs(tmp_path, setup,
     p = replace(tp, n_steps=128, batch_size=256, n_epochs=1, net_arch=(32, 32), checkpoint_steps=256,
                 amp=replace(tp.amp, hidden=(32, 32)))
 
-    class FailAt300(train_module.Budget):
-        def _on_step(self) -> bool:
-            if self.num_timesteps == 300:
-                raise RuntimeError("a failing callback")
-            return super()._on_step()
-
-    monkeypatch.setattr(train_module, "Budget", FailAt300)
+    monkeypatch.setattr(train_module, "Budget", failing_budget)
     before = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
     children = set(multiprocessing.active_children())
     with pytest.raises(RuntimeError, match="a failing callback"):
