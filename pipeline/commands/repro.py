@@ -15,6 +15,7 @@ from __future__ import annotations
 import copy
 import io
 import os
+import re
 import sys
 from collections import OrderedDict
 from collections.abc import Iterator
@@ -35,8 +36,19 @@ def _null(dumper: yaml.SafeDumper, _: None) -> yaml.ScalarNode:
     return dumper.represent_scalar("tag:yaml.org,2002:null", "")  # ruamel: `key:` with no value
 
 
+def _float(dumper: yaml.SafeDumper, value: float) -> yaml.ScalarNode:
+    """A float as ruamel writes it for YAML 1.2 (`5e-05`, where PyYAML's YAML 1.1 gives `5.0e-05`)."""
+    if value != value or value in (float("inf"), float("-inf")):
+        return yaml.representer.SafeRepresenter.represent_float(dumper, value)
+    return dumper.represent_scalar("tag:yaml.org,2002:float", repr(value).lower())
+
+
 _LockDumper.add_representer(OrderedDict, yaml.representer.SafeRepresenter.represent_dict)
 _LockDumper.add_representer(type(None), _null)
+_LockDumper.add_representer(float, _float)
+# YAML 1.2's float without a dot (`5e-05`): plain, as the float it is, not quoted as a string
+_LockDumper.add_implicit_resolver(
+    "tag:yaml.org,2002:float", re.compile(r"^[-+]?[0-9]+[eE][-+]?[0-9]+$"), list("-+0123456789"))
 
 
 def dump_lock_text(data: dict) -> str:

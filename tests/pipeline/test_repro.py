@@ -12,7 +12,14 @@ from pathlib import Path
 import pytest
 
 from pipeline import paths
-from pipeline.commands.repro import dump_lock_text, dvc_dump_text, fast_modify_yaml, load_lock_text, lock_text
+from pipeline.commands.repro import (
+    dump_lock_text,
+    dvc_dump_text,
+    fast_modify_yaml,
+    libyaml_lock_text,
+    load_lock_text,
+    lock_text,
+)
 
 ROOT = paths.REPO_ROOT
 
@@ -81,10 +88,22 @@ def test_a_lock_it_wrote_is_not_parsed_again_and_gives_the_same_bytes(tmp_path, 
     assert len(parsed) == 1 and twice.read_text() == fresh.read_text()
 
 
-@pytest.mark.parametrize("value", ["1e5", "0o17", 1e-05, "it's a: b", "yes", "a\nb", [None, 1]])
+@pytest.mark.parametrize("value", [5e-05, 1e16, -3e-07, 0.5, float("nan"), "1e5", "5e-05", 100.0])
+def test_floats_and_float_like_strings_dump_through_libyaml_as_dvc_writes_them(value):
+    # YAML 1.1 (PyYAML) writes 5e-05 as 5.0e-05 and the string "1e5" plain; DVC (YAML 1.2) does not
+    text = "schema: '2.0'\nstages:\n  a:\n    cmd: echo a\n"
+    before = load_lock_text(text)
+    entry = {"cmd": "echo", "params": {"p.yaml": {"x": value}}}
+    after = {**before, "stages": {**before["stages"], "s": entry}}
+    assert dump_lock_text(after) == dvc_dump_text(after)
+    assert libyaml_lock_text(text, before, after) == dvc_dump_text(after)
+    assert load_lock_text(dump_lock_text(after)) == after or value != value
+
+
+@pytest.mark.parametrize("value", ["0o17", "it's a: b", "yes", "a\nb", [None, 1]])
 def test_entries_libyaml_writes_otherwise_get_dvcs_bytes(value):
-    # YAML 1.1 (PyYAML) writes "1e5" and "0o17" plain, which YAML 1.2 (how DVC reads) takes for
-    # numbers; the rest it writes in another style than DVC's
+    # YAML 1.1 (PyYAML) writes "0o17" plain, which YAML 1.2 (how DVC reads) takes for a number; the
+    # rest it writes in another style than DVC's
     text = "schema: '2.0'\nstages:\n  a:\n    cmd: echo a\n"
     before = load_lock_text(text)
     entry = {"cmd": "echo", "params": {"p.yaml": {"x": value}}}
@@ -94,7 +113,7 @@ def test_entries_libyaml_writes_otherwise_get_dvcs_bytes(value):
 
 
 def test_a_lock_libyaml_would_rewrite_differently_is_kept_in_dvcs_format():
-    text = "schema: '2.0'\nstages:\n  a:\n    cmd: echo\n    params:\n      p.yaml:\n        x: 1e-05\n"
+    text = "schema: '2.0'\nstages:\n  a:\n    cmd: echo\n    params:\n      p.yaml:\n        x: yes\n"
     before = load_lock_text(text)
     after = {**before, "stages": {**before["stages"], "b": {"cmd": "true"}}}
     assert dump_lock_text(before) != text
