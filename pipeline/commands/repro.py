@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import copy
 import io
+import math
 import os
 import re
 import sys
@@ -38,7 +39,7 @@ def _null(dumper: yaml.SafeDumper, _: None) -> yaml.ScalarNode:
 
 def _float(dumper: yaml.SafeDumper, value: float) -> yaml.ScalarNode:
     """A float as ruamel writes it for YAML 1.2 (`5e-05`, where PyYAML's YAML 1.1 gives `5.0e-05`)."""
-    if value != value or value in (float("inf"), float("-inf")):
+    if not math.isfinite(value):  # .nan, .inf, -.inf: the same in both
         return yaml.representer.SafeRepresenter.represent_float(dumper, value)
     return dumper.represent_scalar("tag:yaml.org,2002:float", repr(value).lower())
 

@@ -88,13 +88,18 @@ def test_a_lock_it_wrote_is_not_parsed_again_and_gives_the_same_bytes(tmp_path, 
     assert len(parsed) == 1 and twice.read_text() == fresh.read_text()
 
 
-@pytest.mark.parametrize("value", [5e-05, 1e16, -3e-07, 0.5, float("nan"), "1e5", "5e-05", 100.0])
-def test_floats_and_float_like_strings_dump_through_libyaml_as_dvc_writes_them(value):
-    # YAML 1.1 (PyYAML) writes 5e-05 as 5.0e-05 and the string "1e5" plain; DVC (YAML 1.2) does not
+def _lock_with_param(value) -> tuple[str, dict, dict]:
+    """A one-stage lock's text, as loaded, and with a stage added that tracks the param `x: value`."""
     text = "schema: '2.0'\nstages:\n  a:\n    cmd: echo a\n"
     before = load_lock_text(text)
     entry = {"cmd": "echo", "params": {"p.yaml": {"x": value}}}
-    after = {**before, "stages": {**before["stages"], "s": entry}}
+    return text, before, {**before, "stages": {**before["stages"], "s": entry}}
+
+
+@pytest.mark.parametrize("value", [5e-05, 1e16, -3e-07, 0.5, float("nan"), "1e5", "5e-05", 100.0])
+def test_floats_and_float_like_strings_dump_through_libyaml_as_dvc_writes_them(value):
+    # YAML 1.1 (PyYAML) writes 5e-05 as 5.0e-05 and the string "1e5" plain; DVC (YAML 1.2) does not
+    text, before, after = _lock_with_param(value)
     assert dump_lock_text(after) == dvc_dump_text(after)
     assert libyaml_lock_text(text, before, after) == dvc_dump_text(after)
     assert load_lock_text(dump_lock_text(after)) == after or value != value
@@ -104,10 +109,7 @@ def test_floats_and_float_like_strings_dump_through_libyaml_as_dvc_writes_them(v
 def test_entries_libyaml_writes_otherwise_get_dvcs_bytes(value):
     # YAML 1.1 (PyYAML) writes "0o17" plain, which YAML 1.2 (how DVC reads) takes for a number; the
     # rest it writes in another style than DVC's
-    text = "schema: '2.0'\nstages:\n  a:\n    cmd: echo a\n"
-    before = load_lock_text(text)
-    entry = {"cmd": "echo", "params": {"p.yaml": {"x": value}}}
-    after = {**before, "stages": {**before["stages"], "s": entry}}
+    text, before, after = _lock_with_param(value)
     assert dump_lock_text(after) != dvc_dump_text(after)
     assert lock_text(text, before, after) == dvc_dump_text(after)
 
