@@ -52,7 +52,7 @@ from sim.learn.universal import UNIVERSAL_FILE
 from sim.rollout.section import RolloutSection
 
 REPO = Path(__file__).resolve().parents[2]
-TARGETS = ("lenhart2015", "moissenet_np1023", "moissenet_np1014")
+TARGETS = ("lenhart2015", "moissenet_np1023")
 POLICY_FILES = (POLICY_FILE, NORM_FILE, BODY_FILE, CYCLE_FILE, PROGRESS_FILE, EVALUATION_FILE)
 
 
