@@ -41,6 +41,7 @@ from sim.learn.universal import (
     load_teachers,
     params_from_yaml,
     pool_observations,
+    progress_text,
     restat,
     rewind,
     rewound,
@@ -294,6 +295,17 @@ def test_one_run_resumes_and_records_its_gate(universal, camargo, tmp_path):
     assert 0 <= last["checkpoints"][-1]["training"]["ppo"]["beyond_bound"] <= 1
     assert torch.exp(load_policy(out)[0].policy.log_std).min() >= 0.5 - 1e-6  # raised from exp(-1) = 0.37
     assert all(n["pushed"] == 0 for n in last["checkpoints"][-1]["training"]["episodes"].values())
+
+
+def test_the_progress_record_keeps_a_line_per_checkpoint():
+    gate = {"camargo": {"walk_10m_no_fall": {"value": 0, "pass": True, "fell_in": []}}}
+    rec = {"steps": 512, "subjects": ["camargo"], "widened": [], "runs": [{"steps": 512, "wall_s": 1.5}],
+           "checkpoints": [{"steps": s, "passed": 1, "gate": gate} for s in (0, 256, 512)]}
+    text = progress_text(rec)
+    assert json.loads(text) == rec and text.endswith("}\n")
+    lines = [json.loads(line.strip().rstrip(",")) for line in text.splitlines() if line.startswith("  {")]
+    assert lines == rec["runs"] + rec["checkpoints"]  # one line each, in order
+    assert len(text) < 0.7 * len(json.dumps(rec, indent=1))
 
 
 def test_a_signal_stops_the_run_with_a_checkpoint_then_acts(universal, camargo, tmp_path, monkeypatch):
