@@ -508,11 +508,25 @@ def policy_env(out_dir: str | Path, env: WalkEnvParams) -> WalkEnvParams:
                                          first_step=first))
 
 
-def save_for_rollouts(src: str | Path, dest: str | Path) -> None:
+def save_for_rollouts(src: str | Path, dest: str | Path, *, critic: bool = True) -> None:
     """The PPO policy in `src` saved at `dest` with an Adam optimizer that has taken no step: the
     weights, and so every rollout, unchanged, without training's moments (a committed policy keeps
-    what rollouts need: 0.74 MB instead of 2.2 MB; docs/policies.md, "Committed policies")."""
+    what rollouts need: 0.74 MB instead of 2.2 MB; docs/policies.md, "Committed policies").
+    `critic=False`: the actor alone, the value network cut to a zero linear head on the observation
+    (`net_arch` vf `[]`; rollouts read only the actor): half the size, for a policy no run starts from."""
     model = PPO.load(str(src), device="cpu")
+    if not critic:
+        model.policy_kwargs = {**model.policy_kwargs,
+                               "net_arch": {"pi": list(model.policy_kwargs["net_arch"]["pi"]), "vf": []}}
+        actor = model.policy_class(model.observation_space, model.action_space, model.lr_schedule,
+                                   **model.policy_kwargs)
+        kept = {k: v for k, v in model.policy.state_dict().items()
+                if not k.startswith(("mlp_extractor.value_net.", "value_net."))}
+        with torch.no_grad():
+            actor.value_net.weight.zero_()
+            actor.value_net.bias.zero_()
+        actor.load_state_dict({**actor.state_dict(), **kept})
+        model.policy = actor
     used = model.policy.optimizer
     model.policy.optimizer = type(used)(model.policy.parameters(), **used.defaults)
     model.save(str(dest))

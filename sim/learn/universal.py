@@ -764,7 +764,7 @@ def export_subject(universal_dir: str | Path, src: Source, p: WalkEnvParams, out
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     src_dir = Path(universal_dir)
-    save_for_rollouts(src_dir / POLICY_FILE, out / POLICY_FILE)  # no optimizer moments: no rollout needs them
+    save_for_rollouts(src_dir / POLICY_FILE, out / POLICY_FILE, critic=False)  # what rollouts need: the actor
     shutil.copyfile(src_dir / NORM_FILE, out / NORM_FILE)
     save_body(out, src.xml, load_reference(src.reference_npz).cycle)
     save_steering(out, p.commands)

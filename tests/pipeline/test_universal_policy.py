@@ -30,12 +30,14 @@ def test_an_exported_subject_policy_walks_its_own_body(params, train_params, cam
     assert (folder / UNIVERSAL_FILE).is_file()
     model, norm = load_policy(folder)
     assert model.observation_space.shape == (UNIVERSAL_OBS_SIZE,)
-    # what rollouts need: the run's weights, an optimizer without training's moments
+    # what rollouts need: the run's actor, no critic, an optimizer without training's moments
     run, _ = load_policy(universal)
-    weights = run.policy.state_dict()
-    assert all(torch.equal(v, weights[k]) for k, v in model.policy.state_dict().items())
+    weights, kept = run.policy.state_dict(), model.policy.state_dict()
+    actor = [k for k in weights if "value_net" not in k]
+    assert "action_net.weight" in actor and all(torch.equal(kept[k], weights[k]) for k in actor)
+    assert len(model.policy.mlp_extractor.value_net) == 0 and not model.policy.value_net.weight.any()
     assert model.policy.optimizer.state_dict()["state"] == {} and run.policy.optimizer.state_dict()["state"]
-    assert (folder / POLICY_FILE).stat().st_size < 0.5 * (universal / POLICY_FILE).stat().st_size
+    assert (folder / POLICY_FILE).stat().st_size < 0.25 * (universal / POLICY_FILE).stat().st_size
 
     # the body the policy is told about is the folder's own
     xml, cycle = load_body(folder)
@@ -59,6 +61,9 @@ def _first_body_values_only(folder: Path, body: np.ndarray, n_body: int) -> None
     z = np.clip((body[n_body:] - norm.obs_rms.mean[n:]) / np.sqrt(norm.obs_rms.var[n:] + norm.epsilon),
                 -norm.clip_obs, norm.clip_obs)
     for net in (model.policy.mlp_extractor.policy_net, model.policy.mlp_extractor.value_net):
+        if not len(net):  # an actor-only export: its zero value head reads the observation itself
+            model.policy.value_net = torch.nn.Linear(n, 1)
+            continue
         old = net[0]
         first = torch.nn.Linear(n, old.out_features)
         with torch.no_grad():
