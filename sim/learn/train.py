@@ -38,6 +38,7 @@ from stable_baselines3.common.callbacks import BaseCallback, CallbackList
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv, VecMonitor, VecNormalize
 
 from sim.body.variant import Variant
+from sim.errors import SimulationError
 from sim.learn.amp import AMP, AMPCallback, AMPParams
 from sim.learn.steering import CommandSampling
 from sim.learn.walk_env import (
@@ -319,7 +320,12 @@ def train(model_path: str | Path, cycle: ReferenceCycle, p: TrainParams, out_dir
                 if not (start_dir / f).exists():
                     raise FileNotFoundError(f"{start_dir / f}: no policy to start from")
             old = PPO.load(str(start_dir / POLICY_FILE), device="cpu")
-            if old.observation_space.shape[0] == LEGACY_OBS_SIZE:  # a straight walker: widen to steering
+            n_obs = old.observation_space.shape[0]
+            if n_obs not in (LEGACY_OBS_SIZE, OBS_SIZE):
+                raise SimulationError(start_dir / POLICY_FILE, f"a policy of {n_obs} observations, not one "
+                                      f"body's {OBS_SIZE}: a subject's export of the universal policy is "
+                                      "fine-tuned by `transfer` (from data/universal)")
+            if n_obs == LEGACY_OBS_SIZE:  # a straight walker: widen to steering
                 venv, model = widen_policy(old, load_norm(start_dir), venv, p, cycle.speed_mps)
             else:
                 venv = VecNormalize.load(str(start_dir / NORM_FILE), venv)

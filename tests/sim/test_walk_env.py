@@ -18,6 +18,7 @@ from gymnasium.utils.env_checker import check_env
 
 import sim.learn.train as train_module
 from sim.body.human_params import joint_kind
+from sim.errors import SimulationError
 from sim.learn.amp import AMP, style_reward
 from sim.learn.harness_twist import HarnessTwist, TwistParams
 from sim.learn.policy_human import ActorMlp, PolicyHuman
@@ -321,7 +322,7 @@ def test_numpy_actor_gives_the_trained_policys_actions(setup, policies_root):
                                atol=2e-6)
 
 
-def test_training_can_start_from_another_subjects_policy(tmp_path, setup, camargo_model):
+def test_training_can_start_from_another_subjects_policy(tmp_path, setup, camargo_model, policies_root):
     """`init_from`: the new run starts from the given policy, normaliser and discriminator (same
     observation / action layout for every subject) and counts its own steps from zero."""
     _, tp, _, cycle = setup
@@ -348,6 +349,10 @@ def test_training_can_start_from_another_subjects_policy(tmp_path, setup, camarg
     with pytest.raises(FileNotFoundError, match="no policy to start from"):
         train(xml, cycle, p, tmp_path / "c", n_envs=2, threads=1, total_steps=256, progress=False,
               init_from=tmp_path / "missing")
+    body_conditioned = policies_root / "kgc6"  # an export of the universal policy: 81 observations
+    with pytest.raises(SimulationError, match="policy of 81 observations.*fine-tuned by `transfer`"):
+        train(xml, cycle, p, tmp_path / "e", n_envs=2, threads=1, total_steps=256, progress=False,
+              init_from=body_conditioned)
 
 
 def test_real_gait_in_the_model_matches_the_dataset_curves(params, camargo_model):
@@ -378,8 +383,6 @@ def test_real_gait_in_the_model_matches_the_dataset_curves(params, camargo_model
 def test_policy_human_refuses_a_world_at_another_timestep(setup, policies_root):
     """The policy's PD servos were trained at the body's 2 ms step: 200 Hz samples would make the
     world step 1.67 ms, which the policy human refuses rather than walk (and fall) there."""
-    from sim.errors import SimulationError
-
     params, tp, _, _ = setup
     body, cycle = load_body(policies_root / "camargo")
     env = make_walk_env(body, cycle, tp.env)
