@@ -16,7 +16,7 @@ from pipeline.runs.gate import SCENARIO_PREFIX, universal_required
 from sim.learn.train import NORM_FILE, POLICY_FILE, PROGRESS_FILE
 
 REPO = Path(__file__).resolve().parents[2]
-SUBJECT = "moissenet_np1023"   # no committed policy: adopts on its gate alone
+SUBJECT = "lenhart2015"   # no committed policy: adopts on its gate alone
 
 
 def verdict(passed: bool, failed: list[str] | None = None) -> dict:

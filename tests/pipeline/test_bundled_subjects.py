@@ -380,7 +380,7 @@ def test_kgc6_scales_from_its_walks_and_its_markers_fit(kgc6_model, params):
 
 def test_a_subject_without_a_policy_simulates_empty_policy_tables(tmp_path):
     """simulate --human policy (the simulate_policy stage) exits 0 and writes empty tables."""
-    assert main(["simulate", "moissenet_np1023", "--human", "policy", "--root", str(tmp_path)]) == 0
-    folder = tmp_path / "moissenet_np1023" / "sim_policy"
+    assert main(["simulate", "lenhart2015", "--human", "policy", "--root", str(tmp_path)]) == 0
+    folder = tmp_path / "lenhart2015" / "sim_policy"
     assert json.loads((folder / "summary.json").read_text())["rollouts"] == 0
     assert pd.read_parquet(folder / "strides.parquet").empty

@@ -58,8 +58,9 @@ POLICY_FILES = (POLICY_FILE, NORM_FILE, BODY_FILE, CYCLE_FILE, PROGRESS_FILE, EV
 
 @pytest.fixture(scope="module")
 def processed(tmp_path_factory, params) -> Path:
-    """ingest, scale and reference of the bundled subjects without a committed policy (and camargo),
-    as `dvc repro` makes them, in a temporary root."""
+    """ingest, scale and reference of two bundled subjects that transfer here (into a temporary
+    policies root: what data/policies holds for them does not matter) and camargo, as `dvc repro`
+    makes them, in a temporary root."""
     from pipeline.stages.ingest import run_ingest
     from pipeline.stages.reference import run_reference
     from pipeline.stages.scale import run_scale
