@@ -198,10 +198,12 @@ def cmd_adopt_universal(args: argparse.Namespace) -> int:
     subjects = args.subjects or list(params.section("universal", UniversalParams).subjects)
     universal = args.universal or UNIVERSAL_DIR
     doc = evaluate_checkpoint(params, universal, subjects, root=args.root or PROCESSED_ROOT,
-                              progress=not args.json)
+                              policy_root=args.policy_root or POLICIES_ROOT, progress=not args.json)
     if not args.no_record:  # no path of this machine in the record
         where = shown_path(str(universal.resolve()), REPO_ROOT)
-        how = (f"python -m pipeline adopt-universal {' '.join(args.subjects)}".rstrip()
+        against = (f" --policy-root {shown_path(str(args.policy_root.resolve()), REPO_ROOT)}"
+                   if args.policy_root else "")
+        how = (f"python -m pipeline adopt-universal {' '.join(args.subjects)}".rstrip() + against
                + f" (the checkpoint in {where})")
         append_record(universal, doc, how)
     print(json_text(doc), end="")
@@ -514,6 +516,8 @@ def build_parser() -> argparse.ArgumentParser:
     adopt.add_argument("subjects", nargs="*", help="bodies to judge (default: params universal.subjects)")
     adopt.add_argument("--universal", type=Path, help="the checkpoint's folder (default: data/universal)")
     adopt.add_argument("--root", type=Path, help="<root>/<subject>/{model,real} in (default: data/processed)")
+    adopt.add_argument("--policy-root", type=Path, help="policies folder holding the committed policies "
+                       "compared against and the run's source evaluation (default: data/policies)")
     adopt.add_argument("--no-record", action="store_true", help="do not append to <folder>/adoption.json")
     adopt.add_argument("--json", action="store_true", help="JSON only on stdout (no progress bar)")
     adopt.set_defaults(func=cmd_adopt_universal)

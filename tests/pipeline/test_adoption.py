@@ -13,10 +13,11 @@ from pipeline.cli import main
 from pipeline.commands.adoption import decide, gate_rule
 from pipeline.paths import ADOPTION_FILE
 from pipeline.runs.gate import SCENARIO_PREFIX, universal_required
+from sim.learn.pool import UniversalParams
 from sim.learn.train import NORM_FILE, POLICY_FILE, PROGRESS_FILE
 
 REPO = Path(__file__).resolve().parents[2]
-SUBJECT = "lenhart2015"   # no committed policy: adopts on its gate alone
+SUBJECT = "lenhart2015"   # judged against a policies folder without its policy: adopts on its gate alone
 
 
 def verdict(passed: bool, failed: list[str] | None = None) -> dict:
@@ -76,19 +77,24 @@ def processed(tmp_path_factory, params) -> Path:
     return root
 
 
-def test_adopt_universal_judges_the_checkpoint_and_records_it(processed, tmp_path, capsys):
-    universal = tmp_path / "universal"
+def test_adopt_universal_judges_the_checkpoint_and_records_it(processed, tmp_path, capsys, params,
+                                                             policies_root):
+    universal, policies = tmp_path / "universal", tmp_path / "policies"
     universal.mkdir()
     for f in (POLICY_FILE, NORM_FILE, PROGRESS_FILE):
         shutil.copy(REPO / "data" / "universal" / f, universal / f)
+    source = params.section("universal", UniversalParams).init_from  # its evaluation: the required checks
+    (policies / source).mkdir(parents=True)
+    shutil.copy(policies_root / source / "evaluation.json", policies / source / "evaluation.json")
     assert main(["adopt-universal", SUBJECT, "--universal", str(universal), "--root", str(processed),
-                 "--json"]) == 0
+                 "--policy-root", str(policies), "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
     rec = doc["subjects"][SUBJECT]
     assert doc["universal_steps"] == json.loads((universal / PROGRESS_FILE).read_text())["steps"]
     assert rec["checks"] >= 20 and rec["checks_passed"] == len(rec["passed"])
     assert (SUBJECT in doc["adopted"]) == rec["adopt"] and rec["walks"] == doc["gate_seeds"]
-    assert rec["gate_pass"] == (not rec["failed_required"])
+    assert rec["gate_pass"] == (not rec["failed_required"]) and "committed_checks_passed" not in rec
+    assert doc["required"] == sorted(universal_required(params, policies_root))
     if rec["gate_pass"]:  # confirmed with evaluate-policy's own walks before it adopts
         assert rec["confirmation"]["walks"] == doc["confirm_seeds"]
         assert rec["adopt"] == rec["confirmation"]["gate_pass"]
@@ -97,4 +103,5 @@ def test_adopt_universal_judges_the_checkpoint_and_records_it(processed, tmp_pat
     assert set(rec["failed_required"]) <= set(doc["required"])
     record = json.loads((universal / ADOPTION_FILE).read_text())
     assert record["evaluations"][-1]["subjects"] == doc["subjects"] and record["adopted"] == doc["adopted"]
-    assert str(tmp_path) not in record["evaluations"][-1]["how"]  # no path of this machine
+    how = record["evaluations"][-1]["how"]
+    assert str(tmp_path) not in how and "--policy-root <outside>/policies" in how  # no path of this machine

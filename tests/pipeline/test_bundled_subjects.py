@@ -26,10 +26,10 @@ from ingest.readers import read_markers, read_mot
 from ingest.static import read_static_trial
 from ingest.subject import load_subject
 from metrics.quality import scale_checks
-from pipeline.cli import main
 from pipeline.stages.ingest import run_ingest
 from pipeline.stages.reference import run_reference
 from pipeline.stages.scale import run_scale
+from pipeline.stages.simulate import run_simulate_policy
 from sim.body.scaling import scale_subject
 
 # subject -> the person's declared height (m): moissenet's norm_description.xlsx, lenhart2015's and
@@ -378,9 +378,12 @@ def test_kgc6_scales_from_its_walks_and_its_markers_fit(kgc6_model, params):
     assert rows["knee_alignment_deg"].status == "n/a" and "not measured" in rows["knee_alignment_deg"].note
 
 
-def test_a_subject_without_a_policy_simulates_empty_policy_tables(tmp_path):
-    """simulate --human policy (the simulate_policy stage) exits 0 and writes empty tables."""
-    assert main(["simulate", "lenhart2015", "--human", "policy", "--root", str(tmp_path)]) == 0
+def test_a_subject_without_a_policy_simulates_empty_policy_tables(tmp_path, params):
+    """The simulate_policy stage, for a subject whose policies folder holds no policy, writes empty
+    tables and a summary naming the folder and the command that trains one."""
+    policies = tmp_path / "policies"
+    doc = run_simulate_policy("lenhart2015", params, tmp_path, policy_root=policies, progress=False)
     folder = tmp_path / "lenhart2015" / "sim_policy"
-    assert json.loads((folder / "summary.json").read_text())["rollouts"] == 0
+    assert json.loads((folder / "summary.json").read_text()) == doc and doc["rollouts"] == 0
+    assert str(policies / "lenhart2015") in doc["note"] and "pipeline train lenhart2015" in doc["note"]
     assert pd.read_parquet(folder / "strides.parquet").empty
