@@ -11,9 +11,9 @@ import pytest
 
 from pipeline.cli import main
 from pipeline.commands.adoption import decide, gate_rule
-from pipeline.paths import ADOPTION_FILE
+from pipeline.paths import ADOPTION_FILE, policy_dir
 from pipeline.runs.gate import SCENARIO_PREFIX, universal_required
-from sim.learn.pool import UniversalParams
+from pipeline.runs.gate_record import EVALUATION_FILE
 from sim.learn.train import NORM_FILE, POLICY_FILE, PROGRESS_FILE
 
 REPO = Path(__file__).resolve().parents[2]
@@ -83,9 +83,9 @@ def test_adopt_universal_judges_the_checkpoint_and_records_it(processed, tmp_pat
     universal.mkdir()
     for f in (POLICY_FILE, NORM_FILE, PROGRESS_FILE):
         shutil.copy(REPO / "data" / "universal" / f, universal / f)
-    source = params.section("universal", UniversalParams).init_from  # its evaluation: the required checks
-    (policies / source).mkdir(parents=True)
-    shutil.copy(policies_root / source / "evaluation.json", policies / source / "evaluation.json")
+    source = params.universal.init_from  # the run's source: its evaluation gives the required checks
+    policy_dir(policies, source).mkdir(parents=True)
+    shutil.copy(policy_dir(policies_root, source) / EVALUATION_FILE, policy_dir(policies, source))
     assert main(["adopt-universal", SUBJECT, "--universal", str(universal), "--root", str(processed),
                  "--policy-root", str(policies), "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
