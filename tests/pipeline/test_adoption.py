@@ -58,8 +58,9 @@ def test_an_adoption_is_confirmed_with_evaluate_policys_own_walks():
 
 def test_the_gate_requires_what_the_runs_source_passes(params, policies_root):
     required = universal_required(params, policies_root)
-    source = json.loads((policies_root / "camargo" / "evaluation.json").read_text())["checks"]
-    assert required == {k for k, ok in source.items() if k.startswith(SCENARIO_PREFIX) and ok}
+    source = params.universal.init_from
+    checks = json.loads((policy_dir(policies_root, source) / EVALUATION_FILE).read_text())["checks"]
+    assert required == {k for k, ok in checks.items() if k.startswith(SCENARIO_PREFIX) and ok}
     assert required and not any(k.startswith("scenario_turnaround") for k in required)  # camargo fails those
 
 
