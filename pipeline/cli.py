@@ -148,7 +148,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     if getattr(args, "human", "replay") == "policy":
         from pipeline.stages.simulate import run_simulate_policy
 
-        doc = run_simulate_policy(args.subject, params, args.root or PROCESSED_ROOT)
+        doc = run_simulate_policy(args.subject, params, args.root or PROCESSED_ROOT,
+                                  args.policy_root or POLICIES_ROOT)
         if "note" in doc:  # no trained policy: empty tables
             print(f"{args.subject} policy: {doc['note']}", file=sys.stderr)
         else:
@@ -481,6 +482,8 @@ def build_parser() -> argparse.ArgumentParser:
     simulate.add_argument("--human", choices=("replay", "policy"), default="replay",
                           help="replay: kinematic replay (default); policy: the trained walking policy, "
                           "written to <root>/<subject>/sim_policy/")
+    simulate.add_argument("--policy-root", type=Path, help="policies folder holding <subject>/ for "
+                          "--human policy (default: data/policies)")
     simulate.set_defaults(func=cmd_simulate)
 
     train = commands.add_parser("train", help="train the subject's walking policy (PPO + AMP)")

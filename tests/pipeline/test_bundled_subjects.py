@@ -26,6 +26,7 @@ from ingest.readers import read_markers, read_mot
 from ingest.static import read_static_trial
 from ingest.subject import load_subject
 from metrics.quality import scale_checks
+from pipeline.cli import main
 from pipeline.stages.ingest import run_ingest
 from pipeline.stages.reference import run_reference
 from pipeline.stages.scale import run_scale
@@ -387,3 +388,12 @@ def test_a_subject_without_a_policy_simulates_empty_policy_tables(tmp_path, para
     assert json.loads((folder / "summary.json").read_text()) == doc and doc["rollouts"] == 0
     assert str(policies / "lenhart2015") in doc["note"] and "pipeline train lenhart2015" in doc["note"]
     assert pd.read_parquet(folder / "strides.parquet").empty
+
+
+def test_simulate_policy_from_the_command_line_says_why_its_tables_are_empty(tmp_path, capsys):
+    policies = tmp_path / "policies"
+    assert main(["simulate", "lenhart2015", "--human", "policy", "--root", str(tmp_path),
+                 "--policy-root", str(policies)]) == 0
+    err = capsys.readouterr().err
+    assert err.startswith("lenhart2015 policy: no trained policy in") and str(policies) in err
+    assert json.loads((tmp_path / "lenhart2015" / "sim_policy" / "summary.json").read_text())["rollouts"] == 0
