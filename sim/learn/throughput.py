@@ -2,9 +2,10 @@
 
 Three rates, each measured here in one run: raw `mj_step` of a subject's human (one process, and
 one process per core side by side), env steps of the pool of bodies alone (random actions, no
-learning: one env, and `n_envs` in one process each), and training (PPO + AMP updates included, the
-same envs). A third configuration is the one a few-core machine trains with: `in_process_envs` envs
-stepped in the training process itself, the updates on every core (`UpdateThreads`). Training is
+learning: one env, and `n_envs` worker processes, the updates then on every core while the workers
+wait, as the run's `--subprocess --threads` trains), and training (PPO + AMP updates included, the
+same envs). A third configuration: `in_process_envs` envs stepped in the training process itself,
+the updates on every core (`UpdateThreads`). Training is
 update-bound when its rate is well below the env-only one at the same env count; the ratio is what
 `python -m pipeline bench` holds to its target.
 """
@@ -93,7 +94,7 @@ def measure(sources: tuple[Source, ...], up: UniversalParams, p: TrainParams, sc
             in_process_envs: int | None = None) -> dict:
     """The three rates on 1 env, on `n_envs` (default: every core) worker processes of
     `envs_per_worker` envs each, and on `in_process_envs` (default `p.n_envs`) envs in the training
-    process with the updates on every core (module docstring)."""
+    process; the updates of the last two on every core (module docstring)."""
     cores = os.cpu_count() or 1
     n = n_envs or cores
     up = replace(up, refresh_probability=0.0)
@@ -102,7 +103,8 @@ def measure(sources: tuple[Source, ...], up: UniversalParams, p: TrainParams, sc
     m = in_process_envs or p.n_envs
     out["in_process_envs"], out["update_threads"] = m, cores
     # label, processes stepping the envs (None: the training process), envs, torch threads of the update
-    for label, k, envs, threads in (("one", 1, 1, 1), ("all", n, n * envs_per_worker, 1),
+    # (every core where the env workers wait out the update, as the run's `--threads` does)
+    for label, k, envs, threads in (("one", 1, 1, 1), ("all", n, n * envs_per_worker, cores),
                                     ("in_process", None, m, cores)):
         if k is not None:  # the physics' own rate over as many processes
             out[f"mj_step_per_s_{label}"] = round(raw_step_rate(sources[0].xml, k), 1)
