@@ -2,12 +2,12 @@
 
 Three rates, each measured here in one run: raw `mj_step` of a subject's human (one process, and
 one process per core side by side), env steps of the pool of bodies alone (random actions, no
-learning: one env, and `n_envs` worker processes, the updates then on every core while the workers
-wait, as the run's `--subprocess --threads` trains), and training (PPO + AMP updates included, the
-same envs). A third configuration: `in_process_envs` envs stepped in the training process itself,
-the updates on every core (`UpdateThreads`). Training is
-update-bound when its rate is well below the env-only one at the same env count; the ratio is what
-`python -m pipeline bench` holds to its target.
+learning) and training (PPO + AMP updates included), each on one env and on `n_envs` worker
+processes (the updates then on every core while the workers wait, as the run's `--subprocess
+--threads` trains). A third configuration: `in_process_envs` envs stepped in the training process
+itself, the updates on every core (`UpdateThreads`). Training is update-bound when its rate is
+well below the env-only one at the same env count; the ratio is what `python -m pipeline bench`
+holds to its target.
 """
 
 from __future__ import annotations
