@@ -13,7 +13,7 @@ from pipeline.cli import main
 from pipeline.commands.adoption import decide, gate_rule
 from pipeline.paths import ADOPTION_FILE, policy_dir
 from pipeline.runs.gate import SCENARIO_PREFIX, universal_required
-from pipeline.runs.gate_record import EVALUATION_FILE
+from pipeline.runs.gate_record import EVALUATION_FILE, source_evaluation
 from sim.learn.train import NORM_FILE, POLICY_FILE, PROGRESS_FILE
 
 REPO = Path(__file__).resolve().parents[2]
@@ -58,8 +58,7 @@ def test_an_adoption_is_confirmed_with_evaluate_policys_own_walks():
 
 def test_the_gate_requires_what_the_runs_source_passes(params, policies_root):
     required = universal_required(params, policies_root)
-    source = params.universal.init_from
-    checks = json.loads((policy_dir(policies_root, source) / EVALUATION_FILE).read_text())["checks"]
+    checks = source_evaluation(policy_dir(policies_root, params.universal.init_from))["checks"]
     assert required == {k for k, ok in checks.items() if k.startswith(SCENARIO_PREFIX) and ok}
     assert required and not any(k.startswith("scenario_turnaround") for k in required)  # camargo fails those
 
