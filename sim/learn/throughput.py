@@ -12,12 +12,15 @@ holds to its target.
 
 from __future__ import annotations
 
+import json
 import os
+import shutil
 import tempfile
 import time
 from dataclasses import replace
 from functools import partial
 from multiprocessing import get_context
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -25,8 +28,8 @@ import torch
 from stable_baselines3.common.vec_env import DummyVecEnv
 
 from sim.learn.pool import Source, UniversalParams
-from sim.learn.train import TrainParams
-from sim.learn.universal import make_pool_env, train_universal
+from sim.learn.train import PROGRESS_FILE, TrainParams
+from sim.learn.universal import RUN_STATE, make_pool_env, train_universal
 from sim.learn.vec import GroupedSubprocVecEnv
 from sim.rollout.scenarios import Segment
 
@@ -76,13 +79,21 @@ Scenarios = dict[str, list[Segment]]
 
 def train_step_rate(sources: tuple[Source, ...], up: UniversalParams, p: TrainParams, scenarios: Scenarios,
                     n_envs: int, steps: int, device: str, init_from: str | None,
-                    workers: int | None = None, in_process: bool = False, threads: int = 1) -> float:
+                    workers: int | None = None, in_process: bool = False, threads: int = 1,
+                    resume_from: str | Path | None = None) -> float:
     """Training env steps per second (PPO + AMP updates on `threads` torch threads) with `n_envs`
     envs (in `workers` processes, default one per env, when more than one and not `in_process`),
-    from `init_from` as the run does, no gate."""
+    no gate: from `init_from` as the run started, or resuming a copy of the run's checkpoint in
+    `resume_from` (its policy, statistics, discriminator and progress record), as the run goes on."""
     with tempfile.TemporaryDirectory() as tmp:
+        start = 0
+        if resume_from is not None:
+            for name in (*RUN_STATE, PROGRESS_FILE):
+                shutil.copy2(Path(resume_from) / name, Path(tmp) / name)
+            start = int(json.loads((Path(tmp) / PROGRESS_FILE).read_text())["steps"])
         rec = train_universal(sources, replace(p, checkpoint_steps=10 ** 12), up, tmp, scenarios,
-                              init_from=init_from, total_steps=steps, n_envs=n_envs,
+                              init_from=None if resume_from is not None else init_from,
+                              resume=resume_from is not None, total_steps=start + steps, n_envs=n_envs,
                               subprocess=n_envs > 1 and not in_process, device=device, gate=False,
                               workers=workers, threads=threads)
     return float(rec["runs"][-1]["steps_per_s"])
@@ -91,15 +102,18 @@ def train_step_rate(sources: tuple[Source, ...], up: UniversalParams, p: TrainPa
 def measure(sources: tuple[Source, ...], up: UniversalParams, p: TrainParams, scenarios: Scenarios, *,
             n_envs: int | None = None, device: str = "auto", init_from: str | None = None,
             env_steps: int = 4000, train_steps: int = 8192, envs_per_worker: int = 1,
-            in_process_envs: int | None = None) -> dict:
+            in_process_envs: int | None = None, resume_from: str | Path | None = None) -> dict:
     """The three rates on 1 env, on `n_envs` (default: every core) worker processes of
     `envs_per_worker` envs each, and on `in_process_envs` (default `p.n_envs`) envs in the training
-    process; the updates of the last two on every core (module docstring)."""
+    process; the updates of the last two on every core (module docstring). Training starts from
+    `init_from`, or resumes a copy of the run's checkpoint in `resume_from` (`train_step_rate`)."""
     cores = os.cpu_count() or 1
     n = n_envs or cores
     up = replace(up, refresh_probability=0.0)
     out: dict = {"cpu_count": cores, "workers": n, "envs_per_worker": envs_per_worker, "device": device,
-                 "cuda": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None}
+                 "cuda": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None,
+                 **({"resumed_from": str(resume_from)} if resume_from is not None else
+                    {"initialised_from": str(init_from)})}
     m = in_process_envs or p.n_envs
     out["in_process_envs"], out["update_threads"] = m, cores
     # label, processes stepping the envs (None: the training process), envs, torch threads of the update
@@ -112,7 +126,8 @@ def measure(sources: tuple[Source, ...], up: UniversalParams, p: TrainParams, sc
             env_step_rate(sources, up, p, envs, env_steps * envs, k, in_process=k is None), 1)
         out[f"train_steps_per_s_{label}"] = round(
             train_step_rate(sources, up, p, scenarios, envs, max(train_steps * envs, p.n_steps * envs * 2),
-                            device, init_from, k, in_process=k is None, threads=threads), 1)
+                            device, init_from, k, in_process=k is None, threads=threads,
+                            resume_from=resume_from), 1)
         ratio = out[f"train_steps_per_s_{label}"] / out[f"env_steps_per_s_{label}"]
         out[f"train_to_env_{label}"] = round(ratio, 3)
     out["env_scaling"] = round(out["env_steps_per_s_all"] / out["env_steps_per_s_one"], 2)
@@ -122,8 +137,6 @@ def measure(sources: tuple[Source, ...], up: UniversalParams, p: TrainParams, sc
 def main(argv: list[str] | None = None) -> int:
     """`python -m sim.learn.throughput`: `measure` on this machine, printed and written as JSON."""
     import argparse
-    import json
-    from pathlib import Path
 
     from sim.learn.universal import params_from_yaml, sources_of
 
@@ -131,6 +144,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--params", type=Path, default=Path("params.yaml"))
     ap.add_argument("--processed", type=Path, default=Path("data/processed"))
     ap.add_argument("--init-from", default="data/policies/camargo")
+    ap.add_argument("--resume-from", type=Path, default=None,
+                    help="a copy of the run's checkpoint in this folder resumed instead (data/universal)")
     ap.add_argument("--n-envs", type=int, default=None)
     ap.add_argument("--device", default="auto")
     ap.add_argument("--train-steps", type=int, default=8192)
@@ -140,7 +155,7 @@ def main(argv: list[str] | None = None) -> int:
     p, up, scenarios = params_from_yaml(args.params)
     doc = measure(sources_of(up.subjects, args.processed), up, p, scenarios, n_envs=args.n_envs,
                   device=args.device, init_from=args.init_from, train_steps=args.train_steps,
-                  envs_per_worker=args.envs_per_worker)
+                  envs_per_worker=args.envs_per_worker, resume_from=args.resume_from)
     text = json.dumps(doc, indent=1)
     print(text, flush=True)
     if args.out is not None:

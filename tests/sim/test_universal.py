@@ -545,6 +545,23 @@ def test_throughput_is_measured_against_the_physics(universal, camargo):
             doc[f"train_steps_per_s_{label}"] / doc[f"env_steps_per_s_{label}"], abs=1e-3)
 
 
+def test_throughput_resumes_a_copy_of_the_run_and_leaves_the_run_alone(universal, camargo, tmp_path):
+    """The measurement's training from the committed run's checkpoint: a copy resumed, so the
+    rate is the run's own policy and statistics going on, and the run's files stay as they were."""
+    from sim.learn.throughput import train_step_rate
+    from sim.learn.train import PROGRESS_FILE
+
+    p, up, scenarios = universal
+    run = tmp_path / "run"
+    run.mkdir()
+    for name in (*universal_module.RUN_STATE, PROGRESS_FILE):
+        shutil.copy2(os.path.join("data", "universal", name), run / name)
+    before = {f.name: f.read_bytes() for f in run.iterdir()}
+    rate = train_step_rate((camargo[0],), up, replace(p, n_steps=64, batch_size=64), scenarios, 1, 128,
+                           "cpu", "data/policies/nowhere", resume_from=run)
+    assert rate > 0
+    assert {f.name: f.read_bytes() for f in run.iterdir()} == before
+
 def test_grouped_workers_step_as_one_process_does(universal, camargo):
     from functools import partial
 
