@@ -562,6 +562,7 @@ def test_throughput_resumes_a_copy_of_the_run_and_leaves_the_run_alone(universal
     assert rate > 0
     assert {f.name: f.read_bytes() for f in run.iterdir()} == before
 
+
 def test_grouped_workers_step_as_one_process_does(universal, camargo):
     from functools import partial
 
