@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
 import tempfile
 import time
 from dataclasses import replace
@@ -28,8 +27,8 @@ import torch
 from stable_baselines3.common.vec_env import DummyVecEnv
 
 from sim.learn.pool import Source, UniversalParams
-from sim.learn.train import PROGRESS_FILE, TrainParams
-from sim.learn.universal import RUN_STATE, make_pool_env, train_universal
+from sim.learn.train import TrainParams
+from sim.learn.universal import copy_checkpoint, make_pool_env, train_universal
 from sim.learn.vec import GroupedSubprocVecEnv
 from sim.rollout.scenarios import Segment
 
@@ -88,9 +87,7 @@ def train_step_rate(sources: tuple[Source, ...], up: UniversalParams, p: TrainPa
     with tempfile.TemporaryDirectory() as tmp:
         start = 0
         if resume_from is not None:
-            for name in (*RUN_STATE, PROGRESS_FILE):
-                shutil.copy2(Path(resume_from) / name, Path(tmp) / name)
-            start = int(json.loads((Path(tmp) / PROGRESS_FILE).read_text())["steps"])
+            start = int(copy_checkpoint(resume_from, tmp)["steps"])
         rec = train_universal(sources, replace(p, checkpoint_steps=10 ** 12), up, tmp, scenarios,
                               init_from=None if resume_from is not None else init_from,
                               resume=resume_from is not None, total_steps=start + steps, n_envs=n_envs,

@@ -785,10 +785,7 @@ def fine_tune_body(universal_dir: str | Path, src: Source, p: TrainParams, up: U
     `fine_tuned_steps` (this fine-tune's env steps) and `initial_steps` (the universal policy's)."""
     work = Path(work_dir)
     if not (work / PROGRESS_FILE).exists():
-        work.mkdir(parents=True, exist_ok=True)
-        for name in RUN_STATE:
-            shutil.copyfile(Path(universal_dir) / name, work / name)
-        start = int(json.loads((Path(universal_dir) / PROGRESS_FILE).read_text())["steps"])
+        start = int(copy_checkpoint(universal_dir, work)["steps"])
         first = {"steps": start, "wall_s": 0.0, "initialised_from": "universal", "initial_steps": start,
                  "obs_stats_frozen": True, "runs": [], "checkpoints": []}
         (work / PROGRESS_FILE).write_text(progress_text(first))
@@ -829,17 +826,32 @@ def rewound(current: dict, earlier: dict, why: str) -> dict:
     return {**earlier, "discarded": [*current.get("discarded", []), branch]}
 
 
+def checkpoint_record(folder: str | Path) -> dict:
+    """The progress record of the run's checkpoint in `folder`, checked whole first (`RUN_STATE`
+    and `PROGRESS_FILE`): a clear error naming the folder and what it lacks."""
+    folder = Path(folder)
+    missing = [name for name in (*RUN_STATE, PROGRESS_FILE) if not (folder / name).is_file()]
+    if missing:
+        raise FileNotFoundError(f"{folder}: missing {', '.join(missing)} (a checkpoint of the run is "
+                                f"{', '.join(RUN_STATE)} and {PROGRESS_FILE})")
+    return json.loads((folder / PROGRESS_FILE).read_text())
+
+
+def copy_checkpoint(src_dir: str | Path, dst_dir: str | Path) -> dict:
+    """The run's checkpoint in `src_dir` copied into `dst_dir` (made if needed), so a measurement,
+    a fine-tune or a rewind starts from it without touching the run: its progress record."""
+    rec, dst = checkpoint_record(src_dir), Path(dst_dir)
+    dst.mkdir(parents=True, exist_ok=True)
+    for name in (*RUN_STATE, PROGRESS_FILE):
+        shutil.copyfile(Path(src_dir) / name, dst / name)
+    return rec
+
+
 def rewind(out_dir: Path, earlier_dir: Path, why: str) -> dict:
     """Take the run in `out_dir` back to the checkpoint saved in `earlier_dir` (its policy,
     statistics, discriminator and progress record, e.g. from an earlier commit): `rewound`."""
-    for name in (*RUN_STATE, PROGRESS_FILE):
-        if not (earlier_dir / name).exists():
-            raise FileNotFoundError(f"{earlier_dir / name}: missing (a checkpoint needs "
-                                    f"{', '.join(RUN_STATE)} and {PROGRESS_FILE})")
-    rec = rewound(json.loads((out_dir / PROGRESS_FILE).read_text()),
-                  json.loads((earlier_dir / PROGRESS_FILE).read_text()), why)
-    for name in RUN_STATE:
-        shutil.copyfile(earlier_dir / name, out_dir / name)
+    rec = rewound(json.loads((out_dir / PROGRESS_FILE).read_text()), checkpoint_record(earlier_dir), why)
+    copy_checkpoint(earlier_dir, out_dir)
     (out_dir / PROGRESS_FILE).write_text(progress_text(rec))
     return rec
 

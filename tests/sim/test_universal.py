@@ -7,6 +7,7 @@ import json
 import math
 import multiprocessing
 import os
+import re
 import shutil
 import signal
 from dataclasses import replace
@@ -268,6 +269,13 @@ def test_one_run_resumes_and_records_its_gate(universal, camargo, tmp_path):
     assert norm.obs_rms.mean.shape == (UNIVERSAL_OBS_SIZE,)
     assert load_norm(out).obs_rms.count > 0
 
+    half = tmp_path / "half"  # a checkpoint without its discriminator: refused, the run untouched
+    shutil.copytree(early, half)
+    (half / "amp.pt").unlink()
+    before = {f.name: f.read_bytes() for f in out.iterdir() if f.is_file()}
+    with pytest.raises(FileNotFoundError, match=re.escape(f"{half}: missing amp.pt")):
+        rewind(out, half, "a test")
+    assert {f.name: f.read_bytes() for f in out.iterdir() if f.is_file()} == before
     back = rewind(out, early, "a test")  # the branch from 256 to 512 given up, kept in the record
     assert back["steps"] == 256 and load_policy(out)[0].num_timesteps == 256
     assert back["discarded"] == [{"from_steps": 256, "to_steps": 512, "why": "a test",
@@ -549,13 +557,10 @@ def test_throughput_resumes_a_copy_of_the_run_and_leaves_the_run_alone(universal
     """The measurement's training from the committed run's checkpoint: a copy resumed, so the
     rate is the run's own policy and statistics going on, and the run's files stay as they were."""
     from sim.learn.throughput import train_step_rate
-    from sim.learn.train import PROGRESS_FILE
 
     p, up, scenarios = universal
     run = tmp_path / "run"
-    run.mkdir()
-    for name in (*universal_module.RUN_STATE, PROGRESS_FILE):
-        shutil.copy2(os.path.join("data", "universal", name), run / name)
+    universal_module.copy_checkpoint(os.path.join("data", "universal"), run)
     before = {f.name: f.read_bytes() for f in run.iterdir()}
     rate = train_step_rate((camargo[0],), up, replace(p, n_steps=64, batch_size=64), scenarios, 1, 128,
                            "cpu", "data/policies/nowhere", resume_from=run)
